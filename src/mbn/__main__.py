@@ -1,0 +1,7 @@
+"""``python -m mbn``: the same as the ``mbn`` command."""
+
+import sys
+
+from mbn.cli import main
+
+sys.exit(main())
