@@ -52,7 +52,7 @@ def plot_multiplier_error(
         rel_err = np.where(target > 0, abs_err / np.where(target > 0, target, 1), np.nan)
 
     fig = _figure(figsize=(11, 4.6))
-    ax_abs, ax_rel = fig.subplots(1, 2)
+    ax_abs, ax_rel = fig.subplots(1, 2, gridspec_kw={"wspace": 0.35})
     extent = (0, 1, 0, 1)
     im = ax_abs.imshow(abs_err.T, origin="lower", extent=extent, cmap="viridis")
     fig.colorbar(im, ax=ax_abs, label="|output - x1·x2|")
