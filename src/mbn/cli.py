@@ -219,9 +219,9 @@ def _enable_x64() -> None:
 
 
 def _cmd_mul_train(args: argparse.Namespace) -> int:
-    import jax
-
     import dataclasses
+
+    import jax
 
     from mbn.multiplier import recipe, save_multiplier, train_stages
 

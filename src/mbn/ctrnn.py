@@ -8,9 +8,10 @@ The dynamics of neuron ``i`` are
     \\qquad r_j = \\sigma(g_j (y_j + \\theta_j)),
 
 with the logistic :math:`\\sigma`, membrane potential ``y``, firing rate ``r``, time constant
-``tau``, optional bias ``theta`` (``bias``, default 0) and gain ``g`` (``gain``, default 1). With the
-defaults this is exactly the paper's eq. 1. ``W[i, j]`` is the weight from neuron ``j`` to neuron
-``i`` (row = receiving neuron) and ``WE[i, k]`` the weight from external input ``k`` to neuron ``i``.
+``tau``, optional bias ``theta`` (``bias``, default 0) and gain ``g`` (``gain``, default 1). With
+the defaults this is exactly the paper's eq. 1. ``W[i, j]`` is the weight from neuron ``j`` to
+neuron ``i`` (row = receiving neuron) and ``WE[i, k]`` the weight from external input ``k`` to
+neuron ``i``.
 
 Everything here is a pure function of immutable data, batched over any leading dimensions of the
 state, the inputs and (by broadcasting) the parameters, and works in float32 and float64.

@@ -444,19 +444,32 @@ def recipe(num_neurons: int = 3) -> tuple[TrainConfig, ...]:
     Stage 1 trains random restarts; each later stage fine-tunes the best of the previous one
     (warm start with small noise) with other loss weights.
     """
-    common = {"num_neurons": num_neurons, "method": "euler", "learning_rate": 0.1}
+    common: dict[str, Any] = {"num_neurons": num_neurons, "method": "euler", "learning_rate": 0.1}
     if num_neurons <= 3:
         # One stage, selected by the paper's criterion (pairs within 5 %) alone: with 3 neurons,
         # pushing the corner (1, 1) within 0.05 costs a third of the pairs within 5 %.
         return (
-            TrainConfig(**common, num_restarts=128, num_iterations=1500, edge_weight=1.0,
-                        grid_error_cap=1.0),
+            TrainConfig(
+                **common, num_restarts=128, num_iterations=1500, edge_weight=1.0, grid_error_cap=1.0
+            ),
         )
     return (
-        TrainConfig(**common, num_restarts=64, num_iterations=2000, edge_weight=3.0,
-                    abs_weight=3.0, grid_error_cap=0.01),
-        TrainConfig(**{**common, "learning_rate": 0.01}, num_restarts=16, num_iterations=1500,
-                    edge_weight=10.0, abs_weight=10.0, grid_error_cap=0.01),
+        TrainConfig(
+            **common,
+            num_restarts=64,
+            num_iterations=2000,
+            edge_weight=3.0,
+            abs_weight=3.0,
+            grid_error_cap=0.01,
+        ),
+        TrainConfig(
+            **{**common, "learning_rate": 0.01},
+            num_restarts=16,
+            num_iterations=1500,
+            edge_weight=10.0,
+            abs_weight=10.0,
+            grid_error_cap=0.01,
+        ),
     )
 
 

@@ -158,7 +158,8 @@ def differing_connections(
     if margin < 0:
         raise MbnInputError(f"margin: must be >= 0, got {margin}")
     out = []
-    for kind, ma, mb in (("W", a.W, b.W), ("WE", a.WE, b.WE)):
+    pairs: tuple[tuple[Kind, Array, Array], ...] = (("W", a.W, b.W), ("WE", a.WE, b.WE))
+    for kind, ma, mb in pairs:
         ma_, mb_ = np.asarray(ma, np.float64), np.asarray(mb, np.float64)
         for i, j in zip(*np.nonzero(np.abs(ma_ - mb_) > atol), strict=True):
             lo, hi = sorted((ma_[i, j], mb_[i, j]))

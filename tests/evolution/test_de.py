@@ -14,6 +14,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import scipy.optimize  # noqa: E402
+import scipy.stats  # noqa: E402
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from hypothesis.extra import numpy as hnp  # noqa: E402
@@ -115,23 +116,44 @@ HAND_TRIAL_CLIP[2, 2] = 2.0
 HAND_TRIAL_REFLECT = HAND_TRIAL_UNBOUNDED.copy()
 HAND_TRIAL_REFLECT[0, 0] = 0.0
 HAND_TRIAL_REFLECT[2, 2] = 1.75
+# resample, with draws u = 0.5 everywhere except u[0, 0] = 0.2 and u[2, 2] = 0.75 (the draws of
+# the in-bounds genes are not used):
+#   -0.5 -> lower + u * (upper - lower) = -0.25 + 0.2 * 3.25 = 0.4;  2.25 -> -1 + 0.75 * 3 = 1.25
+HAND_RESAMPLE_U = np.full((5, 3), 0.5)
+HAND_RESAMPLE_U[0, 0] = 0.2
+HAND_RESAMPLE_U[2, 2] = 0.75
+HAND_TRIAL_RESAMPLE = HAND_TRIAL_UNBOUNDED.copy()
+HAND_TRIAL_RESAMPLE[0, 0] = 0.4
+HAND_TRIAL_RESAMPLE[2, 2] = 1.25
 
 
 @pytest.mark.parametrize(
-    ("bounds", "policy", "expected"),
+    ("bounds", "policy", "resample_u", "expected"),
     [
-        (None, "clip", HAND_TRIAL_UNBOUNDED),
-        ((HAND_LOWER, HAND_UPPER), "clip", HAND_TRIAL_CLIP),
-        ((HAND_LOWER, HAND_UPPER), "reflect", HAND_TRIAL_REFLECT),
+        (None, "clip", None, HAND_TRIAL_UNBOUNDED),
+        (None, "resample", None, HAND_TRIAL_UNBOUNDED),
+        ((HAND_LOWER, HAND_UPPER), "clip", None, HAND_TRIAL_CLIP),
+        ((HAND_LOWER, HAND_UPPER), "reflect", None, HAND_TRIAL_REFLECT),
+        ((HAND_LOWER, HAND_UPPER), "resample", HAND_RESAMPLE_U, HAND_TRIAL_RESAMPLE),
     ],
 )
 def test_mutate_crossover_matches_hand_computed_generation(
     bounds: tuple[tuple[float, ...], tuple[float, ...]] | None,
     policy: str,
+    resample_u: np.ndarray | None,
     expected: np.ndarray,
 ) -> None:
     lower, upper = bounds if bounds is not None else (None, None)
-    config = DEConfig(num_dims=3, popsize=5, F=0.5, lower=lower, upper=upper, bounds_policy=policy)
+    config = DEConfig(
+        num_dims=3,
+        popsize=5,
+        F=0.5,
+        init_low=-0.25,
+        init_high=2.0,
+        lower=lower,
+        upper=upper,
+        bounds_policy=policy,
+    )
     trial = mutate_crossover(
         jnp.asarray(HAND_BEST),
         jnp.asarray(HAND_POP),
@@ -139,21 +161,69 @@ def test_mutate_crossover_matches_hand_computed_generation(
         jnp.asarray(HAND_R2),
         jnp.asarray(HAND_MASK),
         config,
+        resample_u=None if resample_u is None else jnp.asarray(resample_u),
     )
     assert trial.dtype == jnp.float64
     np.testing.assert_allclose(np.asarray(trial), expected, rtol=0, atol=1e-15)
 
 
-def test_apply_bounds_clip_and_reflect_by_hand() -> None:
+def test_apply_bounds_clip_reflect_and_resample_by_hand() -> None:
     # Box [0, 1]; reflection of -3 gives 3 and of 4 gives -2, both still outside -> clipped.
     x = jnp.array([[-0.25, 1.5, -3.0, 4.0, 0.5]])
-    clip = DEConfig(num_dims=5, lower=0.0, upper=1.0, bounds_policy="clip")
-    reflect = DEConfig(num_dims=5, lower=0.0, upper=1.0, bounds_policy="reflect")
+    box = {"num_dims": 5, "init_low": 0.0, "init_high": 1.0, "lower": 0.0, "upper": 1.0}
+    clip = DEConfig(**box, bounds_policy="clip")
+    reflect = DEConfig(**box, bounds_policy="reflect")
     np.testing.assert_allclose(apply_bounds(x, clip), [[0.0, 1.0, 0.0, 1.0, 0.5]], atol=1e-15)
     np.testing.assert_allclose(apply_bounds(x, reflect), [[0.25, 0.5, 1.0, 0.0, 0.5]], atol=1e-15)
-    one_sided = DEConfig(num_dims=5, lower=0.0, bounds_policy="reflect")
+    one_sided = DEConfig(**(box | {"upper": None}), bounds_policy="reflect")
     np.testing.assert_allclose(apply_bounds(x, one_sided), [[0.25, 1.5, 3.0, 4.0, 0.5]], atol=1e-15)
     np.testing.assert_array_equal(apply_bounds(x, DEConfig(num_dims=5)), x)
+    # resample: the out-of-bounds genes take lower + u * (upper - lower) = u; 0.5 keeps its value.
+    resample = DEConfig(**box, bounds_policy="resample")
+    u = jnp.array([[0.1, 0.2, 0.3, 0.4, 0.9]])
+    np.testing.assert_allclose(apply_bounds(x, resample, u), [[0.1, 0.2, 0.3, 0.4, 0.5]], atol=0)
+    # Per-gene box [-2, 2] x [10, 20]: 3 -> -2 + 0.25 * 4 = -1; 5 -> 10 + 0.5 * 10 = 15.
+    per_gene = DEConfig(
+        num_dims=2,
+        init_low=(-2, 10),
+        init_high=(2, 20),
+        lower=(-2, 10),
+        upper=(2, 20),
+        bounds_policy="resample",
+    )
+    x2, u2 = jnp.array([[3.0, 5.0], [0.0, 12.0]]), jnp.array([[0.25, 0.5], [0.25, 0.5]])
+    np.testing.assert_allclose(apply_bounds(x2, per_gene, u2), [[-1.0, 15.0], [0.0, 12.0]], atol=0)
+    # The draws are required with bounds, must match x's shape, and are not needed without bounds.
+    with pytest.raises(MbnInputError, match=r"^resample_u:"):
+        apply_bounds(x, resample)
+    with pytest.raises(MbnInputError, match=r"^resample_u:"):
+        apply_bounds(x, resample, u[:, :4])
+    unbounded = DEConfig(num_dims=5, bounds_policy="resample")
+    np.testing.assert_array_equal(apply_bounds(x, unbounded), x)
+
+
+def test_ask_with_resample_replaces_exactly_the_clipped_genes_by_uniform_values() -> None:
+    # Same key -> same partners and crossover mask for both policies: where the clipped trial is
+    # strictly inside the box the resampled trial is identical; where clipping put a gene on a
+    # bound (it was outside), resampling gives a uniform value in the box instead.
+    box = {"num_dims": 6, "popsize": 10, "F": 2.0, "CR": 0.9, "lower": -1.0, "upper": 1.0}
+    box |= {"init_low": -1.0, "init_high": 1.0}
+    clip = DEConfig(**box, bounds_policy="clip")
+    resample = DEConfig(**box, bounds_policy="resample")
+    replaced = []
+    for k in range(40):
+        state = evaluated_state(jax.random.key(1000 + k), clip)
+        key = jax.random.key(2000 + k)
+        t_clip = np.asarray(ask(key, state, clip))
+        t_res = np.asarray(ask(key, state, resample))
+        np.testing.assert_array_equal(t_res, np.asarray(ask(key, state, resample)))  # bitwise
+        on_bound = np.abs(t_clip) == 1.0
+        np.testing.assert_array_equal(t_res[~on_bound], t_clip[~on_bound])
+        replaced.append(t_res[on_bound])
+    values = np.concatenate(replaced)
+    assert values.size > 500, values.size  # F = 2 pushes many genes out
+    assert np.all((values >= -1.0) & (values <= 1.0))
+    assert scipy.stats.kstest((values + 1.0) / 2.0, "uniform").pvalue > 1e-3
 
 
 # ---------------------------------------------------------------------------------------------
@@ -241,15 +311,37 @@ def test_draw_cross_mask_rate_and_at_least_one_crossed_gene() -> None:
 # ---------------------------------------------------------------------------------------------
 
 BOUNDED_CONFIGS = (
-    DEConfig(num_dims=3, popsize=6, F=2.0, lower=-1.0, upper=2.0, bounds_policy="clip"),
+    DEConfig(
+        num_dims=3,
+        popsize=6,
+        F=2.0,
+        init_low=-1.0,
+        init_high=2.0,
+        lower=-1.0,
+        upper=2.0,
+        bounds_policy="clip",
+    ),
     DEConfig(
         num_dims=3,
         popsize=6,
         F=2.0,
         CR=0.9,
+        init_low=(-1, 0, 5),
+        init_high=(1, 0.5, 50),
         lower=(-1, 0, 5),
         upper=(1, 0.5, 50),
         bounds_policy="reflect",
+    ),
+    DEConfig(
+        num_dims=3,
+        popsize=6,
+        F=2.0,
+        CR=0.9,
+        init_low=(-0.5, 0, 10),
+        init_high=(0.5, 0.5, 20),
+        lower=(-1, 0, 5),
+        upper=(1, 0.5, 50),
+        bounds_policy="resample",
     ),
 )
 
@@ -262,7 +354,7 @@ BOUNDED_CONFIGS = (
     ),
     seed=st.integers(0, 2**31 - 1),
 )
-def test_children_stay_inside_bounds_for_both_policies(
+def test_children_stay_inside_bounds_for_every_policy(
     config: DEConfig, population: np.ndarray, seed: int
 ) -> None:
     state = from_population(population, config)
@@ -273,10 +365,13 @@ def test_children_stay_inside_bounds_for_both_policies(
     trials = np.asarray(ask(jax.random.key(seed), state, config))
     assert np.all(trials >= lo) and np.all(trials <= hi)
     # The raw core, fed the unbounded population and a random mutant choice, too.
-    k1, k2 = jax.random.split(jax.random.key(seed))
+    k1, k2, k3 = jax.random.split(jax.random.key(seed), 3)
     r1, r2 = draw_partners(k1, 6)
     mask = draw_cross_mask(k2, 6, 3, config.CR)
-    raw = np.asarray(mutate_crossover(population[0], population, r1, r2, mask, config))
+    u = jax.random.uniform(k3, (6, 3)) if config.bounds_policy == "resample" else None
+    raw = np.asarray(
+        mutate_crossover(population[0], population, r1, r2, mask, config, resample_u=u)
+    )
     assert np.all(raw >= lo) and np.all(raw <= hi)
 
 
@@ -386,6 +481,21 @@ def test_init_is_uniform_in_init_range_and_float64() -> None:
     assert float(state.best_fitness) == np.inf and int(state.generation) == 0
 
 
+def test_init_with_per_gene_range() -> None:
+    config = DEConfig(
+        num_dims=3,
+        popsize=200,
+        init_low=(-1.0, 10.0, 0.0),
+        init_high=(1.0, 20.0, 0.001),
+        lower=(-1.0, 0.0, 0.0),
+        upper=(1.0, 50.0, 1.0),
+    )
+    pop = np.asarray(init(jax.random.key(1), config).population)
+    np.testing.assert_array_less([-1.0 - 1e-12, 10.0 - 1e-12, -1e-12], pop.min(axis=0))
+    np.testing.assert_array_less(pop.max(axis=0), [1.0, 20.0, 0.001])
+    assert pop[:, 0].min() < -0.9 and pop[:, 1].max() > 19.0  # spread over the whole range
+
+
 def test_tell_rejects_wrong_shapes() -> None:
     config = DEConfig(num_dims=3, popsize=5)
     state = evaluated_state(jax.random.key(0), config)
@@ -400,7 +510,15 @@ def test_tell_rejects_wrong_shapes() -> None:
 # ---------------------------------------------------------------------------------------------
 
 
-SMALL_CONFIG = DEConfig(num_dims=6, popsize=12, lower=-5.0, upper=5.0, bounds_policy="reflect")
+SMALL_CONFIG = DEConfig(
+    num_dims=6,
+    popsize=12,
+    init_low=-5.0,
+    init_high=5.0,
+    lower=-5.0,
+    upper=5.0,
+    bounds_policy="reflect",
+)
 
 
 def test_same_key_gives_bitwise_identical_results() -> None:
@@ -411,9 +529,11 @@ def test_same_key_gives_bitwise_identical_results() -> None:
     ta, tb = ask(jax.random.key(12), a, config), ask(jax.random.key(12), b, config)
     np.testing.assert_array_equal(ta, tb)
     assert not np.array_equal(ta, ask(jax.random.key(13), a, config))
-    (sa, ha), (sb, hb) = (minimize(sphere, jax.random.key(14), config, 40) for _ in range(2))
-    for leaf_a, leaf_b in zip(jax.tree.leaves((sa, ha)), jax.tree.leaves((sb, hb)), strict=True):
-        np.testing.assert_array_equal(leaf_a, leaf_b)
+    for cfg in (config, dataclasses.replace(config, bounds_policy="resample")):
+        (sa, ha), (sb, hb) = (minimize(sphere, jax.random.key(14), cfg, 40) for _ in range(2))
+        leaves_a, leaves_b = jax.tree.leaves((sa, ha)), jax.tree.leaves((sb, hb))
+        for leaf_a, leaf_b in zip(leaves_a, leaves_b, strict=True):
+            np.testing.assert_array_equal(leaf_a, leaf_b)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -421,7 +541,16 @@ def test_same_key_gives_bitwise_identical_results() -> None:
 # ---------------------------------------------------------------------------------------------
 
 # 12 genes in [-5.12, 5.12]; population 40 (given to scipy as its `init` array, so both start from
-# the same members); 200 generations = 8040 evaluations per run; medians over seeds 0..9.
+# the same members); medians over seeds 0..9. Ours uses bounds_policy="resample", scipy's own rule
+# for out-of-bounds genes (a uniform random value in the box), so the bounds step is like for like.
+# G = 200 generations (8040 evaluations per run), the acceptance setting. Measured medians of the
+# final best, ours (resample) / scipy (default updating="immediate"), scipy 1.17.1, jax 0.10.2:
+#   G = 100: sphere 0.02376 / 0.01912 = 1.24,      Rastrigin 24.23 / 26.57 = 0.91
+#   G = 150: sphere 7.18e-4 / 4.205e-4 = 1.71,     Rastrigin 13.73 / 13.90 = 0.99
+#   G = 200: sphere 2.135e-5 / 1.259e-5 = 1.70,    Rastrigin 6.941 / 6.843 = 1.01
+# (with "clip" instead, sphere at G = 200 is 2.535e-5, ratio 2.01: it fails the 2x target). On
+# sphere the ratio grows with G: scipy's immediate updating uses each new best within the
+# generation, ours is deferred (see docs/de.md).
 SCIPY_DIMS, SCIPY_POPSIZE, SCIPY_GENERATIONS, SCIPY_SEEDS, SCIPY_BOUND = 12, 40, 200, 10, 5.12
 SCIPY_FUNCTIONS = {"sphere": (sphere, np_sphere), "rastrigin": (rastrigin, np_rastrigin)}
 
@@ -439,7 +568,13 @@ def _initial_populations() -> np.ndarray:
 @functools.cache
 def _our_median(name: str) -> float:
     config = DEConfig(
-        num_dims=SCIPY_DIMS, popsize=SCIPY_POPSIZE, lower=-SCIPY_BOUND, upper=SCIPY_BOUND
+        num_dims=SCIPY_DIMS,
+        popsize=SCIPY_POPSIZE,
+        init_low=-SCIPY_BOUND,
+        init_high=SCIPY_BOUND,
+        lower=-SCIPY_BOUND,
+        upper=SCIPY_BOUND,
+        bounds_policy="resample",
     )
     fn = SCIPY_FUNCTIONS[name][0]
     keys = jax.vmap(jax.random.key)(jnp.arange(SCIPY_SEEDS))
@@ -473,24 +608,7 @@ def _scipy_median(name: str, updating: str) -> float:
     return float(np.median(best))
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(
-            "sphere",
-            marks=pytest.mark.xfail(
-                strict=False,
-                reason=(
-                    "measured: ours/scipy-immediate median ratio 2.01 at these settings (2.3 at "
-                    "G=150, 2.9 at G=300). scipy's default updating='immediate' uses each new best "
-                    "within the generation; our deferred DE matches scipy's updating='deferred' "
-                    "(see test_scipy_deferred_comparison and docs/de.md)."
-                ),
-            ),
-        ),
-        "rastrigin",
-    ],
-)
+@pytest.mark.parametrize("name", ["sphere", "rastrigin"])
 def test_final_best_within_twice_scipy_best1bin_median(name: str) -> None:
     ours, theirs = _our_median(name), _scipy_median(name, "immediate")
     assert ours <= 2.0 * theirs, f"{name}: ours {ours:.3g} vs scipy (immediate) {theirs:.3g}"
@@ -540,6 +658,14 @@ def test_unevaluated_maximize_state_starts_at_minus_infinity() -> None:
         ({"CR": 1.5}, "CR"),
         ({"init_low": 1.0, "init_high": 1.0}, "init_low"),
         ({"init_high": float("inf")}, "init_high"),
+        ({"init_low": None}, "init_low"),
+        ({"init_low": (0.0, 1.0, 2.0)}, "init_low"),
+        ({"init_low": (0.0, 2.0), "init_high": (1.0, 1.0)}, "init_low"),
+        ({"lower": -1.0, "upper": 1.0}, "init_low"),  # default init range [-100, 100]
+        ({"lower": -200.0, "upper": 1.0}, "init_high"),
+        ({"init_low": 0.0, "init_high": 1.0, "lower": (0.0, 0.5)}, "init_low"),
+        ({"init_low": 0.0, "init_high": 1.0, "upper": (1.0, 0.5)}, "init_high"),
+        ({"init_low": 0, "init_high": 1, "lower": 0, "bounds_policy": "resample"}, "bounds_policy"),
         ({"lower": 1.0, "upper": 0.0}, "lower"),
         ({"lower": (0.0, 0.0, 0.0)}, "lower"),
         ({"upper": float("nan")}, "upper"),
@@ -553,13 +679,34 @@ def test_bad_config_raises_naming_the_parameter(kwargs: dict, parameter: str) ->
         DEConfig(**{"num_dims": 2, **kwargs})
 
 
+def test_initial_range_must_lie_inside_the_bounds() -> None:
+    # The default initial range [-100, 100] with bounds [-1, 1] would put nearly every initial
+    # gene on a bound after clipping, where DE stalls: rejected, naming init_low/init_high and
+    # the bounds of the offending gene.
+    expected = r"^init_low: .*\[init_low, init_high\].*\[lower, upper\]"
+    with pytest.raises(MbnInputError, match=expected) as err:
+        DEConfig(num_dims=4, lower=-1.0, upper=1.0)
+    assert "[-100.0, 100.0]" in str(err.value) and "[-1.0, 1.0] at gene 0" in str(err.value)
+    with pytest.raises(MbnInputError, match=r"^init_high: .*\[2.0, 3.5\].* at gene 2$"):
+        DEConfig(num_dims=3, init_low=2.0, init_high=3.5, lower=0.0, upper=(4.0, 5.0, 3.0))
+    # Touching the bounds is allowed, and so are one-sided bounds the range respects.
+    DEConfig(num_dims=3, init_low=-1.0, init_high=1.0, lower=-1.0, upper=1.0)
+    DEConfig(num_dims=3, lower=-100.0)
+    DEConfig(num_dims=3, upper=(100.0, 200.0, 300.0), bounds_policy="reflect")
+    # Per-gene initial ranges fit per-gene bounds that a single scalar range could not.
+    DEConfig(num_dims=2, init_low=(-1, 5), init_high=(1, 9), lower=(-1, 5), upper=(1, 10))
+
+
 def test_minimize_rejects_negative_generations() -> None:
     with pytest.raises(MbnInputError, match=r"^num_generations:"):
         minimize(sphere, jax.random.key(0), DEConfig(num_dims=2), -1)
 
 
 def test_config_is_hashable_with_per_gene_bounds_as_tuples() -> None:
-    a = DEConfig(num_dims=3, lower=np.array([-1.0, -2.0, -3.0]), upper=[1, 2, 3])
-    b = DEConfig(num_dims=3, lower=(-1.0, -2.0, -3.0), upper=(1.0, 2.0, 3.0))
+    init_range = {"init_low": -1.0, "init_high": 1.0}
+    a = DEConfig(num_dims=3, lower=np.array([-1.0, -2.0, -3.0]), upper=[1, 2, 3], **init_range)
+    b = DEConfig(num_dims=3, lower=(-1.0, -2.0, -3.0), upper=(1.0, 2.0, 3.0), **init_range)
     assert a == b and hash(a) == hash(b)
     assert a.lower == (-1.0, -2.0, -3.0) and isinstance(a.upper, tuple)
+    c = DEConfig(num_dims=2, init_low=np.array([0.0, 1.0]), init_high=[2, 3])
+    assert c.init_low == (0.0, 1.0) and c.init_high == (2.0, 3.0) and hash(c) is not None

@@ -11,7 +11,8 @@ One generation, for every target ``i`` of the population ``x`` (shape ``(popsize
 3. binomial crossover: gene ``j`` of the trial ``u_i`` is ``v_ij`` with probability ``CR`` and
    ``x_ij`` otherwise, except that one gene ``j_rand(i)``, drawn uniformly, always comes from the
    mutant, so every trial differs from its target (:func:`draw_cross_mask`);
-4. the bounds policy puts the trial back into ``[lower, upper]`` (:func:`apply_bounds`);
+4. the bounds policy puts the trial back into ``[lower, upper]`` (:func:`apply_bounds`:
+   ``"clip"``, ``"reflect"`` or ``"resample"``, the last one with uniform random draws);
 5. after the whole trial population is evaluated, each trial replaces its target when its fitness
    is better or equal (greedy one-to-one selection, :func:`tell`).
 
@@ -22,7 +23,7 @@ whole population can be evaluated in one batched, jitted call. :func:`ask` retur
 
 Typical use::
 
-    config = DEConfig(num_dims=10, lower=-5.0, upper=5.0)
+    config = DEConfig(num_dims=10, init_low=-5.0, init_high=5.0, lower=-5.0, upper=5.0)
     k_init, k_run = jax.random.split(jax.random.key(0))
     state = init(k_init, config)
     state = initialize_fitness(state, fitness_fn(state.population), config)
@@ -54,8 +55,8 @@ from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError
 
-BoundsPolicy = Literal["clip", "reflect"]
-BOUNDS_POLICIES: tuple[BoundsPolicy, ...] = ("clip", "reflect")
+BoundsPolicy = Literal["clip", "reflect", "resample"]
+BOUNDS_POLICIES: tuple[BoundsPolicy, ...] = ("clip", "reflect", "resample")
 
 #: Smallest population accepted. DE/best/1 needs the target plus two distinct partners (3), and
 #: with exactly 3 the partners are forced; 4 leaves the partner draw some randomness. (scipy asks
@@ -69,6 +70,7 @@ _PURPOSE_CROSSOVER = 2
 _PURPOSE_J_RAND = 3
 _PURPOSE_INIT = 4
 _PURPOSE_GENERATIONS = 5
+_PURPOSE_RESAMPLE = 6
 
 __all__ = [
     "BOUNDS_POLICIES",
@@ -111,13 +113,11 @@ def _real(value: object, name: str) -> float:
     return float(arr)
 
 
-def _bound(
-    value: float | Sequence[float] | ArrayLike | None, name: str, num_dims: int
-) -> float | tuple[float, ...] | None:
-    """Normalise a bound to None, a finite float or a tuple of ``num_dims`` finite floats."""
-    if value is None:
-        return None
-    if isinstance(value, bool | np.bool_):
+def _per_gene(
+    value: float | Sequence[float] | ArrayLike, name: str, num_dims: int, hint: str = ""
+) -> float | tuple[float, ...]:
+    """Normalise to a finite float or a tuple of ``num_dims`` finite floats."""
+    if value is None or isinstance(value, bool | np.bool_):
         raise MbnInputError(f"{name}: must be a number or a sequence of numbers, got {value!r}")
     try:
         arr = np.asarray(value, dtype=np.float64)
@@ -131,10 +131,46 @@ def _bound(
             f"{arr.shape}"
         )
     if not np.all(np.isfinite(arr)):
-        raise MbnInputError(f"{name}: must be finite (use None for no bound), got {value!r}")
+        raise MbnInputError(f"{name}: must be finite{hint}, got {value!r}")
     if arr.ndim == 0:
         return float(arr)
     return tuple(float(v) for v in arr)
+
+
+def _bound(
+    value: float | Sequence[float] | ArrayLike | None, name: str, num_dims: int
+) -> float | tuple[float, ...] | None:
+    """Normalise a bound to None, a finite float or a tuple of ``num_dims`` finite floats."""
+    if value is None:
+        return None
+    return _per_gene(value, name, num_dims, " (use None for no bound)")
+
+
+def _genes(value: float | tuple[float, ...], num_dims: int) -> np.ndarray:
+    """A scalar or per-gene setting as a float64 array of shape ``(num_dims,)``."""
+    return np.broadcast_to(np.asarray(value, dtype=np.float64), (num_dims,))
+
+
+def _check_init_inside_bounds(
+    init_low: float | tuple[float, ...],
+    init_high: float | tuple[float, ...],
+    lower: float | tuple[float, ...] | None,
+    upper: float | tuple[float, ...] | None,
+    num_dims: int,
+) -> None:
+    """MbnInputError unless ``lower <= init_low`` and ``init_high <= upper`` for every gene."""
+    lo_init, hi_init = _genes(init_low, num_dims), _genes(init_high, num_dims)
+    lo = _genes(-math.inf if lower is None else lower, num_dims)
+    hi = _genes(math.inf if upper is None else upper, num_dims)
+    for name, bad in (("init_low", lo_init < lo), ("init_high", hi_init > hi)):
+        if np.any(bad):
+            j = int(np.flatnonzero(bad)[0])
+            raise MbnInputError(
+                f"{name}: the initial range [init_low, init_high] must lie inside the bounds "
+                f"[lower, upper] for every gene, got [init_low, init_high] = "
+                f"[{lo_init[j]}, {hi_init[j]}] outside [lower, upper] = [{lo[j]}, {hi[j]}] at "
+                f"gene {j}"
+            )
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -150,17 +186,25 @@ class DEConfig:
         popsize: population size, ``>= 4`` (see :data:`MIN_POPSIZE`). Paper: 18.
         F: differential weight (the paper's "step-size"), in ``(0, 2]``. Paper: 0.85.
         CR: binomial crossover rate, in ``[0, 1]``. Paper: 0.2.
-        init_low: the initial population is uniform in ``[init_low, init_high]``. Paper: -100.
-        init_high: see ``init_low``; ``init_low < init_high``. Paper: 100. When bounds are set,
-            keep the initial range inside them: initial genes outside ``[lower, upper]`` are
-            bounded by the policy, so e.g. the default ``[-100, 100]`` with ``clip`` into
-            ``[-1, 1]`` puts nearly every gene on a bound and DE can stall there.
+        init_low: the initial population is uniform in ``[init_low, init_high]``; a finite float
+            or ``num_dims`` finite floats (stored as a tuple), like the bounds. Paper: -100.
+        init_high: see ``init_low``; ``init_low < init_high`` gene by gene. Paper: 100. When
+            bounds are set,
+            the initial range must lie inside them gene by gene (``lower <= init_low`` and
+            ``init_high <= upper``), else :class:`~mbn.errors.MbnInputError`: an initial range
+            wider than the box would be bounded by the policy, e.g. the default ``[-100, 100]``
+            clipped into ``[-1, 1]`` puts nearly every gene on a bound, where DE stalls. So with
+            bounds, set ``init_low``/``init_high`` too.
         lower: lower bound of the genes: None (unbounded), a finite float, or ``num_dims`` finite
             floats (a sequence or array, stored as a tuple). The paper states no bounds.
         upper: upper bound, like ``lower``; ``lower < upper`` gene by gene where both are given.
         bounds_policy: how trial genes outside ``[lower, upper]`` are brought back; ``"clip"``
-            (onto the violated bound) or ``"reflect"`` (mirrored about it, then clipped). See
-            :func:`apply_bounds`.
+            (onto the violated bound, the default), ``"reflect"`` (mirrored about it, then
+            clipped) or ``"resample"`` (replaced by a uniform random value in ``[lower, upper]``,
+            as scipy does; needs both ``lower`` and ``upper``, or no bounds at all). See
+            :func:`apply_bounds`. ``"clip"`` is the default because it is deterministic (no
+            random draws in the bounds step) and keeps a gene that is pushed out at the bound,
+            the value the search pushed towards, rather than throwing it to a random place.
         maximize: False: smaller fitness is better (DE's usual convention); True: larger fitness
             is better (robot fitness).
     """
@@ -169,11 +213,11 @@ class DEConfig:
     popsize: int = 18  # section 3.1: population of 18 individuals
     F: float = 0.85  # section 3.1: "step-size" F = 0.85 (differential weight)
     CR: float = 0.2  # section 3.1: crossover CR = 0.2
-    init_low: float = -100.0  # section 3.1: initial weights uniform in [-100, 100]
-    init_high: float = 100.0  # section 3.1: initial weights uniform in [-100, 100]
+    init_low: float | tuple[float, ...] = -100.0  # section 3.1: initial weights in [-100, 100]
+    init_high: float | tuple[float, ...] = 100.0  # section 3.1: initial weights in [-100, 100]
     lower: float | tuple[float, ...] | None = None  # not in the paper: unbounded by default
     upper: float | tuple[float, ...] | None = None  # not in the paper: unbounded by default
-    bounds_policy: BoundsPolicy = "clip"
+    bounds_policy: BoundsPolicy = "clip"  # not in the paper (no bounds there); see above
     maximize: bool = False  # DE minimises; the paper maximises robot fitness (use True)
 
     def __post_init__(self) -> None:
@@ -194,23 +238,22 @@ class DEConfig:
         if not 0.0 <= CR <= 1.0:
             raise MbnInputError(f"CR: must be in [0, 1], got {CR}")
         set_("CR", CR)
-        init_low = _real(self.init_low, "init_low")
-        init_high = _real(self.init_high, "init_high")
-        if not math.isfinite(init_low):
-            raise MbnInputError(f"init_low: must be finite, got {init_low}")
-        if not math.isfinite(init_high):
-            raise MbnInputError(f"init_high: must be finite, got {init_high}")
-        if not init_low < init_high:
+        init_low = _per_gene(self.init_low, "init_low", self.num_dims)
+        init_high = _per_gene(self.init_high, "init_high", self.num_dims)
+        lo_init, hi_init = _genes(init_low, self.num_dims), _genes(init_high, self.num_dims)
+        bad = np.flatnonzero(~(lo_init < hi_init))
+        if bad.size:
+            j = int(bad[0])
             raise MbnInputError(
-                f"init_low: must be < init_high, got init_low={init_low}, init_high={init_high}"
+                f"init_low: must be < init_high for every gene, got init_low={lo_init[j]}, "
+                f"init_high={hi_init[j]} at gene {j}"
             )
         set_("init_low", init_low)
         set_("init_high", init_high)
         lower = _bound(self.lower, "lower", self.num_dims)
         upper = _bound(self.upper, "upper", self.num_dims)
         if lower is not None and upper is not None:
-            lo = np.broadcast_to(np.asarray(lower), (self.num_dims,))
-            hi = np.broadcast_to(np.asarray(upper), (self.num_dims,))
+            lo, hi = _genes(lower, self.num_dims), _genes(upper, self.num_dims)
             bad = np.flatnonzero(~(lo < hi))
             if bad.size:
                 j = int(bad[0])
@@ -220,9 +263,15 @@ class DEConfig:
                 )
         set_("lower", lower)
         set_("upper", upper)
+        _check_init_inside_bounds(init_low, init_high, lower, upper, self.num_dims)
         if self.bounds_policy not in BOUNDS_POLICIES:
             raise MbnInputError(
                 f"bounds_policy: expected one of {BOUNDS_POLICIES}, got {self.bounds_policy!r}"
+            )
+        if self.bounds_policy == "resample" and (lower is None) != (upper is None):
+            raise MbnInputError(
+                "bounds_policy: 'resample' draws uniformly in [lower, upper] and needs both "
+                f"bounds (or neither), got lower={lower!r}, upper={upper!r}"
             )
         if not isinstance(self.maximize, bool | np.bool_):
             raise MbnInputError(f"maximize: must be True or False, got {self.maximize!r}")
@@ -313,7 +362,8 @@ def from_population(population: ArrayLike, config: DEConfig) -> DEState:
 
     Args:
         population: initial genomes, shape ``(popsize, num_dims)``; brought into the bounds by
-            the bounds policy and converted to float64 (x64 on) or float32.
+            the bounds policy (clipped under ``"resample"``, which would need random draws) and
+            converted to float64 (x64 on) or float32.
         config: the DE settings.
 
     Returns:
@@ -327,7 +377,12 @@ def from_population(population: ArrayLike, config: DEConfig) -> DEState:
     """
     _check_shape(population, "population", (config.popsize, config.num_dims))
     dtype = _float_dtype()
-    pop = apply_bounds(jnp.asarray(population, dtype=dtype), config)
+    pop = jnp.asarray(population, dtype=dtype)
+    if config.bounds_policy == "resample":
+        lo, hi = _bound_arrays(config, dtype)
+        pop = jnp.clip(pop, lo, hi)
+    else:
+        pop = apply_bounds(pop, config)
     worst = jnp.asarray(config.worst_fitness, dtype=dtype)
     return DEState(
         population=pop,
@@ -343,9 +398,9 @@ def init(key: Array, config: DEConfig) -> DEState:
     """A fresh state with the population uniform in ``[init_low, init_high]``.
 
     The population is drawn uniformly in ``[config.init_low, config.init_high]`` (paper: [-100,
-    100]) and then brought into ``[lower, upper]`` by the bounds policy (this matters only when
-    the initial range is wider than the bounds). Arrays are float64 when ``jax_enable_x64`` is on,
-    float32 otherwise (JAX's default, note that float32 has only ~7 significant digits).
+    100]; per gene when given per gene), which :class:`DEConfig` requires to lie inside
+    ``[lower, upper]``. Arrays are float64 when ``jax_enable_x64`` is on, float32 otherwise
+    (JAX's default, note that float32 has only ~7 significant digits).
 
     Args:
         key: a JAX PRNG key.
@@ -359,8 +414,8 @@ def init(key: Array, config: DEConfig) -> DEState:
         key,
         (config.popsize, config.num_dims),
         dtype=dtype,
-        minval=config.init_low,
-        maxval=config.init_high,
+        minval=jnp.asarray(config.init_low, dtype=dtype),
+        maxval=jnp.asarray(config.init_high, dtype=dtype),
     )
     return from_population(population, config)
 
@@ -398,29 +453,51 @@ def initialize_fitness(state: DEState, fitness: ArrayLike, config: DEConfig) -> 
 
 
 @functools.partial(jax.jit, static_argnames="config")
-def apply_bounds(x: ArrayLike, config: DEConfig) -> Array:
+def apply_bounds(x: ArrayLike, config: DEConfig, resample_u: ArrayLike | None = None) -> Array:
     """Bring genes back into ``[lower, upper]`` by the bounds policy.
 
     ``"clip"``: a gene outside the box is set to the bound it violates. ``"reflect"``: a gene
     below ``lower`` becomes ``2 * lower - x`` and one above ``upper`` becomes ``2 * upper - x``
     (mirrored back into the box by the distance it overshot), then clipped if still outside
     (an overshoot larger than the box width). Reflection keeps trial genes off the bounds, where
-    clipping piles them up. Without bounds (``lower = upper = None``) ``x`` is returned unchanged;
-    a missing side is unconstrained.
+    clipping piles them up. ``"resample"``: a gene outside the box becomes
+    ``lower + resample_u * (upper - lower)``, a uniform random value in the box when
+    ``resample_u`` is uniform in ``[0, 1)`` (scipy's rule; the result is clipped to guard
+    against rounding). Genes inside the box are unchanged under every policy. Without bounds
+    (``lower = upper = None``) ``x`` is returned unchanged; a missing side is unconstrained.
+
+    The function is deterministic: the random draws of ``"resample"`` are an argument
+    (:func:`ask` draws them from its key).
 
     Args:
         x: genes, shape ``(..., num_dims)``.
         config: the DE settings (``lower``, ``upper``, ``bounds_policy``).
+        resample_u: for ``"resample"``, one draw in ``[0, 1)`` per gene, shape of ``x``; used
+            only where a gene is out of bounds. Required with ``"resample"`` and bounds,
+            ignored (after its shape check) otherwise.
 
     Returns:
         The bounded genes, same shape and dtype as ``x``.
+
+    Raises:
+        MbnInputError: ``resample_u`` has the wrong shape, or is missing with ``"resample"``.
     """
     x = jnp.asarray(x)
+    if resample_u is not None:
+        _check_shape(resample_u, "resample_u", x.shape)
     if not config.bounded:
         return x
     lo, hi = _bound_arrays(config, x.dtype)
     if config.bounds_policy == "reflect":
         x = jnp.where(x < lo, 2 * lo - x, jnp.where(x > hi, 2 * hi - x, x))
+    elif config.bounds_policy == "resample":
+        if resample_u is None:
+            raise MbnInputError(
+                "resample_u: required with bounds_policy='resample' (uniform draws in [0, 1), "
+                f"shape {x.shape})"
+            )
+        u = jnp.asarray(resample_u, dtype=x.dtype)
+        x = jnp.where((x < lo) | (x > hi), lo + u * (hi - lo), x)
     return jnp.clip(x, lo, hi)
 
 
@@ -487,11 +564,13 @@ def mutate_crossover(
     r2: ArrayLike,
     cross_mask: ArrayLike,
     config: DEConfig,
+    resample_u: ArrayLike | None = None,
 ) -> Array:
     """The deterministic core of DE/best/1/bin: mutation, crossover and the bounds policy.
 
     ``mutant[i] = best + F * (population[r1[i]] - population[r2[i]])``;
-    ``trial = where(cross_mask, mutant, population)``; then :func:`apply_bounds`.
+    ``trial = where(cross_mask, mutant, population)``; then :func:`apply_bounds` (with
+    ``resample_u`` for ``"resample"``).
 
     Args:
         best: the best genome, shape ``(num_dims,)``.
@@ -501,12 +580,17 @@ def mutate_crossover(
         cross_mask: True where the trial takes the mutant gene, bool, shape
             ``(popsize, num_dims)``.
         config: the DE settings (``F`` and the bounds).
+        resample_u: for ``bounds_policy="resample"``, uniform draws in ``[0, 1)``, shape
+            ``(popsize, num_dims)``; trial gene ``(i, j)`` out of bounds becomes
+            ``lower_j + resample_u[i, j] * (upper_j - lower_j)``. Required with ``"resample"``
+            and bounds, ignored otherwise.
 
     Returns:
         Trial genomes, shape ``(popsize, num_dims)``, dtype of ``population``.
 
     Raises:
-        MbnInputError: an argument has the wrong shape.
+        MbnInputError: an argument has the wrong shape, or ``resample_u`` is missing with
+            ``"resample"``.
     """
     n, d = config.popsize, config.num_dims
     _check_shape(best, "best", (d,))
@@ -514,11 +598,13 @@ def mutate_crossover(
     _check_shape(r1, "r1", (n,))
     _check_shape(r2, "r2", (n,))
     _check_shape(cross_mask, "cross_mask", (n, d))
+    if resample_u is not None:
+        _check_shape(resample_u, "resample_u", (n, d))
     pop = jnp.asarray(population)
     best_ = jnp.asarray(best, dtype=pop.dtype)
     mutant = best_[None, :] + config.F * (pop[jnp.asarray(r1)] - pop[jnp.asarray(r2)])
     trial = jnp.where(jnp.asarray(cross_mask, dtype=bool), mutant, pop)
-    return apply_bounds(trial, config)
+    return apply_bounds(trial, config, resample_u)
 
 
 @functools.partial(jax.jit, static_argnames="config")
@@ -527,7 +613,9 @@ def ask(key: Array, state: DEState, config: DEConfig) -> Array:
 
     The mutation uses ``state.best_genome``, so call :func:`initialize_fitness` first. The key is
     split by purpose (``jax.random.fold_in``): partner indices (:func:`draw_partners`),
-    crossover draws and ``j_rand`` (:func:`draw_cross_mask`).
+    crossover draws and ``j_rand`` (:func:`draw_cross_mask`) and, for
+    ``bounds_policy="resample"`` with bounds, the uniform replacement draws (one per gene, used
+    where the trial gene is out of bounds). The other policies draw nothing extra.
 
     Args:
         key: a JAX PRNG key; the same key and state give bitwise the same trials.
@@ -540,7 +628,16 @@ def ask(key: Array, state: DEState, config: DEConfig) -> Array:
     _check_state(state, config)
     r1, r2 = draw_partners(key, config.popsize)
     mask = draw_cross_mask(key, config.popsize, config.num_dims, config.CR)
-    return mutate_crossover(state.best_genome, state.population, r1, r2, mask, config)
+    resample_u = None
+    if config.bounds_policy == "resample" and config.bounded:
+        resample_u = jax.random.uniform(
+            jax.random.fold_in(key, _PURPOSE_RESAMPLE),
+            (config.popsize, config.num_dims),
+            dtype=state.population.dtype,
+        )
+    return mutate_crossover(
+        state.best_genome, state.population, r1, r2, mask, config, resample_u=resample_u
+    )
 
 
 # ---------------------------------------------------------------------------------------------
