@@ -518,24 +518,11 @@ def _select(params: Params, validation: Array, cfg: TrainConfig) -> tuple[Multip
         net=nets, output=cfg.num_neurons - 1, dt_over_tau=cfg.dt_over_tau, method=cfg.method
     )
     target = validation[:, 0] * validation[:, 1]
-    val = validation[:, None, :]  # broadcast pairs against restarts: (num_val, R, 2)
-    out_t = np.asarray(
-        multiply(batched, jnp.broadcast_to(val, (val.shape[0], cfg.num_restarts, 2)))
-    )
-    out_2t = np.asarray(
-        multiply(
-            batched,
-            jnp.broadcast_to(val, (val.shape[0], cfg.num_restarts, 2)),
-            t_over_tau=2 * T_OVER_TAU,
-        )
-    )
-    out_fine = np.asarray(
-        multiply(
-            batched,
-            jnp.broadcast_to(val, (val.shape[0], cfg.num_restarts, 2)),
-            dt_over_tau=cfg.dt_over_tau / 10,
-        )
-    )
+    # every validation pair against every restart: (num_val, R, 2)
+    val = jnp.broadcast_to(validation[:, None, :], (validation.shape[0], cfg.num_restarts, 2))
+    out_t = np.asarray(multiply(batched, val))
+    out_2t = np.asarray(multiply(batched, val, t_over_tau=2 * T_OVER_TAU))
+    out_fine = np.asarray(multiply(batched, val, dt_over_tau=cfg.dt_over_tau / 10))
     tgt = np.asarray(target)[:, None]
     within = np.mean(np.abs(out_t - tgt) / tgt <= REL_TOL, axis=0)
     drift = np.maximum(np.abs(out_2t - out_t).max(axis=0), np.abs(out_fine - out_t).max(axis=0))
