@@ -405,9 +405,11 @@ def test_best_never_worsens_on_random_quadratic(seed: int) -> None:
     np.testing.assert_allclose(float(f(state.best_genome)), best[-1], rtol=1e-12, atol=0)
 
 
+# Subnormal floats are excluded: XLA on CPU flushes them to zero in comparisons, so a
+# subnormal best-so-far compares equal to 0.0 (a platform property, not a DE rule).
 fitness_values = st.one_of(
     st.sampled_from([0.0, 1.0, -1.0, np.nan, np.inf, -np.inf]),
-    st.floats(-10.0, 10.0, allow_nan=False),
+    st.floats(-10.0, 10.0, allow_nan=False, allow_subnormal=False),
 )
 
 
