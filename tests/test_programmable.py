@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mbn.ctrnn import make_ctrnn, max_stable_dt
-from mbn.emulation import piecewise_constant_inputs
+from mbn.ctrnn import make_ctrnn, max_stable_dt, simulate
+from mbn.emulation import EmulationConfig, piecewise_constant_inputs, published_check
 from mbn.errors import MbnInputError
 from mbn.multiplier import load_default
 from mbn.paper import W_RF, published_lf, published_rf
@@ -96,21 +96,43 @@ def test_exact_mode_reproduces_the_published_networks(mul):
         assert emulation_error(interp, net, data, 0.005, exact=True).max() <= 1e-6
 
 
+SMALL_CHECK = EmulationConfig(num_sequences=40, seconds=10.0)
+
+
 @pytest.mark.xfail(
     strict=True,
-    reason="target not met: median 0.26 (docs/programmable.md: the published networks react "
-    "faster than multipliers at tau/10 can follow)",
+    reason="target not met: median 0.15, p95 0.59 with the shipped 3-neuron multiplier; the "
+    "published LF is too sensitive to its programmable weights (docs/programmable.md)",
 )
 def test_trained_multiplier_emulates_the_published_networks(mul):
-    # A smaller version of `mbn pnn check` (which runs 200 sequences of 20 s).
-    rf, lf = published_rf(), published_lf()
-    interp = build_interpreter(rf, differing_connections(rf, lf), mul)
-    data = piecewise_constant_inputs(jax.random.key(1), 40, 2000, 200, 3)
-    errors = np.concatenate(
-        [emulation_error(interp, net, data, 0.005, exact=False) for net in (rf, lf)]
-    )
-    assert np.median(errors) <= 0.02
-    assert np.percentile(errors, 95) <= 0.1
+    # A smaller version of `mbn pnn check` (which runs 200 sequences of 20 s per program).
+    result = published_check(jax.random.key(1), mul, SMALL_CHECK)
+    assert result["trained"]["median_max_abs_output_diff"] <= 0.02
+    assert result["trained"]["p95_max_abs_output_diff"] <= 0.1
+
+
+def test_six_neuron_multiplier_emulates_the_published_rf_within_the_targets():
+    result = published_check(jax.random.key(1), load_default(6), SMALL_CHECK)
+    rf_part = result["per_program"][0]
+    assert rf_part["median_max_abs_output_diff"] <= 0.02
+    assert rf_part["p95_max_abs_output_diff"] <= 0.1
+
+
+def test_published_lf_is_hypersensitive_to_its_programmable_weights():
+    """Why the trained-multiplier target fails for LF: W_23 off by 0.1 (0.12 % of its programmable
+    range, i.e. a multiplier error of 0.0012) already moves the outputs by more than 0.02, while
+    the same error in RF moves them by less than 0.005."""
+    lf, rf = published_lf(), published_rf()
+    data = piecewise_constant_inputs(jax.random.key(0), 40, 2000, 200, 3)
+    for net, low, high in ((lf, 0.02, np.inf), (rf, 0.0, 0.005)):
+        y0 = simulate(net, jnp.zeros((40, 3)), jnp.broadcast_to(data[:1], (1000, 40, 3)), 0.005)[0]
+        w = np.array(net.W)
+        w[1, 2] += 0.1  # the paper's W_23
+        nudged = make_ctrnn(w, net.WE, net.tau)
+        ref = run_network(net, y0, data, 0.005)
+        out = run_network(nudged, y0, data, 0.005)
+        median = float(np.median(np.max(np.abs(out - ref)[..., 1:], axis=(0, 2))))
+        assert low < median < high
 
 
 @settings(max_examples=8, deadline=None)

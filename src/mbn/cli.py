@@ -187,6 +187,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     check.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     check.add_argument(
+        "--tau-ratio",
+        type=float,
+        default=0.1,
+        help="multiplier time constant / network time constant (default 0.1, the paper's); the "
+        "step is a tenth of the multipliers' time constant",
+    )
+    check.add_argument(
+        "--from-rest",
+        action="store_true",
+        help="start every run at y = 0 instead of the settled state of the first input",
+    )
+    check.add_argument(
         "--params",
         type=Path,
         default=None,
@@ -338,8 +350,17 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
 
     if not args.seconds > 0:
         raise MbnInputError(f"--seconds: must be > 0, got {args.seconds}")
+    if not args.tau_ratio > 0:
+        raise MbnInputError(f"--tau-ratio: must be > 0, got {args.tau_ratio}")
     mul = _load_mul(args.params)
-    config = EmulationConfig(num_sequences=args.sequences, seconds=args.seconds)
+    defaults = EmulationConfig()
+    config = EmulationConfig(
+        num_sequences=args.sequences,
+        seconds=args.seconds,
+        tau_ratio=args.tau_ratio,
+        dt=defaults.dt * args.tau_ratio / defaults.tau_ratio,
+        start="rest" if args.from_rest else "settled",
+    )
     result = published_check(jax.random.key(args.seed), mul, config)
     if args.json:
         print(json.dumps({k: result[k] for k in ("exact", "trained", "num_sequences")}))
@@ -355,7 +376,11 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
         f"  {result['interpreter_neurons']} neurons; programs RF {result['programs'][0]}, "
         f"LF {result['programs'][1]}"
     )
-    print(f"  {result['num_sequences']} sequences of {args.seconds:g} s (both programs)")
+    start = "rest (y = 0)" if args.from_rest else f"the settled state ({config.settle:g} s)"
+    print(
+        f"  {result['num_sequences']} sequences of {args.seconds:g} s (both programs), "
+        f"multipliers at tau x {config.tau_ratio:g}, dt {config.dt:g} s, from {start}"
+    )
     print(f"  exact product:  max |diff| = {result['exact']['max_abs_output_diff']:.2e}")
     t = result["trained"]
     print(
@@ -363,6 +388,11 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
         f"95th percentile {t['p95_max_abs_output_diff']:.4f}, "
         f"max {t['max_max_abs_output_diff']:.4f}"
     )
+    for name, part in zip(("RF", "LF"), result["per_program"], strict=True):
+        print(
+            f"    {name} program:   median {part['median_max_abs_output_diff']:.4f}, "
+            f"95th percentile {part['p95_max_abs_output_diff']:.4f}"
+        )
     return 0
 
 

@@ -46,6 +46,7 @@ __all__ = [
     "firing_rate",
     "integrate",
     "make_ctrnn",
+    "matvec",
     "max_stable_dt",
     "rk4_step",
     "simulate",
@@ -206,7 +207,7 @@ def vector_field(net: CTRNN, y: ArrayLike, inputs: ArrayLike) -> Array:
         ``dy/dt`` with the broadcast leading shape, in units of ``y`` per second.
     """
     r = firing_rate(net, y)
-    drive = _matvec(net.W, r) + _matvec(net.WE, jnp.asarray(inputs))
+    drive = matvec(net.W, r) + matvec(net.WE, jnp.asarray(inputs))
     return (drive - y) / net.tau
 
 
@@ -216,11 +217,12 @@ def vector_field(net: CTRNN, y: ArrayLike, inputs: ArrayLike) -> Array:
 _UNROLL_MAX_COLUMNS = 8
 
 
-def _matvec(a: Array, x: Array) -> Array:
-    """``a @ x`` over the last axes, ``a (..., n, k)``, ``x (..., k)`` -> ``(..., n)``."""
+def matvec(a: Array, x: Array) -> Array:
+    """``a @ x`` over the last axes with broadcast leading axes: ``a (..., n, k)``, ``x (..., k)``
+    -> ``(..., n)``. Fast for the small matrices of CTRNNs (see ``_UNROLL_MAX_COLUMNS``)."""
     k = a.shape[-1]
     if k == 0:
-        return jnp.zeros(jnp.broadcast_shapes(a.shape[:-1], x.shape[:-1] + (1,)), a.dtype)
+        return jnp.zeros(jnp.broadcast_shapes(a.shape[:-1], (*x.shape[:-1], 1)), a.dtype)
     if k > _UNROLL_MAX_COLUMNS:
         return jnp.einsum("...ik,...k->...i", a, x)
     out = a[..., :, 0] * x[..., 0, None]

@@ -33,7 +33,7 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from mbn.ctrnn import CTRNN, Method, firing_rate, make_ctrnn, simulate, vector_field
+from mbn.ctrnn import CTRNN, Method, firing_rate, make_ctrnn, matvec, simulate, vector_field
 from mbn.errors import MbnInputError
 
 __all__ = [
@@ -309,7 +309,73 @@ def edge_points(num_per_side: int, dtype: Any = None) -> Array:
     return jnp.asarray(np.concatenate(sides), dtype=dtype)
 
 
+def _rest_trajectory(
+    W: Array, WE: Array, bias: Array, pairs: Array, h: float, num_steps: int
+) -> tuple[Array, Array]:
+    """Euler from rest with constant inputs; restarts batched on the leading axis of the weights.
+
+    ``W (R, n, n)``, ``WE (R, n, 2)``, ``bias (R, n)``, ``pairs (P, 2)``; returns ``y_T (R, P, n)``
+    and the states before each step ``(num_steps, R, P, n)``. Time is in units of tau_m.
+    """
+    drive = matvec(WE[:, None], pairs)  # (R, P, n), constant in time
+    b = bias[:, None]
+    w = W[:, None]
+
+    def body(y: Array, _: None) -> tuple[Array, Array]:
+        r = jax.nn.sigmoid(y + b)
+        return y + h * (matvec(w, r) + drive - y), y
+
+    y0 = jnp.zeros(drive.shape, drive.dtype)
+    return jax.lax.scan(body, y0, None, length=num_steps)
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(4, 5))
+def _euler_from_rest(
+    W: Array, WE: Array, bias: Array, pairs: Array, h: float, num_steps: int
+) -> Array:
+    """Final state of :func:`_rest_trajectory`, with a hand-written adjoint (BPTT).
+
+    The adjoint runs the reverse recursion ``a_t = (1 - h) a_{t+1} + h sigma'(y_t) (W^T a_{t+1})``
+    and accumulates the weight gradients elementwise, reducing over pairs once at the end; this is
+    about 3x faster on CPU than differentiating the ``lax.scan`` automatically, which reduces
+    over pairs at every step. ``tests/test_multiplier.py`` checks it against ``jax.grad``.
+    """
+    return _rest_trajectory(W, WE, bias, pairs, h, num_steps)[0]
+
+
+def _euler_from_rest_fwd(
+    W: Array, WE: Array, bias: Array, pairs: Array, h: float, num_steps: int
+) -> tuple[Array, tuple[Array, ...]]:
+    y_final, ys = _rest_trajectory(W, WE, bias, pairs, h, num_steps)
+    return y_final, (W, bias, pairs, ys)
+
+
+def _euler_from_rest_bwd(
+    h: float, num_steps: int, residuals: tuple[Array, ...], g: Array
+) -> tuple[Array, Array, Array, Array]:
+    W, bias, pairs, ys = residuals
+    w_t = jnp.swapaxes(W, -1, -2)[:, None]
+    b = bias[:, None]
+
+    def body(carry: tuple[Array, Array, Array, Array], y: Array) -> tuple[tuple, None]:
+        a, d_w, d_s, d_c = carry
+        r = jax.nn.sigmoid(y + b)
+        s = r * (1.0 - r) * matvec(w_t, a)
+        d_w = d_w + a[..., :, None] * r[..., None, :]
+        return ((1.0 - h) * a + h * s, d_w, d_s + s, d_c + a), None
+
+    zeros = jnp.zeros_like(g)
+    init = (g, jnp.zeros(g.shape + g.shape[-1:], g.dtype), zeros, zeros)
+    (_, d_w, d_s, d_c), _ = jax.lax.scan(body, init, ys, reverse=True)
+    d_we = h * jnp.einsum("rpi,pk->rik", d_c, pairs)
+    return h * d_w.sum(1), d_we, h * d_s.sum(1), jnp.zeros_like(pairs)
+
+
+_euler_from_rest.defvjp(_euler_from_rest_fwd, _euler_from_rest_bwd)
+
+
 def _make_loss(cfg: TrainConfig, pairs: Array) -> Callable[[Params], Array]:
+    """Training loss of every restart: params with a leading restart axis -> losses ``(R,)``."""
     num_pairs = pairs.shape[0]
     edges = edge_points(cfg.num_edge_points, pairs.dtype)
     everything = jnp.concatenate([pairs, edges])
@@ -317,23 +383,35 @@ def _make_loss(cfg: TrainConfig, pairs: Array) -> Callable[[Params], Array]:
     num_steps = round(T_OVER_TAU / cfg.dt_over_tau)
     inputs = jnp.broadcast_to(everything, (num_steps, *everything.shape))
 
+    def final_state(p: Params) -> Array:
+        if cfg.method == "euler":
+            return _euler_from_rest(
+                p["W"], p["WE"], p["bias"], everything, cfg.dt_over_tau, num_steps
+            )
+
+        def one(q: Params) -> Array:
+            y0 = jnp.zeros((everything.shape[0], cfg.num_neurons), pairs.dtype)
+            net = _net_from_params(q)
+            return simulate(net, y0, inputs, cfg.dt_over_tau, method=cfg.method, record=False)[0]
+
+        return jax.vmap(one)(p)
+
     def loss(p: Params) -> Array:
-        net = _net_from_params(p)
-        y0 = jnp.zeros((everything.shape[0], cfg.num_neurons), pairs.dtype)
-        y, _ = simulate(net, y0, inputs, cfg.dt_over_tau, method=cfg.method, record=False)
-        out = firing_rate(net, y)[:, -1]
+        y = final_state(p)  # (R, E, n)
+        net = _net_from_params({k: v[:, None] for k, v in p.items()})
+        out = firing_rate(net, y)[..., -1]
         sq_err = (out - target) ** 2
-        log_ratio = jnp.log(out[:num_pairs]) - jnp.log(target[:num_pairs])
+        log_ratio = jnp.log(out[:, :num_pairs]) - jnp.log(target[:num_pairs])
         if cfg.rel_loss == "cauchy":  # robust: saturates for pairs far outside 5 %
-            rel_term = jnp.mean(jnp.log1p((log_ratio / REL_TOL) ** 2)) * REL_TOL**2
+            rel_term = jnp.mean(jnp.log1p((log_ratio / REL_TOL) ** 2), -1) * REL_TOL**2
         else:
-            rel_term = jnp.mean(log_ratio**2)
+            rel_term = jnp.mean(log_ratio**2, -1)
         speed = vector_field(net, y, everything)  # dy/dt at T, in units of 1/tau_m
         return (
             rel_term
-            + cfg.abs_weight * jnp.mean(sq_err[:num_pairs])
-            + cfg.edge_weight * jnp.mean(sq_err[num_pairs:])
-            + cfg.fixed_point_weight * jnp.mean(speed**2)
+            + cfg.abs_weight * jnp.mean(sq_err[:, :num_pairs], -1)
+            + cfg.edge_weight * jnp.mean(sq_err[:, num_pairs:], -1)
+            + cfg.fixed_point_weight * jnp.mean(speed**2, (-2, -1))
         )
 
     return loss
@@ -395,11 +473,19 @@ def train(
         }
     opt_state = jax.vmap(opt.init)(params)
 
-    def one_update(p: Params, s: optax.OptState) -> tuple[Params, optax.OptState, Array]:
-        value, grad = jax.value_and_grad(loss)(p)
-        grad = jax.tree.map(lambda g: jnp.where(jnp.isfinite(g), g, 0.0), grad)
-        updates, s = opt.update(grad, s, p)
-        return optax.apply_updates(p, updates), s, value
+    def total(p: Params) -> tuple[Array, Array]:
+        values = loss(p)
+        return jnp.sum(values), values  # restarts are independent: d total / d p_r = d loss_r
+
+    def apply(g: Params, s: optax.OptState, p: Params) -> tuple[Params, optax.OptState]:
+        g = jax.tree.map(lambda a: jnp.where(jnp.isfinite(a), a, 0.0), g)
+        updates, s = opt.update(g, s, p)
+        return optax.apply_updates(p, updates), s
+
+    def all_updates(p: Params, s: optax.OptState) -> tuple[Params, optax.OptState, Array]:
+        (_, values), grad = jax.value_and_grad(total, has_aux=True)(p)
+        p, s = jax.vmap(apply)(grad, s, p)  # per-restart clipping and Adam moments
+        return p, s, values
 
     chunk = 50
 
@@ -407,7 +493,7 @@ def train(
     def run_chunk(p: Params, s: optax.OptState) -> tuple[Params, optax.OptState, Array]:
         def body(carry: tuple, _: None) -> tuple:
             p, s = carry
-            p, s, value = jax.vmap(one_update)(p, s)
+            p, s, value = all_updates(p, s)
             return (p, s), value
 
         (p, s), values = jax.lax.scan(body, (p, s), None, length=chunk)  # type: ignore[var-annotated]
