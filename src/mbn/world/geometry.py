@@ -18,8 +18,8 @@ __all__ = [
     "cast_rays",
     "collides",
     "rect_segments",
-    "sonar_rays",
     "sonar_ranges",
+    "sonar_rays",
 ]
 
 
