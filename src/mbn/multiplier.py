@@ -2,9 +2,9 @@
 
 A multiplier is a small CTRNN with two external inputs ``x1, x2`` in (0, 1). Started from rest
 (``y = 0``) with the inputs held constant, its last neuron's firing rate after ``T = 10 tau_m``
-approximates ``x1 * x2``. Training differentiates through the integration (``jax.grad`` through
-``lax.scan``, i.e. BPTT) and trains many random restarts at once with ``vmap``; the best restart by
-validation that also passes the fixed-point check is kept.
+approximates ``x1 * x2``. Training differentiates through the integration (BPTT through a
+``lax.scan``; a hand-written adjoint for Euler) and trains many random restarts at once, batched in
+one array; the best restart by validation that also passes the fixed-point check is kept.
 
 Choices (documented in ``docs/multiplier.md``):
 
@@ -337,7 +337,7 @@ def _euler_from_rest(
 
     The adjoint runs the reverse recursion ``a_t = (1 - h) a_{t+1} + h sigma'(y_t) (W^T a_{t+1})``
     and accumulates the weight gradients elementwise, reducing over pairs once at the end; this is
-    about 3x faster on CPU than differentiating the ``lax.scan`` automatically, which reduces
+    about 2.5x faster on CPU than differentiating the ``lax.scan`` automatically, which reduces
     over pairs at every step. ``tests/test_multiplier.py`` checks it against ``jax.grad``.
     """
     return _rest_trajectory(W, WE, bias, pairs, h, num_steps)[0]
