@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -43,6 +44,16 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
     return value
 
 
@@ -181,14 +192,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     check.add_argument(
         "--seconds",
-        type=float,
+        type=_positive_float,
         default=20.0,
         help="length of each sequence in seconds (default 20)",
     )
     check.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
     check.add_argument(
         "--tau-ratio",
-        type=float,
+        type=_positive_float,
         default=0.1,
         help="multiplier time constant / network time constant (default 0.1, the paper's); the "
         "step is a tenth of the multipliers' time constant",
@@ -348,10 +359,6 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
 
     from mbn.emulation import EmulationConfig, published_check
 
-    if not args.seconds > 0:
-        raise MbnInputError(f"--seconds: must be > 0, got {args.seconds}")
-    if not args.tau_ratio > 0:
-        raise MbnInputError(f"--tau-ratio: must be > 0, got {args.tau_ratio}")
     mul = _load_mul(args.params)
     defaults = EmulationConfig()
     config = EmulationConfig(

@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -79,10 +80,16 @@ def test_kinematics_matches_stage_to_a_micrometre():
                 [k["v_actual"][sel][order][1], k["w_actual"][sel][order][1]],
                 atol=1e-6,
             )
-            pose = jnp.array([x[0], y[0], th[0]], jnp.float64)
             dt = interval / 1000.0
-            for step in range(1, len(x)):
+
+            def step(pose, _, v=v, w=w, dt=dt):
                 pose = integrate_pose(pose, v, w, dt)
-                np.testing.assert_allclose(np.asarray(pose[:2]), [x[step], y[step]], atol=1e-6)
-                dth = float(np.angle(np.exp(1j * (float(pose[2]) - th[step]))))
-                assert abs(dth) <= 1e-6, (run, interval, step)
+                return pose, pose
+
+            start = jnp.array([x[0], y[0], th[0]], jnp.float64)
+            _, poses = jax.lax.scan(step, start, None, length=len(x) - 1)
+            poses = np.asarray(poses)
+            np.testing.assert_allclose(poses[:, 0], x[1:], atol=1e-6)
+            np.testing.assert_allclose(poses[:, 1], y[1:], atol=1e-6)
+            dth = np.angle(np.exp(1j * (poses[:, 2] - th[1:])))  # wrapped difference
+            assert np.all(np.abs(dth) <= 1e-6), (run, interval)

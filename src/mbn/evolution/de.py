@@ -189,12 +189,11 @@ class DEConfig:
         init_low: the initial population is uniform in ``[init_low, init_high]``; a finite float
             or ``num_dims`` finite floats (stored as a tuple), like the bounds. Paper: -100.
         init_high: see ``init_low``; ``init_low < init_high`` gene by gene. Paper: 100. When
-            bounds are set,
-            the initial range must lie inside them gene by gene (``lower <= init_low`` and
-            ``init_high <= upper``), else :class:`~mbn.errors.MbnInputError`: an initial range
-            wider than the box would be bounded by the policy, e.g. the default ``[-100, 100]``
-            clipped into ``[-1, 1]`` puts nearly every gene on a bound, where DE stalls. So with
-            bounds, set ``init_low``/``init_high`` too.
+            bounds are set, the initial range must lie inside them gene by gene (``lower <=
+            init_low`` and ``init_high <= upper``), else :class:`~mbn.errors.MbnInputError`: an
+            initial range wider than the box would be bounded by the policy, e.g. the default
+            ``[-100, 100]`` clipped into ``[-1, 1]`` puts nearly every gene on a bound, where DE
+            stalls. So with bounds, set ``init_low``/``init_high`` too.
         lower: lower bound of the genes: None (unbounded), a finite float, or ``num_dims`` finite
             floats (a sequence or array, stored as a tuple). The paper states no bounds.
         upper: upper bound, like ``lower``; ``lower < upper`` gene by gene where both are given.

@@ -119,9 +119,6 @@ def _body_normals(body: np.ndarray) -> np.ndarray:
     return np.array(unique)
 
 
-_NORMALS = _body_normals(BODY)
-
-
 def collides(pose: ArrayLike, rects: ArrayLike, body: ArrayLike = BODY) -> Array:
     """Whether the body at ``pose (..., 3)`` overlaps any wall rectangle ``(K, 4)`` (or
     ``(..., K, 4)``); touching is not overlapping. Separating-axis test: the two rectangle axes
@@ -129,7 +126,7 @@ def collides(pose: ArrayLike, rects: ArrayLike, body: ArrayLike = BODY) -> Array
     pose = jnp.asarray(pose)
     poly = body_polygon(pose, body)  # (..., 8, 2)
     r = jnp.asarray(rects)
-    normals = jnp.asarray(_body_normals(np.asarray(body)) if body is not BODY else _NORMALS)
+    normals = jnp.asarray(_body_normals(np.asarray(body)))  # NumPy, once per trace
     px, py = poly[..., 0], poly[..., 1]
     # rectangle axes: compare bounding intervals
     sep_x = (jnp.max(px, -1)[..., None] <= r[..., 0]) | (jnp.min(px, -1)[..., None] >= r[..., 1])

@@ -90,7 +90,8 @@ def integrate_pose(pose: ArrayLike, v: ArrayLike, w: ArrayLike, dt: ArrayLike) -
     """One forward-Euler step of Stage's kinematics with the heading at the start of the step.
 
     ``pose (..., 3)``; ``v``, ``w`` the applied (already limited) speeds; returns the new pose with
-    the heading normalised to [-pi, pi]. No collision handling (see :mod:`mbn.world.sim`).
+    the heading normalised to [-pi, pi]. Collisions are not checked here
+    (:func:`mbn.world.geometry.collides`).
     """
     pose = jnp.asarray(pose)
     x, y, theta = pose[..., 0], pose[..., 1], pose[..., 2]
