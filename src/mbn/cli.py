@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from mbn import __version__
+from mbn.cli_world import WORLD_COMMANDS, WORLD_EPILOG, add_world_commands
 from mbn.errors import MbnInputError
 
 EXIT_BAD_INPUT = 2
@@ -73,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mbn",
         description="Programmable fixed-weight CTRNNs and the Multiple Behavior Network "
         "(Montone, Donnarumma & Prevete, ICANNGA 2011).",
-        epilog=MAIN_EPILOG,
+        epilog=MAIN_EPILOG + WORLD_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mbn {__version__}")
@@ -215,6 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="multiplier JSON (default: the shipped 3-neuron multiplier)",
     )
+    add_world_commands(sub, _Parser)
     return parser
 
 
@@ -408,6 +410,7 @@ COMMANDS = {
     ("mul", "eval"): _cmd_mul_eval,
     ("mul", "report"): _cmd_mul_report,
     ("pnn", "check"): _cmd_pnn_check,
+    **WORLD_COMMANDS,
 }
 
 

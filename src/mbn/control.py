@@ -1,0 +1,102 @@
+"""Robot controllers built from CTRNNs, in the form the rollout expects.
+
+A controller is a pure function ``(state, observation) -> (state, (v, w))`` for one robot. For a
+CTRNN the state holds the network's parameters and its potentials, so a batch of genomes is a
+batch of states. The paper's motor mapping (section 3.1): the third neuron sets the linear speed
+and the second the angular speed; ``mbn`` uses ``v = v_max * sigma(y3)`` and
+``w = w_max * (2 sigma(y2) - 1)`` (positive turns left), with v_max = 0.5 m/s (the P3DX limit) and
+w_max = 1 rad/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import jax.numpy as jnp
+from jax import Array
+
+from mbn.ctrnn import CTRNN, euler_step, firing_rate, rk4_step
+from mbn.errors import MbnInputError
+
+__all__ = ["CTRNNState", "MotorMap", "ctrnn_controller", "substeps_for"]
+
+
+@dataclass(frozen=True)
+class MotorMap:
+    """How neuron outputs become ``(v, w)``: 0-based neuron indices and scales."""
+
+    speed_neuron: int = 2
+    turn_neuron: int = 1
+    v_max: float = 0.5
+    w_max: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.speed_neuron < 0 or self.turn_neuron < 0:
+            raise MbnInputError("motor neurons must be indices >= 0")
+        if not (self.v_max > 0 and self.w_max > 0):
+            raise MbnInputError(f"v_max and w_max must be > 0, got {self.v_max}, {self.w_max}")
+
+
+class CTRNNState(NamedTuple):
+    """A CTRNN controller's state: the network (weights, tau, ...) and its potentials ``y``."""
+
+    net: CTRNN
+    y: Array
+
+
+def substeps_for(dt: float, tau: float, max_ratio: float = 0.05) -> int:
+    """Sub-steps per robot step ``dt`` that keep ``h / tau <= max_ratio``."""
+    if not (dt > 0 and tau > 0 and max_ratio > 0):
+        raise MbnInputError(f"need dt, tau, max_ratio > 0, got {dt}, {tau}, {max_ratio}")
+    return max(1, math.ceil(dt / (tau * max_ratio) - 1e-9))
+
+
+def ctrnn_controller(
+    *,
+    dt: float = 0.1,
+    substeps: int = 4,
+    motor: MotorMap | None = None,
+    method: str = "euler",
+    inputs: Callable[[Any], Array] | None = None,
+) -> Callable[[CTRNNState, Any], tuple[CTRNNState, tuple[Array, Array]]]:
+    """A controller that integrates a CTRNN for ``dt`` seconds in ``substeps`` steps with the
+    observation's inputs held, then reads the motor neurons.
+
+    Args:
+        dt: the robot step (seconds).
+        substeps: network steps per robot step (see :func:`substeps_for`).
+        motor: the motor mapping (default :class:`MotorMap`).
+        method: "euler" or "rk4".
+        inputs: observation -> network inputs; default the paper's I1..I3 (``obs.inputs``).
+    """
+    if substeps < 1:
+        raise MbnInputError(f"substeps must be >= 1, got {substeps}")
+    if method not in ("euler", "rk4"):
+        raise MbnInputError(f"method must be euler or rk4, got {method!r}")
+    motor = motor or MotorMap()
+    h = dt / substeps
+    stepper = euler_step if method == "euler" else rk4_step
+    read = inputs or (lambda obs: obs.inputs)
+
+    def control(state: CTRNNState, obs: Any) -> tuple[CTRNNState, tuple[Array, Array]]:
+        u = read(obs)
+        y = state.y
+        for _ in range(substeps):
+            y = stepper(state.net, y, u, h)
+        rate = firing_rate(state.net, y)
+        v = motor.v_max * rate[..., motor.speed_neuron]
+        w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)
+        return CTRNNState(state.net, y), (v, w)
+
+    return control
+
+
+def initial_state(net: CTRNN) -> CTRNNState:
+    """Potentials at rest (0) for a network (batched or not)."""
+    return CTRNNState(net, jnp.zeros(net.tau.shape, net.tau.dtype))
+
+
+__all__ += ["initial_state"]

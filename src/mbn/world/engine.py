@@ -1,0 +1,506 @@
+"""Fast exact sensing and collision for batches of robots in batches of mazes.
+
+A maze is compiled once (:func:`compile_mazes`) into a uniform occupancy lattice of square cells of
+side ``g`` whose lines carry every wall edge, so that the lattice represents the walls *exactly*:
+the maze's own cell for grid mazes, otherwise the largest ``g`` that divides every wall coordinate
+(0.2 m for the Stage reference arena). Rays are then marched cell by cell (Amanatides & Woo's
+DDA) and a reading is the exact distance to the first solid cell's face.
+
+Spatial culling: for every cell the occupancy of the ``(2W+1)^2`` cells around it, W = the cells a
+ray reaches (5 m plus the sonar ring's radius), is packed into a few 32-bit words. A robot step
+gathers its cell's words once; the march then tests bits in registers. The cost of a robot step is
+therefore independent of the maze's size: a 30 x 30 maze costs what a crossroad costs.
+
+Everything here is pure JAX over a flat batch of robots; each robot carries the index of its maze.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from mbn.errors import MbnInputError
+from mbn.world.maze import Maze
+from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
+
+__all__ = [
+    "CAMERA_POSITION",
+    "MIN_LATTICE_CELL",
+    "CameraConfig",
+    "CameraReading",
+    "World",
+    "cast",
+    "collides_cells",
+    "compile_mazes",
+    "lattice_cell",
+    "maze_constants",
+    "see_tiles",
+    "tile_under",
+    "window_words",
+]
+
+#: Smallest lattice cell accepted when rasterising a maze given by rectangles (metres); a maze
+#: whose wall coordinates have no common divisor this large cannot be compiled.
+MIN_LATTICE_CELL = 0.05
+#: Radius around the pose that holds every sonar origin and the body (metres).
+_RING_RADIUS = float(
+    max(np.hypot(SONAR_POSES[:, 0], SONAR_POSES[:, 1]).max(), np.hypot(*BODY.T).max())
+)
+_BODY_RADIUS = float(np.hypot(*BODY.T).max())
+#: The camera sits at the middle of the body (robot frame, metres).
+CAMERA_POSITION = (float(BODY[:, 0].mean()), 0.0)
+#: Samples across a tile's width at which the camera tests visibility (fractions of the width).
+_TILE_SAMPLES = np.array([-0.4, -0.15, 0.15, 0.4])
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The blob-finding camera: field of view (degrees) and range (metres).
+
+    Stage's blobfinder defaults to 60 degrees and 12 m; ``mbn`` keeps the 60 degrees and uses 3 m,
+    because a floor strip 0.3 m long seen from a camera 0.3 m above the floor spans less than two
+    pixels of Stage's 80 x 60 image beyond about 3 m (``docs/world.md``).
+    """
+
+    fov_deg: float = 60.0
+    range: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.fov_deg <= 180.0):
+            raise MbnInputError(f"camera fov_deg must be in (0, 180], got {self.fov_deg!r}")
+        if not (0.0 < self.range <= SONAR_MAX_RANGE):
+            raise MbnInputError(
+                f"camera range must be in (0, {SONAR_MAX_RANGE}] m, got {self.range!r}"
+            )
+
+
+@partial(
+    jax.tree_util.register_dataclass,
+    data_fields=[
+        "origin",
+        "cell",
+        "shape",
+        "half",
+        "offset",
+        "windows",
+        "tiles",
+        "tile_colors",
+        "outside_is_wall",
+    ],
+    meta_fields=["n_words", "n_march", "n_body"],
+)
+@dataclass(frozen=True)
+class World:
+    """Compiled mazes (a pytree of arrays with three static sizes; index a maze by its position in
+    the list compiled).
+
+    Per maze ``m``: lattice origin ``origin[m]`` (2,), cell ``cell[m]``, size
+    ``shape[m] = (nx, ny)``, window half-width ``half[m]`` (cells), first row of its cells in
+    ``windows``: ``offset[m]``.
+    ``windows[k]`` packs the window of cell k (``nx * ny`` rows per maze, x-major, then one row for
+    "outside the lattice"). Tiles: ``tiles[m, t] = (x, y, cos h, sin h, width, length)``,
+    ``tile_colors[m, t]`` (0 = padding).
+    """
+
+    origin: Array
+    cell: Array
+    shape: Array
+    half: Array
+    offset: Array
+    windows: Array
+    tiles: Array
+    tile_colors: Array
+    outside_is_wall: Array
+    n_words: int
+    n_march: int
+    n_body: int
+
+
+def _rational_gcd(values: list[float]) -> float | None:
+    g = Fraction(0)
+    for v in values:
+        f = Fraction(v).limit_denominator(100_000)
+        if abs(float(f) - v) > 1e-9 * max(1.0, abs(v)):
+            return None
+        a, b = g.numerator * f.denominator, f.numerator * g.denominator
+        den = g.denominator * f.denominator
+        g = Fraction(math.gcd(a, b), den)
+    return float(g) if g > 0 else None
+
+
+def lattice_cell(maze: Maze) -> tuple[float, tuple[float, float]]:
+    """The lattice ``(cell, origin)`` that represents ``maze``'s walls exactly.
+
+    Grid mazes use their own cell and the origin (0, 0); other mazes the largest cell that divides
+    every wall coordinate measured from the lower-left corner of their bounds (at most 2 m).
+    """
+    if maze.grid is not None and maze.cell is not None:
+        return float(maze.cell), (0.0, 0.0)
+    x0, _, y0, _ = maze.bounds
+    vals = [abs(v - x0) for v in maze.walls[:, :2].ravel()] + [
+        abs(v - y0) for v in maze.walls[:, 2:].ravel()
+    ]
+    if maze.outside_is_wall:
+        vals += [maze.bounds[1] - x0, maze.bounds[3] - y0]
+    vals = [v for v in vals if v > 1e-12]
+    g = _rational_gcd(vals) if vals else 1.0
+    if g is None or g < MIN_LATTICE_CELL - 1e-12:
+        raise MbnInputError(
+            f"maze {maze.name!r}: wall coordinates share no lattice of cell >= "
+            f"{MIN_LATTICE_CELL} m (put wall edges on multiples of a common step, e.g. 0.05 m)"
+        )
+    while g > 2.0 + 1e-12:  # keep windows informative for very coarse mazes
+        g /= 2.0
+    return g, (x0, y0)
+
+
+def _occupancy(maze: Maze, g: float, origin: tuple[float, float], margin: int) -> np.ndarray:
+    """Solid cells ``(nx, ny)`` (x index first) of the lattice over the bounds plus ``margin``
+    cells on every side."""
+    x0, x1, y0, y1 = maze.bounds
+    nx_in = round((x1 - origin[0]) / g) if maze.outside_is_wall else math.ceil((x1 - x0) / g)
+    ny_in = round((y1 - origin[1]) / g) if maze.outside_is_wall else math.ceil((y1 - y0) / g)
+    nx, ny = nx_in + 2 * margin, ny_in + 2 * margin
+    occ = np.full((nx, ny), bool(maze.outside_is_wall))
+    occ[margin : margin + nx_in, margin : margin + ny_in] = False
+    for xa, xb, ya, yb in maze.walls:
+        ia = round((xa - origin[0]) / g) + margin
+        ib = round((xb - origin[0]) / g) + margin
+        ja = round((ya - origin[1]) / g) + margin
+        jb = round((yb - origin[1]) / g) + margin
+        occ[max(ia, 0) : max(ib, 0), max(ja, 0) : max(jb, 0)] = True
+    return occ
+
+
+def _pack_windows(occ: np.ndarray, half: int, n_words: int, outside: bool) -> np.ndarray:
+    """``(nx * ny + 1, n_words)`` uint32: bit ``(di + half) * (2 half + 1) + (dj + half)`` of the
+    window of cell ``(i, j)`` is the occupancy of cell ``(i + di, j + dj)``; the last row is the
+    window of a cell outside the lattice."""
+    nx, ny = occ.shape
+    side = 2 * half + 1
+    pad = np.full((nx + 2 * half, ny + 2 * half), outside)
+    pad[half : half + nx, half : half + ny] = occ
+    view = np.lib.stride_tricks.sliding_window_view(pad, (side, side))  # (nx, ny, side, side)
+    bits = np.zeros((nx * ny + 1, n_words * 32), dtype=np.uint64)
+    bits[:-1, : side * side] = view.reshape(nx * ny, side * side)
+    bits[-1, : side * side] = outside
+    weights = np.uint64(1) << np.arange(32, dtype=np.uint64)
+    words = (bits.reshape(-1, n_words, 32) * weights).sum(-1)
+    return words.astype(np.uint32)
+
+
+def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
+    """Compile mazes for :func:`cast`, :func:`collides_cells` and the camera (NumPy, once)."""
+    if not mazes:
+        raise MbnInputError("compile_mazes needs at least one maze")
+    lattices = [lattice_cell(m) for m in mazes]
+    halves = [math.ceil((SONAR_MAX_RANGE + _RING_RADIUS) / g) for g, _ in lattices]
+    n_words = max(math.ceil((2 * h + 1) ** 2 / 32) for h in halves)
+    n_march = max(2 * (math.ceil(SONAR_MAX_RANGE / g) + 1) for g, _ in lattices)
+    n_body = max(math.ceil(2 * _BODY_RADIUS / g) + 1 for g, _ in lattices)
+    origins, shapes, offsets, tables = [], [], [], []
+    offset = 0
+    for maze, (g, origin), half in zip(mazes, lattices, halves, strict=True):
+        margin = 0 if maze.outside_is_wall else half
+        occ = _occupancy(maze, g, origin, margin)
+        origins.append((origin[0] - margin * g, origin[1] - margin * g))
+        shapes.append(occ.shape)
+        offsets.append(offset)
+        table = _pack_windows(occ, half, n_words, bool(maze.outside_is_wall))
+        tables.append(table)
+        offset += table.shape[0]
+    n_tiles = max(1, max(len(m.tiles) for m in mazes))
+    tiles = np.zeros((len(mazes), n_tiles, 6))
+    colors = np.zeros((len(mazes), n_tiles), dtype=np.int32)
+    for k, maze in enumerate(mazes):
+        for t, tile in enumerate(maze.tiles):
+            h = tile.heading
+            tiles[k, t] = (tile.x, tile.y, math.cos(h), math.sin(h), tile.width, tile.length)
+            colors[k, t] = tile.colors
+    dtype = jnp.zeros(()).dtype  # float32, or float64 under jax_enable_x64
+    return World(
+        origin=jnp.asarray(np.array(origins), dtype),
+        cell=jnp.asarray(np.array([g for g, _ in lattices]), dtype),
+        shape=jnp.asarray(np.array(shapes), jnp.int32),
+        half=jnp.asarray(np.array(halves), jnp.int32),
+        offset=jnp.asarray(np.array(offsets), jnp.int32),
+        windows=jnp.asarray(np.concatenate(tables, axis=0)),
+        tiles=jnp.asarray(tiles, dtype),
+        tile_colors=jnp.asarray(colors),
+        outside_is_wall=jnp.asarray(np.array([m.outside_is_wall for m in mazes])),
+        n_words=n_words,
+        n_march=n_march,
+        n_body=n_body,
+    )
+
+
+class MazeConstants(NamedTuple):
+    """Per-robot constants of its maze (gathered once per rollout): origin ``(..., 2)``, cell,
+    lattice shape ``(..., 2)``, window half-width, window side, first table row."""
+
+    origin: Array
+    cell: Array
+    shape: Array
+    half: Array
+    side: Array
+    offset: Array
+
+
+def maze_constants(world: World, maze_index: Array) -> MazeConstants:
+    """The constants of each robot's maze, ``maze_index (...,)``."""
+    half = world.half[maze_index]
+    return MazeConstants(
+        origin=world.origin[maze_index],
+        cell=world.cell[maze_index],
+        shape=world.shape[maze_index],
+        half=half,
+        side=2 * half + 1,
+        offset=world.offset[maze_index],
+    )
+
+
+def _cell_of(mc: MazeConstants, x: Array, y: Array) -> tuple[Array, Array]:
+    return (
+        jnp.floor((x - mc.origin[..., 0]) / mc.cell).astype(jnp.int32),
+        jnp.floor((y - mc.origin[..., 1]) / mc.cell).astype(jnp.int32),
+    )
+
+
+def window_words(world: World, mc: MazeConstants, x: Array, y: Array) -> tuple[Array, Array, Array]:
+    """The packed window ``(..., n_words)`` of the cell holding ``(x, y)``, and that cell's
+    lattice indices ``(i, j)``."""
+    i, j = _cell_of(mc, x, y)
+    nx, ny = mc.shape[..., 0], mc.shape[..., 1]
+    inside = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+    row = jnp.where(inside, mc.offset + i * ny + j, mc.offset + nx * ny)
+    return world.windows[row], i, j
+
+
+def _bit(words: Array, n_words: int, b: Array) -> Array:
+    """Bit ``b (..., k)`` of each robot's window ``words (..., n_words)`` as bool."""
+    w_index = b >> 5
+    if n_words <= 8:
+        w = jnp.broadcast_to(words[..., 0:1], b.shape)
+        for k in range(1, n_words):
+            w = jnp.where(w_index == k, words[..., k : k + 1], w)
+    else:
+        flat = jnp.broadcast_to(words[..., None, :], (*b.shape, n_words))
+        w = jnp.take_along_axis(flat, w_index[..., None], axis=-1)[..., 0]
+    return ((w >> (b & 31).astype(jnp.uint32)) & 1).astype(bool)
+
+
+def cast(
+    world: World,
+    mc: MazeConstants,
+    words: Array,
+    ci: Array,
+    cj: Array,
+    ox: Array,
+    oy: Array,
+    angle: Array,
+    max_range: float | Array = SONAR_MAX_RANGE,
+) -> Array:
+    """Exact distance along rays to the first solid cell, capped at ``max_range``.
+
+    ``words``, ``ci``, ``cj`` from :func:`window_words` for the robot (shape ``(B, ...)``);
+    ray origins ``ox, oy`` and headings ``angle`` of shape ``(B, k)``, each origin within
+    ``_RING_RADIUS`` of the robot's pose and in free space.
+    """
+    cell = mc.cell[..., None]
+    dx, dy = jnp.cos(angle), jnp.sin(angle)
+    gx = (ox - mc.origin[..., 0:1]) / cell
+    gy = (oy - mc.origin[..., 1:2]) / cell
+    fi, fj = jnp.floor(gx), jnp.floor(gy)
+    big = jnp.asarray(1e30, gx.dtype)
+    adx, ady = jnp.abs(dx), jnp.abs(dy)
+    inv_x = jnp.where(adx > 1e-12, cell / jnp.where(adx > 1e-12, adx, 1.0), big)
+    inv_y = jnp.where(ady > 1e-12, cell / jnp.where(ady > 1e-12, ady, 1.0), big)
+    tx = jnp.where(dx > 0, fi + 1.0 - gx, gx - fi) * inv_x
+    ty = jnp.where(dy > 0, fj + 1.0 - gy, gy - fj) * inv_y
+    half = mc.half[..., None]
+    side = mc.side[..., None]
+    li = fi.astype(jnp.int32) - ci[..., None] + half
+    lj = fj.astype(jnp.int32) - cj[..., None] + half
+    si = jnp.where(dx > 0, 1, -1)
+    sj = jnp.where(dy > 0, 1, -1)
+    dist = jnp.full(ox.shape, max_range, ox.dtype)
+    done = jnp.zeros(ox.shape, bool)
+    for _ in range(world.n_march):
+        step_x = tx < ty
+        t = jnp.minimum(tx, ty)
+        li = jnp.where(step_x, li + si, li)
+        lj = jnp.where(step_x, lj, lj + sj)
+        solid = _bit(words, world.n_words, li * side + lj)
+        dist = jnp.where(solid & ~done, t, dist)
+        done = done | solid
+        tx = jnp.where(step_x, tx + inv_x, tx)
+        ty = jnp.where(step_x, ty, ty + inv_y)
+    return jnp.minimum(dist, max_range)
+
+
+# Body octagon projected on its own edge normals (robot frame): the separating axes of the SAT.
+def _body_axes() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    edges = np.roll(BODY, -1, axis=0) - BODY
+    normals = np.stack([-edges[:, 1], edges[:, 0]], -1)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    unique: list[np.ndarray] = []
+    for n in normals:
+        if not any(abs(abs(float(n @ u)) - 1.0) < 1e-9 for u in unique):
+            unique.append(n)
+    axes = np.array(unique)
+    proj = BODY @ axes.T  # (8, A)
+    return axes, proj.min(0), proj.max(0)
+
+
+_AXES, _AXES_MIN, _AXES_MAX = _body_axes()
+
+
+def collides_cells(
+    world: World, mc: MazeConstants, words: Array, ci: Array, cj: Array, pose: Array
+) -> Array:
+    """Whether the body at ``pose (B, 3)`` overlaps a solid cell (touching is not overlapping).
+
+    ``words, ci, cj`` describe the window of the cell holding the pose. Separating-axis test of the
+    octagon against each solid cell under the body's bounding square (``n_body`` cells a side):
+    the two lattice axes and the octagon's edge normals.
+    """
+    n = world.n_body
+    d = jnp.arange(n)
+    di = jnp.repeat(d, n)
+    dj = jnp.tile(d, n)  # (C,)
+    cell = mc.cell[..., None]
+    ox, oy = mc.origin[..., 0:1], mc.origin[..., 1:2]
+    # first cell under the body's bounding square, relative to the pose's cell
+    i0 = jnp.floor((pose[..., 0:1] - _BODY_RADIUS - ox) / cell).astype(jnp.int32) - ci[..., None]
+    j0 = jnp.floor((pose[..., 1:2] - _BODY_RADIUS - oy) / cell).astype(jnp.int32) - cj[..., None]
+    li, lj = i0 + di, j0 + dj  # (B, C) relative to the pose's cell
+    x0 = ox + (ci[..., None] + li) * cell  # lower-left corners
+    y0 = oy + (cj[..., None] + lj) * cell
+    half = mc.half[..., None]
+    solid = _bit(words, world.n_words, (half + li) * mc.side[..., None] + half + lj)
+    th = pose[..., 2:3]
+    c, s = jnp.cos(th), jnp.sin(th)
+    bx = jnp.asarray(BODY[:, 0], pose.dtype)
+    by = jnp.asarray(BODY[:, 1], pose.dtype)
+    wx = pose[..., 0:1] + c * bx - s * by  # (B, 8)
+    wy = pose[..., 1:2] + s * bx + c * by
+    sep = (jnp.max(wx, -1, keepdims=True) <= x0) | (jnp.min(wx, -1, keepdims=True) >= x0 + cell)
+    sep = sep | (jnp.max(wy, -1, keepdims=True) <= y0)
+    sep = sep | (jnp.min(wy, -1, keepdims=True) >= y0 + cell)
+    cx, cy = x0 + cell / 2 - pose[..., 0:1], y0 + cell / 2 - pose[..., 1:2]
+    for a in range(len(_AXES)):
+        ax, ay = float(_AXES[a, 0]), float(_AXES[a, 1])
+        nx, ny = c * ax - s * ay, s * ax + c * ay  # (B, 1) world-frame normal
+        centre = cx * nx + cy * ny
+        extent = cell / 2 * (jnp.abs(nx) + jnp.abs(ny))
+        sep = sep | (centre - extent >= _AXES_MAX[a]) | (centre + extent <= _AXES_MIN[a])
+    return jnp.any(solid & ~sep, axis=-1)
+
+
+class CameraReading(NamedTuple):
+    """What the blob finder reports at one step.
+
+    ``blobs``: the number of distinct colour blobs in view (each visible tile shows one blob per
+    colour). ``nearest``: the number of colours (0 none, 1, 2) of the nearest tile in view — the
+    camera input of the program module. ``visible``: ``(..., T, 2)`` which blobs of which tile are
+    in view; ``bearing``: ``(..., T, 2)`` each blob's bearing in the camera frame (radians,
+    positive left; meaningful where visible).
+    """
+
+    blobs: Array
+    nearest: Array
+    visible: Array
+    bearing: Array
+
+
+def see_tiles(
+    world: World,
+    mc: MazeConstants,
+    maze_index: Array,
+    words: Array,
+    ci: Array,
+    cj: Array,
+    pose: Array,
+    camera: CameraConfig,
+) -> CameraReading:
+    """The blob finder at ``pose (B, 3)``: a tile's blob is in view when one of its sample points
+    (across the tile's width) is within the field of view and range and no wall lies between the
+    camera and it. A two-colour tile's halves are separate blobs."""
+    tiles = world.tiles[maze_index]  # (B, T, 6)
+    colors = world.tile_colors[maze_index]  # (B, T)
+    th = pose[..., 2]
+    c, s = jnp.cos(th), jnp.sin(th)
+    camx = pose[..., 0] + c * CAMERA_POSITION[0]
+    camy = pose[..., 1] + s * CAMERA_POSITION[0]
+    u = jnp.asarray(_TILE_SAMPLES, pose.dtype)  # (k,)
+    # sample points across the width: centre + u * width * (-sin h, cos h)
+    px = tiles[..., 0:1] - u * tiles[..., 4:5] * tiles[..., 3:4]  # (B, T, k)
+    py = tiles[..., 1:2] + u * tiles[..., 4:5] * tiles[..., 2:3]
+    vx, vy = px - camx[:, None, None], py - camy[:, None, None]
+    dist = jnp.hypot(vx, vy)
+    ang = jnp.arctan2(vy, vx)
+    rel = jnp.arctan2(jnp.sin(ang - th[:, None, None]), jnp.cos(ang - th[:, None, None]))
+    b, t, k = px.shape
+    free = cast(
+        world,
+        mc,
+        words,
+        ci,
+        cj,
+        jnp.broadcast_to(camx[:, None], (b, t * k)),
+        jnp.broadcast_to(camy[:, None], (b, t * k)),
+        ang.reshape(b, t * k),
+        camera.range,
+    ).reshape(b, t, k)
+    seen = (
+        (colors[..., None] > 0)
+        & (jnp.abs(rel) <= math.radians(camera.fov_deg) / 2)
+        & (dist <= camera.range)
+        & (free >= dist - 1e-4)
+    )
+    left = u < 0  # first half of the samples: blob 0 of a two-colour tile
+    two = (colors == 2)[..., None]
+    blob0 = jnp.where(two, seen & left, seen)
+    blob1 = jnp.where(two, seen & ~left, False)
+    vis0, vis1 = jnp.any(blob0, -1), jnp.any(blob1, -1)
+    visible = jnp.stack([vis0, vis1], -1)  # (B, T, 2)
+
+    def mean_bearing(mask: Array) -> Array:
+        n = jnp.maximum(jnp.sum(mask, -1), 1)
+        return jnp.sum(jnp.where(mask, rel, 0.0), -1) / n
+
+    bearing = jnp.stack([mean_bearing(blob0), mean_bearing(blob1)], -1)
+    blobs = jnp.sum(visible, axis=(-1, -2))
+    centre_dist = jnp.hypot(tiles[..., 0] - camx[:, None], tiles[..., 1] - camy[:, None])
+    any_vis = vis0 | vis1
+    nearest_t = jnp.argmin(jnp.where(any_vis, centre_dist, jnp.inf), axis=-1)
+    nearest = jnp.where(
+        jnp.any(any_vis, -1), jnp.take_along_axis(colors, nearest_t[:, None], -1)[:, 0], 0
+    )
+    return CameraReading(blobs=blobs, nearest=nearest, visible=visible, bearing=bearing)
+
+
+def tile_under(world: World, maze_index: Array, pose: Array) -> Array:
+    """The number of colours (0 none, 1, 2) of the tile under the middle of the body."""
+    tiles = world.tiles[maze_index]
+    colors = world.tile_colors[maze_index]
+    th = pose[..., 2:3]
+    mx = pose[..., 0:1] + jnp.cos(th) * CAMERA_POSITION[0]
+    my = pose[..., 1:2] + jnp.sin(th) * CAMERA_POSITION[0]
+    dx, dy = mx - tiles[..., 0], my - tiles[..., 1]
+    along = dx * tiles[..., 2] + dy * tiles[..., 3]
+    across = -dx * tiles[..., 3] + dy * tiles[..., 2]
+    inside = (
+        (colors > 0)
+        & (jnp.abs(along) <= tiles[..., 5] / 2)
+        & (jnp.abs(across) <= tiles[..., 4] / 2)
+    )
+    return jnp.max(jnp.where(inside, colors, 0), axis=-1)

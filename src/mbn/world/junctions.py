@@ -1,0 +1,268 @@
+"""Junction analysis of grid mazes (NumPy): decision cells, wall-following rule exits, and the
+sequence of junctions a trajectory passes.
+
+Definitions (cells of :attr:`Maze.grid`; outside the grid is wall):
+
+* A **decision cell** is a free cell with three or more free 4-neighbours (a T or a plus
+  crossing), or exactly two at a right angle (a corner, where the robot must turn). A straight
+  corridor cell (two opposite free neighbours) and a dead end (one) are not decision cells.
+* Compass headings are ``'N' 'E' 'S' 'W'`` (indices 0..3 in that order); a robot *entering* a
+  cell while moving north has heading ``'N'``. Exits are relative to that heading: ``'right'``,
+  ``'straight'``, ``'left'``, ``'back'``.
+* The **right-hand rule** takes the first open exit of right, straight, left (else back); the
+  **left-hand rule** the first of left, straight, right (else back).
+* A **junction pass** (:func:`junction_sequence`): the robot's cell is the grid cell containing
+  its ``(x, y)``; a pass begins when the robot moves into a decision cell from another cell and
+  ends when it moves into a different cell; entry heading and exit are the compass directions of
+  those two moves (for a move between cells that are not 4-neighbours, the dominant axis of the
+  displacement between cell centres). A robot that wobbles back and forth across a border of a
+  decision cell makes one pass per entry (each with exit ``'back'``) unless ``margin`` is given;
+  a pass still open at the end of the trajectory, and a trajectory's first cell, are not
+  reported as passes.
+
+The jitted rollout engine (:mod:`mbn.world.rollout`) needs the same rules as arrays indexed per
+cell: :func:`junction_tables` gives, for every cell and each of the four entry headings, the exit
+code of each rule (0 back, 1 right, 2 straight, 3 left; -1 where the cell is not a decision cell).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from mbn.errors import MbnInputError
+from mbn.world.maze import Maze
+
+__all__ = [
+    "EXITS",
+    "EXIT_CODES",
+    "HEADINGS",
+    "JunctionPass",
+    "cell_of",
+    "decision_cells",
+    "free_neighbours",
+    "junction_sequence",
+    "junction_tables",
+    "rule_exit",
+]
+
+#: Compass headings in index order (also the order of the last axis of the junction tables).
+HEADINGS = ("N", "E", "S", "W")
+#: Exits relative to the entry heading.
+EXITS = ("back", "right", "straight", "left")
+#: Small-integer code of each exit, as in :func:`junction_tables`.
+EXIT_CODES = {name: code for code, name in enumerate(EXITS)}
+
+# (d_row, d_col) of a move in each compass direction; row 0 is north
+_STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))
+# relative turn (compass offset from the entry heading) of each exit, and the rule orders
+_TURN = {"straight": 0, "right": 1, "back": 2, "left": 3}
+_RULE_ORDER = {"right": ("right", "straight", "left"), "left": ("left", "straight", "right")}
+
+
+def _grid(maze: Maze) -> tuple[np.ndarray, float]:
+    if maze.grid is None or maze.cell is None:
+        raise MbnInputError(
+            f"maze {maze.name!r}: junction analysis needs a grid maze (a .maze file or a grid"
+            " built-in)"
+        )
+    return np.asarray(maze.grid), float(maze.cell)
+
+
+def free_neighbours(maze: Maze) -> np.ndarray:
+    """``(R, C, 4)`` bool: whether each cell's neighbour to the N, E, S, W is free (outside the
+    grid is wall)."""
+    grid, _ = _grid(maze)
+    free = np.pad(grid != "#", 1, constant_values=False)
+    rows, cols = grid.shape
+    out = np.empty((rows, cols, 4), dtype=bool)
+    for h, (dr, dc) in enumerate(_STEP):
+        out[..., h] = free[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
+    return out
+
+
+def decision_cells(maze: Maze) -> np.ndarray:
+    """``(R, C)`` bool: free cells with three or more free 4-neighbours, or exactly two at a right
+    angle (corners)."""
+    grid, _ = _grid(maze)
+    nb = free_neighbours(maze)
+    count = nb.sum(axis=-1)
+    straight = (nb[..., 0] & nb[..., 2]) | (nb[..., 1] & nb[..., 3])
+    return (grid != "#") & ((count >= 3) | ((count == 2) & ~straight))
+
+
+def cell_of(maze: Maze, x: float, y: float) -> tuple[int, int]:
+    """The grid cell ``(row, col)`` containing the point ``(x, y)`` (row 0 north; a point on a
+    border belongs to the cell east / north of it; points outside the grid give the nearest
+    cell)."""
+    grid, cell = _grid(maze)
+    rows, cols = grid.shape
+    col = min(max(math.floor(x / cell), 0), cols - 1)
+    row = rows - 1 - min(max(math.floor(y / cell), 0), rows - 1)
+    return int(row), int(col)
+
+
+def _heading_index(heading: str) -> int:
+    try:
+        return HEADINGS.index(heading)
+    except ValueError:
+        raise MbnInputError(f"heading must be one of N E S W, got {heading!r}") from None
+
+
+def _rule_exit_from(open_dirs: np.ndarray, h: int, rule: str) -> str:
+    for name in _RULE_ORDER[rule]:
+        if open_dirs[(h + _TURN[name]) % 4]:
+            return name
+    return "back"
+
+
+def rule_exit(
+    maze: Maze,
+    cell: tuple[int, int],
+    heading: str,
+    rule: Literal["right", "left"],
+) -> str:
+    """The exit (``'right' 'straight' 'left' 'back'``) that the right- or left-hand rule takes in
+    ``cell = (row, col)`` for a robot entering it while moving ``heading`` (``'N' 'E' 'S' 'W'``).
+
+    Works for any free cell; in a corridor cell it is simply ``'straight'`` (or the way round a
+    corner, or ``'back'`` at a dead end).
+    """
+    grid, _ = _grid(maze)
+    if rule not in _RULE_ORDER:
+        raise MbnInputError(f"rule must be 'right' or 'left', got {rule!r}")
+    h = _heading_index(heading)
+    r, c = cell
+    rows, cols = grid.shape
+    if not (0 <= r < rows and 0 <= c < cols):
+        raise MbnInputError(f"cell {cell} is outside the {rows} x {cols} grid of {maze.name!r}")
+    if grid[r, c] == "#":
+        raise MbnInputError(f"cell {cell} of {maze.name!r} is a wall")
+    return _rule_exit_from(free_neighbours(maze)[r, c], h, rule)
+
+
+def junction_tables(maze: Maze) -> dict[str, np.ndarray]:
+    """Per-cell tables for the jitted rollout engine.
+
+    Returns:
+        ``"right"``, ``"left"``: ``(R, C, 4)`` int8, the exit code (0 back, 1 right, 2 straight,
+        3 left) the right- / left-hand rule takes in each cell for each entry heading (N, E, S, W
+        order); -1 where the cell is not a decision cell.
+        ``"decision"``: ``(R, C)`` bool, :func:`decision_cells`.
+        ``"open"``: ``(R, C, 4)`` bool, :func:`free_neighbours`.
+    """
+    nb = free_neighbours(maze)
+    decision = decision_cells(maze)
+    rows, cols = decision.shape
+    tables = {rule: np.full((rows, cols, 4), -1, dtype=np.int8) for rule in _RULE_ORDER}
+    for r, c in zip(*np.nonzero(decision), strict=True):
+        for h in range(4):
+            for rule, table in tables.items():
+                table[r, c, h] = EXIT_CODES[_rule_exit_from(nb[r, c], h, rule)]
+    return {"right": tables["right"], "left": tables["left"], "decision": decision, "open": nb}
+
+
+@dataclass(frozen=True)
+class JunctionPass:
+    """One pass of the robot through a decision cell.
+
+    Attributes:
+        cell: ``(row, col)`` of the decision cell.
+        entered_heading: compass direction of the move into the cell (``'N' 'E' 'S' 'W'``).
+        exit: the exit taken, relative to ``entered_heading``.
+        right_rule_exit, left_rule_exit: the exits the right- and left-hand rules take there.
+        step_in: index of the first pose inside the cell.
+        step_out: index of the first pose in the next cell.
+    """
+
+    cell: tuple[int, int]
+    entered_heading: str
+    exit: str
+    right_rule_exit: str
+    left_rule_exit: str
+    step_in: int
+    step_out: int
+
+
+def _move_heading(a: tuple[int, int], b: tuple[int, int]) -> int:
+    """Compass index of the move from cell ``a`` to cell ``b`` (dominant axis if not adjacent;
+    ties go to the north-south axis)."""
+    dr, dc = b[0] - a[0], b[1] - a[1]
+    if abs(dr) >= abs(dc):
+        return 0 if dr < 0 else 2
+    return 1 if dc > 0 else 3
+
+
+def _cell_track(maze: Maze, poses: np.ndarray, margin: float) -> list[tuple[int, int]]:
+    """The cell of every pose; with ``margin > 0`` a move into a new cell counts only once the
+    point is at least ``margin`` inside it (hysteresis against wobbling across a border)."""
+    grid, cell = _grid(maze)
+    rows = grid.shape[0]
+    track: list[tuple[int, int]] = []
+    current: tuple[int, int] | None = None
+    for x, y in poses[:, :2]:
+        candidate = cell_of(maze, float(x), float(y))
+        if current is None or margin <= 0.0 or candidate == current:
+            current = candidate
+        else:
+            r, c = candidate
+            x0, y0 = c * cell, (rows - 1 - r) * cell
+            inside = min(x - x0, x0 + cell - x, y - y0, y0 + cell - y)
+            if inside >= margin:
+                current = candidate
+        track.append(current)
+    return track
+
+
+def junction_sequence(maze: Maze, poses: np.ndarray, *, margin: float = 0.0) -> list[JunctionPass]:
+    """The decision cells a trajectory passes, in order (see the module docstring).
+
+    Args:
+        maze: a grid maze.
+        poses: ``(T, 3)`` (or ``(T, 2)``) robot poses; only ``x, y`` are used.
+        margin: hysteresis (metres): the robot is taken to have moved into a new cell only once
+            its point is at least this far inside it. 0 (default) uses the containing cell as is.
+
+    Returns:
+        One :class:`JunctionPass` per completed pass.
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.ndim != 2 or poses.shape[1] < 2:
+        raise MbnInputError(f"poses must be (T, 3), got shape {poses.shape}")
+    if not np.all(np.isfinite(poses[:, :2])):
+        raise MbnInputError("poses must be finite")
+    if not math.isfinite(margin) or margin < 0:
+        raise MbnInputError(f"margin must be >= 0, got {margin!r}")
+    decision = decision_cells(maze)
+    nb = free_neighbours(maze)
+    track = _cell_track(maze, poses, margin)
+    # runs of consecutive poses in the same cell: (cell, first step)
+    runs: list[tuple[tuple[int, int], int]] = []
+    for step, c in enumerate(track):
+        if not runs or runs[-1][0] != c:
+            runs.append((c, step))
+    out: list[JunctionPass] = []
+    for i in range(1, len(runs) - 1):
+        cell, step_in = runs[i]
+        if not decision[cell]:
+            continue
+        prev_cell, _ = runs[i - 1]
+        next_cell, step_out = runs[i + 1]
+        h_in = _move_heading(prev_cell, cell)
+        h_out = _move_heading(cell, next_cell)
+        exit_name = EXITS[[2, 1, 0, 3][(h_out - h_in) % 4]]
+        out.append(
+            JunctionPass(
+                cell=(int(cell[0]), int(cell[1])),
+                entered_heading=HEADINGS[h_in],
+                exit=exit_name,
+                right_rule_exit=_rule_exit_from(nb[cell], h_in, "right"),
+                left_rule_exit=_rule_exit_from(nb[cell], h_in, "left"),
+                step_in=step_in,
+                step_out=step_out,
+            )
+        )
+    return out
