@@ -132,3 +132,18 @@ def test_sonar_input_errors_name_file_and_line(tmp_path, capsys):
     assert main(["sonar", "--maze", str(bad), "--poses", str(poses), "--out", str(out)]) == 2
     assert f"{bad}:3: unknown character 'x'" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_show_maze_writes_a_png(tmp_path, capsys):
+    from PIL import Image
+
+    out = tmp_path / "fig4.png"
+    assert main(["show-maze", "fig4", "--out", str(out)]) == 0
+    with Image.open(out) as im:
+        assert im.format == "PNG" and im.size[0] > 400 and im.size[1] > 300
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = 'x'\n[[wall]]\nxmin = 0\nxmax = oops\n")
+    assert main(["show-maze", str(bad), "--out", str(tmp_path / "b.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{bad}:4" in err
+    assert not (tmp_path / "b.png").exists()

@@ -18,7 +18,7 @@ from mbn.world import engine as E  # noqa: N812
 from mbn.world.builtin import crossroad, stage_arena
 from mbn.world.generate import corridor_maze
 from mbn.world.geometry import collides, rect_segments, sonar_ranges, sonar_rays
-from mbn.world.maze import Maze, Tile
+from mbn.world.maze import Maze, Tile, merge_cells
 
 
 def _mazes() -> dict[str, Maze]:
@@ -140,29 +140,38 @@ def test_incommensurable_walls_are_refused():
         E.lattice_cell(odd)
 
 
+def _free_centres(maze: Maze) -> list[tuple[float, float]]:
+    rows = maze.grid.shape[0]
+    return [((c + 0.5) * 1.2, (rows - r - 0.5) * 1.2) for r, c in np.argwhere(maze.grid != "#")]
+
+
+#: Offsets within a cell that keep the body (radius 0.315 m) clear of a 1.2 m corridor's walls.
+_OFFSET = st.floats(-0.25, 0.25)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
-    x=st.floats(0.55, 2.85),
-    y=st.floats(0.55, 6.65),
+    centre=st.sampled_from(_free_centres(crossroad("LS"))),
+    dx=_OFFSET,
+    dy=_OFFSET,
     th=st.floats(-math.pi, math.pi),
     shift=st.tuples(st.integers(-3, 3), st.integers(-3, 3)),
 )
-def test_readings_invariant_under_lattice_translation(x, y, th, shift):
+def test_readings_invariant_under_lattice_translation(centre, dx, dy, th, shift):
     """Translating maze and robot together by whole cells leaves every reading unchanged."""
     base = crossroad("LS")
-    dx, dy = shift[0] * 1.2, shift[1] * 1.2
+    tx, ty = shift[0] * 1.2, shift[1] * 1.2
     moved = Maze(
         "moved",
-        walls=base.walls + np.array([dx, dx, dy, dy]),
-        bounds=(dx, dx + 8.4, dy, dy + 8.4),
+        walls=base.walls + np.array([tx, tx, ty, ty]),
+        bounds=(tx, tx + 8.4, ty, ty + 8.4),
     )
     w = E.compile_mazes([base, moved])
-    pose = np.array([[x, y, th]])
-    if bool(collides(jnp.asarray(pose), base.solid_rects())[0]):
-        return
+    pose = np.array([[centre[0] + dx, centre[1] + dy, th]])
     a = _engine_ranges(w, 0, pose)
-    b = _engine_ranges(w, 1, pose + np.array([[dx, dy, 0.0]]))
+    b = _engine_ranges(w, 1, pose + np.array([[tx, ty, 0.0]]))
     np.testing.assert_allclose(a, b, atol=5e-5)
+    assert a.min() >= 0.0 and a.max() <= 5.0
 
 
 def test_camera_sees_tiles_in_view_and_not_behind_walls():
@@ -220,3 +229,36 @@ def test_batch_composition_does_not_change_readings():
     alone = _engine_ranges(world, 0, poses[:5])
     together = _engine_ranges(world, 0, poses)
     np.testing.assert_array_equal(alone, together[:5])
+
+
+_TURN_BASE = corridor_maze(7, 7, seed=5, loops=0.5)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    centre=st.sampled_from(_free_centres(_TURN_BASE)),
+    dx=_OFFSET,
+    dy=_OFFSET,
+    th=st.floats(-math.pi, math.pi),
+    turns=st.integers(1, 3),
+)
+def test_readings_invariant_under_quarter_turns_of_maze_and_robot(centre, dx, dy, th, turns):
+    """Rotating a grid maze and the robot together by 90-degree turns changes no reading."""
+    base = _TURN_BASE
+    grid = np.rot90(base.grid, turns)  # counter-clockwise, like the pose rotation below
+    side = 7 * 1.2
+    turned = Maze(
+        "turned",
+        walls=merge_cells(grid == "#", 1.2),
+        bounds=(0.0, side, 0.0, side),
+        grid=grid,
+        cell=1.2,
+    )
+    pose = np.array([centre[0] + dx, centre[1] + dy, th])
+    c = np.array([side / 2, side / 2])
+    a = turns * math.pi / 2
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    moved = np.concatenate([rot @ (pose[:2] - c) + c, [th + a]])
+    r0 = _engine_ranges(E.compile_mazes([base]), 0, pose[None])
+    r1 = _engine_ranges(E.compile_mazes([turned]), 0, moved[None])
+    np.testing.assert_allclose(r0, r1, atol=5e-5)

@@ -270,3 +270,23 @@ def test_no_step_ends_inside_a_wall(seed, scale):
         assert not np.any(np.asarray(inside))
     ranges = np.asarray(out.trajectory.ranges)
     assert ranges.min() >= 0.0 and ranges.max() <= 5.0
+
+
+def test_episode_batch_is_every_controller_times_every_start():
+    from mbn.world.builtin import builtin_maze
+    from mbn.world.rollout import episode_batch
+
+    mazes = [crossroad("L"), builtin_maze("fig4")]
+    ctrl, poses, mi = episode_batch(mazes, 3)
+    n = 1 + len(mazes[1].starts)
+    assert len(ctrl) == len(poses) == len(mi) == 3 * n
+    assert ctrl.tolist() == [0] * n + [1] * n + [2] * n
+    np.testing.assert_array_equal(
+        poses[n : 2 * n], np.concatenate([mazes[0].starts, mazes[1].starts])
+    )
+    assert mi[:n].tolist() == [0] + [1] * (n - 1)
+    c1, p1, m1 = episode_batch(mazes, 2, first_start_only=True)
+    np.testing.assert_array_equal(p1[1], mazes[1].starts[0])
+    assert c1.tolist() == [0, 0, 1, 1] and m1.tolist() == [0, 1, 0, 1]
+    with pytest.raises(MbnInputError, match="n_controllers"):
+        episode_batch(mazes, 0)

@@ -93,3 +93,29 @@ def test_kinematics_matches_stage_to_a_micrometre():
             np.testing.assert_allclose(poses[:, 1], y[1:], atol=1e-6)
             dth = np.angle(np.exp(1j * (poses[:, 2] - th[1:])))  # wrapped difference
             assert np.all(np.abs(dth) <= 1e-6), (run, interval)
+
+
+def test_rollout_engine_sonar_matches_stage_at_fine_resolution(sonar_data):
+    """The lattice engine the rollouts use, on the built-in arena, meets the same targets."""
+    from mbn.world.builtin import stage_arena
+    from mbn.world.engine import cast, compile_mazes, maze_constants, window_words
+    from mbn.world.geometry import sonar_rays
+
+    arena = stage_arena()
+    np.testing.assert_array_equal(np.sort(arena.walls, 0), np.sort(STAGE_ARENA_WALLS, 0))
+    world = compile_mazes([arena])
+    poses = jnp.asarray(np.stack([sonar_data["x"], sonar_data["y"], sonar_data["theta"]], -1))
+
+    @jax.jit
+    def read(p):
+        mc = maze_constants(world, jnp.zeros(p.shape[0], jnp.int32))
+        words, ci, cj = window_words(world, mc, p[:, 0], p[:, 1])
+        o, a = sonar_rays(p)
+        return cast(world, mc, words, ci, cj, o[..., 0], o[..., 1], a)
+
+    ours = np.asarray(read(poses))
+    stage = np.stack([sonar_data[f"s{i:02d}"] for i in range(16)], -1)
+    diff = np.abs(ours - stage).ravel()
+    assert np.median(diff) <= 0.005
+    assert np.percentile(diff, 95) <= 0.02
+    assert np.percentile(diff, 99) <= 0.05

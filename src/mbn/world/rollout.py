@@ -58,6 +58,8 @@ __all__ = [
     "RolloutConfig",
     "RolloutResult",
     "Trajectory",
+    "episode_batch",
+    "junction_arrays",
     "rollout",
 ]
 
@@ -201,6 +203,28 @@ def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
                 out[idx, :, 0] = right[r, c]
                 out[idx, :, 1] = left[r, c]
     return jnp.asarray(out)
+
+
+def episode_batch(
+    mazes: list[Any] | tuple[Any, ...], n_controllers: int, *, first_start_only: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The batch of every controller x every (maze, start pose), controller-major.
+
+    Returns ``(controller_index (B,), poses (B, 3), maze_index (B,))``; index a batched controller
+    state with ``controller_index`` (e.g. ``jax.tree.map(lambda a: a[idx], state)``).
+    """
+    if n_controllers < 1:
+        raise MbnInputError(f"n_controllers must be >= 1, got {n_controllers}")
+    pairs = []
+    for m, maze in enumerate(mazes):
+        starts = maze.starts[:1] if first_start_only else maze.starts
+        if len(starts) == 0:
+            raise MbnInputError(f"maze {maze.name!r} has no start pose")
+        pairs += [(m, pose) for pose in starts]
+    controller = np.repeat(np.arange(n_controllers), len(pairs))
+    maze_index = np.tile(np.array([m for m, _ in pairs]), n_controllers)
+    poses = np.tile(np.array([p for _, p in pairs]), (n_controllers, 1))
+    return controller, poses, maze_index
 
 
 def _relative_exit(entry: Array, move: Array) -> Array:
