@@ -131,6 +131,8 @@ def test_junction_pass_is_tracked_like_the_trajectory_analysis(turn):
     passes = junction_sequence(maze, np.asarray(out.trajectory.pose[0]))
     assert [p.exit for p in passes] == [turn]
     assert passes[0].step_in == int(s.junction_step[0, 0])
+    assert passes[0].step_out == int(s.junction_exit_step[0, 0])
+    assert int(s.junction_stalls[0, 0]) == 0
 
 
 def test_rule_exits_depend_on_the_crossroad_kind():

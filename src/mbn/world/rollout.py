@@ -130,7 +130,9 @@ class EpisodeStats(NamedTuple):
     maze grid, ``junction_heading`` (0..3 = N, E, S, W: direction of entry), ``junction_exit``,
     ``junction_right`` and ``junction_left`` (exit codes of :data:`EXIT_NAMES`: taken, and what
     the right- and left-hand rules take), ``junction_tile`` (tile in force on entry) and
-    ``junction_step`` (step of entry); entries beyond ``n_junctions`` are -1.
+    ``junction_step`` (step of entry), ``junction_exit_step`` (step at which the robot is in the
+    next cell) and ``junction_stalls`` (stalled moves from the start of the episode until then);
+    entries beyond ``n_junctions`` are -1 (a pass still open at the end has no exit yet).
     """
 
     stall_fraction: Array
@@ -150,6 +152,8 @@ class EpisodeStats(NamedTuple):
     junction_left: Array
     junction_tile: Array
     junction_step: Array
+    junction_exit_step: Array
+    junction_stalls: Array
 
 
 class Trajectory(NamedTuple):
@@ -345,6 +349,8 @@ def rollout(
         j_left: Array
         j_tile: Array
         j_step: Array
+        j_out: Array
+        j_stalls: Array
 
     def resolve(carry: Carry) -> tuple[Moved, dict[str, Array]]:
         """Apply the pending move (or undo it) and account for it."""
@@ -366,7 +372,9 @@ def rollout(
         }
         return here, acc
 
-    def junction_update(carry: Carry, here: Moved, tile: Array, step: Array) -> dict[str, Array]:
+    def junction_update(
+        carry: Carry, here: Moved, tile: Array, step: Array, n_stall: Array
+    ) -> dict[str, Array]:
         ci, cj = here.ci, here.cj
         pci, pcj = carry.prev.ci, carry.prev.cj
         moved = (ci != pci) | (cj != pcj)
@@ -379,6 +387,8 @@ def rollout(
         slots = jnp.arange(jmax)
         write = closing[:, None] & (slots == carry.n_junc[:, None])  # (B, J)
         j_exit = jnp.where(write, _relative_exit(carry.entry, heading)[:, None], carry.j_exit)
+        j_out = jnp.where(write, step, carry.j_out)
+        j_stalls = jnp.where(write, n_stall[:, None], carry.j_stalls)
         n_junc = carry.n_junc + closing.astype(jnp.int32)
         nx_, ny_ = mc.shape[:, 0], mc.shape[:, 1]
         inside = (ci >= 0) & (ci < nx_) & (cj >= 0) & (cj < ny_)
@@ -402,6 +412,8 @@ def rollout(
             "j_left": put(carry.j_left, rule[:, 1]),
             "j_tile": put(carry.j_tile, tile),
             "j_step": put(carry.j_step, jnp.broadcast_to(step, (b,))),
+            "j_out": j_out,
+            "j_stalls": j_stalls,
         }
 
     def one_step(carry: Carry, step: Array) -> tuple[Carry, tuple[Any, ...]]:
@@ -434,7 +446,7 @@ def rollout(
         words_c, ci_c, cj_c = window_words(world, mc, cand_pose[:, 0], cand_pose[:, 1])
         hit = collides_cells(world, mc, words_c, ci_c, cj_c, cand_pose)
         cand = Moved(cand_pose, words_c, ci_c, cj_c, cast_at(cand_pose, words_c, ci_c, cj_c, step))
-        junc = junction_update(carry, here, tile, step)
+        junc = junction_update(carry, here, tile, step, acc["n_stall"])
         new = Carry(
             prev=here,
             cand=cand,
@@ -485,6 +497,8 @@ def rollout(
         j_left=neg,
         j_tile=neg,
         j_step=neg,
+        j_out=neg,
+        j_stalls=neg,
     )
     steps = config.steps
     every = config.record_every
@@ -525,7 +539,7 @@ def rollout(
         carry, _ = lax.scan(lambda cr, s: (one_step(cr, s)[0], None), carry0, jnp.arange(steps))
         trajectory = None
     final, acc = resolve(carry)
-    junc = junction_update(carry, final, carry.tile, jnp.asarray(steps, jnp.int32))
+    junc = junction_update(carry, final, carry.tile, jnp.asarray(steps, jnp.int32), acc["n_stall"])
     n = float(steps)
     stats = EpisodeStats(
         stall_fraction=acc["n_stall"].astype(dtype) / n,
@@ -545,5 +559,7 @@ def rollout(
         junction_left=junc["j_left"],
         junction_tile=junc["j_tile"],
         junction_step=junc["j_step"],
+        junction_exit_step=junc["j_out"],
+        junction_stalls=junc["j_stalls"],
     )
     return RolloutResult(stats=stats, trajectory=trajectory, controller_state=carry.ctrl)

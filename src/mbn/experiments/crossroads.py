@@ -1,0 +1,203 @@
+"""The paper's training task: a robot in each of the seven crossroads, scored by a fitness.
+
+Paper (section 3.1): "There are 7 kinds of crossroads ... Each robot is placed at the beginning
+of each crossroad and is free to evolve for about 20 seconds. The final evaluation ... is the sum
+of the evaluations obtained in each of the seven distinct simulations", with F_M (eq. 4) and F_R
+or F_L (eq. 5).
+
+Two fitnesses are available:
+
+``"paper"``
+    F_M + F_R (or F_L) per episode, exactly as published: F_M = V (1 - V_A) S_min with V the
+    mean linear speed over the maximum, V_A the mean |angular speed| over the maximum and S_min
+    the shortest sonar distance over 2 m (all in [0, 1]); F_R = S1 + S2 - S9 - S10 and
+    F_L = S9 + S10 - S1 - S2 with S the mean proximity of the side sonars over the episode. It can
+    be maximised by parking against the followed wall (a study here found exactly that).
+``"branch"`` (default)
+    progress into the arm the rule takes, times (1 - stall fraction), minus the stall fraction,
+    plus 0.1 F_M for smooth, fast, clear motion. Progress is the distance of the final position
+    beyond the junction along the correct arm, over the arm's length, in [0, 1] (0 anywhere
+    else). It rewards exactly what the tests judge: the rule's branch, without stalling.
+
+Both keep the paper's terms visible (:func:`paper_terms`). Episodes: every crossroad from its
+start mark, and ``variants - 1`` more starts per crossroad jittered (lateral, along the corridor,
+heading) with a seeded NumPy generator at this edge, so that the evolved controller does not
+depend on one exact start.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from mbn.errors import MbnInputError
+from mbn.world.builtin import CROSSROAD_KINDS, crossroad
+from mbn.world.engine import World, compile_mazes
+from mbn.world.maze import Maze
+from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
+from mbn.world.rollout import EpisodeStats, RolloutConfig, junction_arrays
+from mbn.world.sensors import SensorConfig
+
+__all__ = [
+    "FITNESSES",
+    "RULES",
+    "CrossroadTask",
+    "TaskArrays",
+    "episode_fitness",
+    "paper_terms",
+    "rule_arm",
+]
+
+Rule = Literal["right", "left"]
+RULES: tuple[str, ...] = ("right", "left")
+FITNESSES: tuple[str, ...] = ("branch", "paper")
+_ARM_VECTORS = {"L": (-1.0, 0.0), "S": (0.0, 1.0), "R": (1.0, 0.0)}
+
+
+def rule_arm(kind: str, rule: str) -> str:
+    """The exit (``"L"``, ``"S"`` or ``"R"``) a wall-following rule takes at a crossroad kind
+    entered from the south: right-hand rule first of R, S, L; left-hand rule first of L, S, R."""
+    if rule not in RULES:
+        raise MbnInputError(f"rule must be right or left, got {rule!r}")
+    if kind not in CROSSROAD_KINDS:
+        raise MbnInputError(
+            f"unknown crossroad kind {kind!r} (known: {', '.join(CROSSROAD_KINDS)})"
+        )
+    order = "RSL" if rule == "right" else "LSR"
+    return next(c for c in order if c in kind)
+
+
+@dataclass(frozen=True)
+class CrossroadTask:
+    """The crossroad training task.
+
+    Attributes:
+        rule: "right" or "left": the wall-following rule rewarded.
+        fitness: "branch" (default) or "paper" (see the module docstring).
+        variants: starts per crossroad: the start mark and ``variants - 1`` jittered ones.
+        seconds: episode length (the paper: "about 20 seconds"; default 30 s, see docs).
+        dt: robot step (s).
+        jitter: lateral (m), along (m), heading (degrees) half-ranges of the jittered starts.
+        seed: seed of the jittered starts (recorded in results).
+        sensors: sonar settings (normalisation of S).
+        tile: put a tile of this many colours in every crossroad's south arm (PM training).
+    """
+
+    rule: str = "right"
+    fitness: str = "branch"
+    variants: int = 6
+    seconds: float = 30.0
+    dt: float = 0.1
+    jitter: tuple[float, float, float] = (0.15, 0.3, 10.0)
+    seed: int = 0
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    tile: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.rule not in RULES:
+            raise MbnInputError(f"rule must be right or left, got {self.rule!r}")
+        if self.fitness not in FITNESSES:
+            raise MbnInputError(
+                f"fitness must be one of {', '.join(FITNESSES)}, got {self.fitness!r}"
+            )
+        if not (isinstance(self.variants, int) and self.variants >= 1):
+            raise MbnInputError(f"variants must be an integer >= 1, got {self.variants!r}")
+        if not (self.seconds > 0 and self.dt > 0):
+            raise MbnInputError("seconds and dt must be > 0")
+        if any(j < 0 for j in self.jitter):
+            raise MbnInputError(f"jitter must be >= 0, got {self.jitter!r}")
+
+    @property
+    def steps(self) -> int:
+        return max(1, round(self.seconds / self.dt))
+
+    def rollout_config(self, **kw: Any) -> RolloutConfig:
+        return RolloutConfig(steps=self.steps, dt=self.dt, sensors=self.sensors, **kw)
+
+    def arrays(self) -> TaskArrays:
+        """Mazes, compiled world and per-episode arrays (NumPy at this edge, once)."""
+        mazes = [crossroad(kind, tile=self.tile) for kind in CROSSROAD_KINDS]
+        world = compile_mazes(mazes)
+        rng = np.random.default_rng(self.seed)
+        base = np.stack([m.starts[0] for m in mazes])  # all face north
+        starts = [base]
+        lat, along, head = self.jitter
+        for _ in range(self.variants - 1):
+            j = np.zeros_like(base)
+            j[:, 0] = rng.uniform(-lat, lat, len(base))
+            j[:, 1] = rng.uniform(-along, along, len(base))
+            j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
+            starts.append(base + j)
+        poses = np.concatenate(starts)
+        maze_index = np.tile(np.arange(len(mazes)), self.variants)
+        target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for k in CROSSROAD_KINDS])
+        centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])
+        return TaskArrays(
+            mazes=mazes,
+            world=world,
+            junctions=junction_arrays(mazes, world),
+            poses=poses,
+            maze_index=maze_index,
+            target=target[maze_index],
+            centre=centre[maze_index],
+            cell=float(mazes[0].cell or 1.2),
+            arm_length=3 * float(mazes[0].cell or 1.2),
+        )
+
+
+@dataclass(frozen=True)
+class TaskArrays:
+    """A task's mazes and per-episode arrays: start ``poses (E, 3)``, ``maze_index (E,)``, the
+    unit vector of the rule's arm ``target (E, 2)`` and the junction centre ``centre (E, 2)``."""
+
+    mazes: list[Maze]
+    world: World
+    junctions: Array
+    poses: np.ndarray
+    maze_index: np.ndarray
+    target: np.ndarray
+    centre: np.ndarray
+    cell: float
+    arm_length: float
+
+    @property
+    def episodes(self) -> int:
+        return len(self.poses)
+
+
+def paper_terms(stats: EpisodeStats, far: float = 2.0) -> dict[str, Array]:
+    """The paper's fitness terms per episode: F_M (eq. 4) and F_R, F_L (eq. 5).
+
+    ``stats`` must come from a rollout with the paper's 10 sonars (``S_mean`` over s1..s10, as
+    proximity); ``far`` is the distance that maps S_min into [0, 1].
+    """
+    V = jnp.clip(stats.mean_v / MAX_LINEAR_SPEED, 0.0, 1.0)
+    VA = jnp.clip(stats.mean_abs_w / MAX_ANGULAR_SPEED, 0.0, 1.0)
+    s_min = jnp.clip(stats.min_range / far, 0.0, 1.0)
+    S = stats.S_mean
+    right = S[..., 0] + S[..., 1]
+    left = S[..., 8] + S[..., 9]
+    return {"F_M": V * (1.0 - VA) * s_min, "F_R": right - left, "F_L": left - right}
+
+
+def branch_progress(stats: EpisodeStats, arrays: TaskArrays) -> Array:
+    """How far (0..1) the final position lies inside the arm the rule takes."""
+    rel = stats.final_pose[..., :2] - jnp.asarray(arrays.centre)
+    t = jnp.asarray(arrays.target)
+    half = arrays.cell / 2
+    along = jnp.sum(rel * t, -1) - half
+    lateral = jnp.abs(rel[..., 0] * t[..., 1] - rel[..., 1] * t[..., 0])
+    return jnp.where(lateral <= half, jnp.clip(along / arrays.arm_length, 0.0, 1.0), 0.0)
+
+
+def episode_fitness(stats: EpisodeStats, arrays: TaskArrays, task: CrossroadTask) -> Array:
+    """Fitness of every episode ``(..., E)``; sum over episodes for a controller's fitness."""
+    terms = paper_terms(stats, task.sensors.far)
+    if task.fitness == "paper":
+        return terms["F_M"] + (terms["F_R"] if task.rule == "right" else terms["F_L"])
+    stall = stats.stall_fraction
+    return branch_progress(stats, arrays) * (1.0 - stall) - stall + 0.1 * terms["F_M"]

@@ -1,0 +1,198 @@
+"""Evolving wall-following CTRNNs on the crossroad task by Differential Evolution.
+
+A :class:`Genome` says which connections of a 3-neuron CTRNN the genes set (the rest come from a
+base network): the paper's RF evolves all 9 recurrent weights and the 3 input weights of
+"neuron k receives input k" (12 genes); its LF re-evolves 3 connections of RF. Evolution runs one
+generation at a time (:func:`generation`) so that a runner can checkpoint every generation; the
+key of generation g is ``fold_in(key, g)``, so a resumed run draws exactly what an uninterrupted
+one would.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from mbn.control import CTRNNState, ctrnn_controller, substeps_for
+from mbn.ctrnn import CTRNN, make_ctrnn
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, tell
+from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness
+from mbn.programmable import Connection
+from mbn.world.rollout import EpisodeStats, rollout
+
+__all__ = [
+    "DEFAULT_TAU",
+    "RF_CONNECTIONS",
+    "Genome",
+    "crossroad_fitness",
+    "evaluate_networks",
+    "generation",
+    "start",
+]
+
+#: Shared time constant of the RF/LF neurons (the paper gives none; docs/experiments.md).
+DEFAULT_TAU = 0.5
+#: The RF genome: all recurrent weights, then WE[k, k] (neuron k receives input k).
+RF_CONNECTIONS: tuple[Connection, ...] = tuple(
+    Connection("W", i, j) for i in range(3) for j in range(3)
+) + tuple(Connection("WE", k, k) for k in range(3))
+
+
+@dataclass(frozen=True)
+class Genome:
+    """Genes -> a 3-neuron CTRNN: ``connections[g]`` is set to gene g, everything else is
+    ``base``'s (zeros by default); time constants ``tau``."""
+
+    connections: tuple[Connection, ...] = RF_CONNECTIONS
+    base_W: tuple[tuple[float, ...], ...] = ((0.0,) * 3,) * 3
+    base_WE: tuple[tuple[float, ...], ...] = ((0.0,) * 3,) * 3
+    tau: float = DEFAULT_TAU
+
+    def __post_init__(self) -> None:
+        if not self.connections:
+            raise MbnInputError("a genome needs at least one connection")
+        for c in self.connections:
+            if c.i >= 3 or c.j >= 3:
+                raise MbnInputError(f"connection {c}: out of range for 3 neurons and 3 inputs")
+        if not self.tau > 0:
+            raise MbnInputError(f"tau must be > 0, got {self.tau}")
+
+    @classmethod
+    def around(cls, base: CTRNN, connections: tuple[Connection, ...]) -> Genome:
+        """Genes for ``connections`` of ``base``; the other weights stay ``base``'s."""
+        W = np.asarray(base.W, dtype=float)
+        WE = np.asarray(base.WE, dtype=float)
+        return cls(
+            connections=connections,
+            base_W=tuple(map(tuple, W.tolist())),
+            base_WE=tuple(map(tuple, WE.tolist())),
+            tau=float(np.asarray(base.tau).reshape(-1)[0]),
+        )
+
+    @property
+    def size(self) -> int:
+        return len(self.connections)
+
+    def weights(self, genes: Array) -> tuple[Array, Array]:
+        """``(W, WE)`` of shape ``(..., 3, 3)`` for genes ``(..., size)``."""
+        genes = jnp.asarray(genes)
+        batch = genes.shape[:-1]
+        W = jnp.broadcast_to(jnp.asarray(self.base_W, genes.dtype), (*batch, 3, 3))
+        WE = jnp.broadcast_to(jnp.asarray(self.base_WE, genes.dtype), (*batch, 3, 3))
+        for g, c in enumerate(self.connections):
+            if c.kind == "W":
+                W = W.at[..., c.i, c.j].set(genes[..., g])
+            else:
+                WE = WE.at[..., c.i, c.j].set(genes[..., g])
+        return W, WE
+
+    def network(self, genes: Array) -> CTRNN:
+        """The CTRNN of one genome (validated; for files and reports)."""
+        W, WE = self.weights(jnp.asarray(genes))
+        return make_ctrnn(np.asarray(W), np.asarray(WE), self.tau)
+
+    def genes_of(self, net: CTRNN) -> np.ndarray:
+        """The genes that reproduce ``net``'s chosen connections."""
+        return np.array([float(c.value(net)) for c in self.connections])
+
+
+def evaluate_networks(
+    W: Array, WE: Array, tau: float, arrays: TaskArrays, task: CrossroadTask
+) -> EpisodeStats:
+    """Run every network ``(N, 3, 3)`` on every episode of the task: stats of shape ``(N * E,)``,
+    network-major."""
+    n, e = W.shape[0], arrays.episodes
+    W = jnp.repeat(W, e, 0)
+    WE = jnp.repeat(WE, e, 0)
+    dtype = W.dtype
+    net = CTRNN(
+        W=W,
+        WE=WE,
+        tau=jnp.full((n * e, 3), tau, dtype),
+        bias=jnp.zeros((n * e, 3), dtype),
+        gain=jnp.ones((n * e, 3), dtype),
+    )
+    controller = ctrnn_controller(dt=task.dt, substeps=substeps_for(task.dt, tau))
+    poses = jnp.asarray(np.tile(arrays.poses, (n, 1)), dtype)
+    maze_index = jnp.asarray(np.tile(arrays.maze_index, n))
+    state = CTRNNState(net, jnp.zeros((n * e, 3), dtype))
+    return rollout(
+        arrays.world,
+        controller,
+        state,
+        poses,
+        maze_index,
+        task.rollout_config(),
+        junctions=arrays.junctions,
+    ).stats
+
+
+def crossroad_fitness(
+    genome: Genome, task: CrossroadTask, arrays: TaskArrays | None = None
+) -> Callable[[Array], Array]:
+    """A jitted map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
+    task's episodes)."""
+    arrays = arrays or task.arrays()
+    tiled_fitness = _tile_fitness(arrays)
+
+    @jax.jit
+    def fitness(population: Array) -> Array:
+        W, WE = genome.weights(population)
+        stats = evaluate_networks(W, WE, genome.tau, arrays, task)
+        per_episode = tiled_fitness(stats, task)
+        return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+
+    return fitness
+
+
+def _tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, CrossroadTask], Array]:
+    def f(stats: EpisodeStats, task: CrossroadTask) -> Array:
+        n = stats.final_pose.shape[0] // arrays.episodes
+        tiled = TaskArrays(
+            mazes=arrays.mazes,
+            world=arrays.world,
+            junctions=arrays.junctions,
+            poses=np.tile(arrays.poses, (n, 1)),
+            maze_index=np.tile(arrays.maze_index, n),
+            target=np.tile(arrays.target, (n, 1)),
+            centre=np.tile(arrays.centre, (n, 1)),
+            cell=arrays.cell,
+            arm_length=arrays.arm_length,
+        )
+        return episode_fitness(stats, tiled, task)
+
+    return f
+
+
+def start(
+    key: Array,
+    config: DEConfig,
+    fitness: Callable[[Array], Array],
+    population: np.ndarray | None = None,
+) -> DEState:
+    """Generation 0: the initial population (drawn from ``fold_in(key, 0)`` unless given) and its
+    fitness."""
+    from mbn.evolution.de import from_population
+
+    state = (
+        init(jax.random.fold_in(key, 0), config)
+        if population is None
+        else from_population(jnp.asarray(population), config)
+    )
+    return initialize_fitness(state, fitness(state.population), config)
+
+
+def generation(
+    key: Array, g: int, state: DEState, config: DEConfig, fitness: Callable[[Array], Array]
+) -> DEState:
+    """Generation ``g >= 1`` of DE/best/1/bin (its key is ``fold_in(key, g)``)."""
+    if g < 1:
+        raise MbnInputError(f"generation index must be >= 1, got {g}")
+    trials = ask(jax.random.fold_in(key, g), state, config)
+    return tell(state, trials, fitness(trials), config)

@@ -1,0 +1,210 @@
+"""The paper's test protocol: start marks of a maze, J consecutive junctions, little stalling.
+
+Paper (section 3.1): "The networks obtained were tested placing the robot in 10 different
+positions in the maze and observing the robot behavior while driving through three consecutive
+crossroads. The positions were chosen in such a way that the robot starts its test in the middle
+of a corridor and oriented with its lateral part parallel to the wall."
+
+A trial here: the robot starts at a start mark (exactly, or jittered: lateral +-0.15 m, along the
+corridor +-0.3 m, heading +-10 degrees) and runs up to a time limit. It **succeeds** when its
+first J junction passes (decision cells: T and plus crossings and L turns) each take the exit of
+the rule in force, and it was stalled in at most 2 % of its steps until it left the J-th junction.
+The rule in force is fixed ("right", "left"), or, for "tiles", the rule of the last tile the
+robot drove over when it entered the junction (one colour: right, two colours: left; before the
+first tile: ``initial``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from mbn.errors import MbnInputError
+from mbn.world.engine import CameraConfig, compile_mazes
+from mbn.world.maze import Maze
+from mbn.world.rollout import EpisodeStats, RolloutConfig, RolloutResult, junction_arrays, rollout
+from mbn.world.sensors import SensorConfig
+
+__all__ = [
+    "BEHAVIORS",
+    "MAX_STALL_FRACTION",
+    "TrialSpec",
+    "judge",
+    "run_trials",
+    "summary",
+    "trial_starts",
+]
+
+BEHAVIORS: tuple[str, ...] = ("right", "left", "tiles")
+#: A trial fails when the robot was stalled in more than this fraction of its steps.
+MAX_STALL_FRACTION = 0.02
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """How a controller is tested in a maze.
+
+    Attributes:
+        behavior: "right", "left" or "tiles" (the rule of the last tile driven over).
+        initial: the rule before the first tile ("tiles" only).
+        repeats: trials per start mark: the first from the mark exactly, the others jittered.
+        junctions: consecutive junctions judged (the paper: 3).
+        seconds: time limit of a trial.
+        jitter: lateral (m), along (m), heading (degrees) half-ranges.
+        seed: seed of the jitter (NumPy, at this edge).
+    """
+
+    behavior: str = "right"
+    initial: str = "right"
+    repeats: int = 1
+    junctions: int = 3
+    seconds: float = 60.0
+    jitter: tuple[float, float, float] = (0.15, 0.3, 10.0)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.behavior not in BEHAVIORS:
+            raise MbnInputError(
+                f"behavior must be one of {', '.join(BEHAVIORS)}, got {self.behavior!r}"
+            )
+        if self.initial not in ("right", "left"):
+            raise MbnInputError(f"initial must be right or left, got {self.initial!r}")
+        if not (isinstance(self.repeats, int) and self.repeats >= 1):
+            raise MbnInputError(f"repeats must be an integer >= 1, got {self.repeats!r}")
+        if not (isinstance(self.junctions, int) and 1 <= self.junctions <= 32):
+            raise MbnInputError(f"junctions must be an integer in 1..32, got {self.junctions!r}")
+        if not (self.seconds > 0 and math.isfinite(self.seconds)):
+            raise MbnInputError(f"seconds must be > 0, got {self.seconds!r}")
+
+    def check_maze(self, maze: Maze) -> None:
+        """Refuse a maze the spec cannot be run in (one clear line)."""
+        if len(maze.starts) == 0:
+            raise MbnInputError(f"maze {maze.name!r} has no start marks")
+        if maze.grid is None:
+            raise MbnInputError(
+                f"maze {maze.name!r} is not a grid maze: the junction test needs one"
+            )
+        if self.behavior == "tiles" and not maze.tiles:
+            raise MbnInputError(f"behavior 'tiles' needs tiles, and maze {maze.name!r} has none")
+
+
+def trial_starts(maze: Maze, spec: TrialSpec) -> np.ndarray:
+    """Start poses ``(marks * repeats, 3)``: for each start mark, the mark itself and then
+    ``repeats - 1`` jittered copies (mark-major order)."""
+    rng = np.random.default_rng(spec.seed)
+    lat, along, head = spec.jitter
+    out = []
+    for x, y, th in maze.starts:
+        out.append((x, y, th))
+        for _ in range(spec.repeats - 1):
+            a = rng.uniform(-along, along)
+            b = rng.uniform(-lat, lat)
+            h = math.radians(rng.uniform(-head, head))
+            out.append(
+                (
+                    x + a * math.cos(th) - b * math.sin(th),
+                    y + a * math.sin(th) + b * math.cos(th),
+                    th + h,
+                )
+            )
+    return np.array(out, dtype=float)
+
+
+def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
+    """Judge every episode: per trial ``success``, ``correct`` junctions among the first J,
+    ``judged`` junctions (J or fewer if the robot passed fewer), ``stall`` fraction until the J-th
+    junction was left (or over the whole trial if it never was)."""
+    J = spec.junctions
+    n = np.asarray(stats.n_junctions)
+    exits = np.asarray(stats.junction_exit)[:, :J]
+    if exits.shape[1] < J:
+        raise MbnInputError(
+            f"the rollout kept {exits.shape[1]} junction passes per episode; {J} are judged "
+            "(raise RolloutConfig.max_junctions)"
+        )
+    right = np.asarray(stats.junction_right)[:, :J]
+    left = np.asarray(stats.junction_left)[:, :J]
+    if spec.behavior == "right":
+        rule = right
+    elif spec.behavior == "left":
+        rule = left
+    else:
+        tile = np.asarray(stats.junction_tile)[:, :J]
+        first = right if spec.initial == "right" else left
+        rule = np.where(tile == 1, right, np.where(tile == 2, left, first))
+    passed = np.arange(J)[None, :] < n[:, None]
+    correct = passed & (exits == rule)
+    judged = np.minimum(n, J)
+    out_step = np.asarray(stats.junction_exit_step)[:, J - 1]
+    stalls = np.asarray(stats.junction_stalls)[:, J - 1]
+    whole = np.asarray(stats.stall_fraction)
+    stall = np.where(n >= J, stalls / np.maximum(out_step, 1), whole)
+    success = (n >= J) & np.all(correct, axis=1) & (stall <= MAX_STALL_FRACTION)
+    return {
+        "success": success,
+        "correct": correct.sum(1),
+        "judged": judged,
+        "stall": stall,
+    }
+
+
+def summary(verdict: dict[str, np.ndarray]) -> dict[str, float | int]:
+    """The JSON summary of judged trials."""
+    trials = int(verdict["success"].shape[0])
+    successes = int(verdict["success"].sum())
+    return {
+        "trials": trials,
+        "successes": successes,
+        "success_rate": successes / trials if trials else 0.0,
+        "junctions": int(verdict["judged"].sum()),
+        "correct_junctions": int(verdict["correct"].sum()),
+        "mean_stall_fraction": float(np.mean(verdict["stall"])) if trials else 0.0,
+    }
+
+
+def run_trials(
+    maze: Maze,
+    spec: TrialSpec,
+    controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]],
+    initial_state: Callable[[int], Any],
+    *,
+    dt: float = 0.1,
+    sensors: SensorConfig | None = None,
+    camera: CameraConfig | None = None,
+    record_every: int = 0,
+    record_controller: bool = False,
+) -> tuple[dict[str, np.ndarray], RolloutResult, np.ndarray]:
+    """Run and judge every trial of ``spec`` in ``maze``.
+
+    ``initial_state(n)`` gives the controller's batched initial state for ``n`` robots. The camera
+    is on for "tiles" (default :class:`~mbn.world.engine.CameraConfig`) unless given. Returns the
+    verdict of :func:`judge`, the rollout result and the start poses.
+    """
+    spec.check_maze(maze)
+    poses = trial_starts(maze, spec)
+    n = len(poses)
+    world = compile_mazes([maze])
+    junctions = junction_arrays([maze], world)
+    if camera is None and spec.behavior == "tiles":
+        camera = CameraConfig()
+    config = RolloutConfig(
+        steps=max(1, round(spec.seconds / dt)),
+        dt=dt,
+        sensors=sensors or SensorConfig(),
+        camera=camera,
+        record_every=record_every,
+        record_controller=record_controller,
+        max_junctions=max(8, spec.junctions),
+    )
+    run = jax.jit(
+        lambda state, p, m: rollout(world, controller, state, p, m, config, junctions=junctions)
+    )
+    result = run(initial_state(n), jnp.asarray(poses, jnp.zeros(()).dtype), jnp.zeros(n, jnp.int32))
+    return judge(result.stats, spec), result, poses

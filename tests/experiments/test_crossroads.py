@@ -1,0 +1,153 @@
+"""The crossroad task: rule exits, the paper's fitness terms, the branch fitness, the evolution."""
+
+from __future__ import annotations
+
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig
+from mbn.experiments.crossroads import (
+    CrossroadTask,
+    branch_progress,
+    episode_fitness,
+    paper_terms,
+    rule_arm,
+)
+from mbn.experiments.evolve import RF_CONNECTIONS, Genome, crossroad_fitness, generation, start
+from mbn.programmable import Connection
+from mbn.world.rollout import EpisodeStats
+
+
+def stats(**values) -> EpisodeStats:
+    """Synthetic statistics of n episodes (defaults: a clean, still robot)."""
+    n = len(next(iter(values.values())))
+    base = {
+        "stall_fraction": np.zeros(n),
+        "mean_v": np.zeros(n),
+        "mean_abs_w": np.zeros(n),
+        "min_range": np.full(n, 5.0),
+        "range_mean": np.full((n, 10), 5.0),
+        "S_mean": np.zeros((n, 10)),
+        "distance": np.zeros(n),
+        "final_pose": np.zeros((n, 3)),
+        "tile": np.zeros(n, int),
+        "n_junctions": np.zeros(n, int),
+    }
+    for name in ("cell",):
+        base[f"junction_{name}"] = np.full((n, 8, 2), -1)
+    for name in ("heading", "exit", "right", "left", "tile", "step", "exit_step", "stalls"):
+        base[f"junction_{name}"] = np.full((n, 8), -1)
+    base.update({k: np.asarray(v) for k, v in values.items()})
+    return EpisodeStats(**{k: jnp.asarray(v) for k, v in base.items()})
+
+
+def test_rule_arms_of_the_seven_kinds():
+    right = {k: rule_arm(k, "right") for k in ("L", "S", "R", "LS", "LR", "SR", "LSR")}
+    left = {k: rule_arm(k, "left") for k in ("L", "S", "R", "LS", "LR", "SR", "LSR")}
+    assert right == {"L": "L", "S": "S", "R": "R", "LS": "S", "LR": "R", "SR": "R", "LSR": "R"}
+    assert left == {"L": "L", "S": "S", "R": "R", "LS": "L", "LR": "L", "SR": "S", "LSR": "L"}
+    with pytest.raises(MbnInputError, match="rule"):
+        rule_arm("L", "up")
+    with pytest.raises(MbnInputError, match="crossroad kind"):
+        rule_arm("X", "right")
+
+
+def test_paper_terms_are_eq_4_and_5():
+    S = np.zeros((2, 10))
+    S[0, [0, 1]] = 0.8  # right side near
+    S[1, [8, 9]] = 0.6  # left side near
+    s = stats(
+        mean_v=np.array([0.25, 0.5]),
+        mean_abs_w=np.array([0.0, np.pi / 4]),
+        min_range=np.array([1.0, 3.0]),
+        S_mean=S,
+    )
+    t = paper_terms(s)
+    np.testing.assert_allclose(t["F_M"], [0.5 * 1.0 * 0.5, 1.0 * 0.5 * 1.0])
+    np.testing.assert_allclose(t["F_R"], [1.6, -1.2])
+    np.testing.assert_allclose(t["F_L"], [-1.6, 1.2])
+
+
+def test_branch_fitness_rewards_the_rule_arm_and_punishes_stalling():
+    task = CrossroadTask(rule="right", variants=1)
+    arrays = task.arrays()
+    kinds = ["L", "S", "R", "LS", "LR", "SR", "LSR"]
+    lsr = kinds.index("LSR")
+    centre = arrays.centre[lsr]
+    ends = {  # final positions at the far end of each arm of the plus crossing
+        "R": centre + np.array([0.6 + 3.6, 0.0]),
+        "L": centre - np.array([0.6 + 3.6, 0.0]),
+        "S": centre + np.array([0.0, 0.6 + 3.6]),
+        "mid": centre + np.array([0.6 + 1.8, 0.0]),
+    }
+    sub = arrays.__class__(
+        **{
+            **arrays.__dict__,
+            "target": arrays.target[[lsr] * 4],
+            "centre": arrays.centre[[lsr] * 4],
+        }
+    )
+    final = np.array([[*ends[k], 0.0] for k in ("R", "L", "S", "mid")])
+    progress = np.asarray(branch_progress(stats(final_pose=final), sub))
+    np.testing.assert_allclose(progress, [1.0, 0.0, 0.0, 0.5], atol=1e-9)
+    stalled = stats(final_pose=final[:1], stall_fraction=np.array([0.5]))
+    sub1 = sub.__class__(**{**sub.__dict__, "target": sub.target[:1], "centre": sub.centre[:1]})
+    assert float(episode_fitness(stalled, sub1, task)[0]) == pytest.approx(0.5 - 0.5)
+
+
+def test_task_episodes_and_validation():
+    task = CrossroadTask(variants=3, seed=4)
+    a = task.arrays()
+    assert a.episodes == 21 and a.poses.shape == (21, 3)
+    np.testing.assert_array_equal(a.poses[:7], np.stack([m.starts[0] for m in a.mazes]))
+    offsets = a.poses[7:] - np.tile(a.poses[:7], (2, 1))  # starts face north: x is lateral
+    assert np.all(np.abs(offsets[:, 0]) <= 0.15) and np.all(np.abs(offsets[:, 1]) <= 0.3)
+    assert np.all(np.abs(offsets[:, 2]) <= np.radians(10)) and np.any(offsets != 0)
+    np.testing.assert_array_equal(task.arrays().poses, a.poses)  # seeded
+    with pytest.raises(MbnInputError, match="fitness"):
+        CrossroadTask(fitness="distance")
+    with pytest.raises(MbnInputError, match="variants"):
+        CrossroadTask(variants=0)
+
+
+def test_genome_maps_genes_to_connections():
+    g = Genome()
+    assert g.size == 12 and g.connections == RF_CONNECTIONS
+    genes = np.arange(12.0)
+    net = g.network(genes)
+    np.testing.assert_array_equal(np.asarray(net.W), np.arange(9.0).reshape(3, 3))
+    np.testing.assert_array_equal(np.asarray(net.WE), np.diag([9.0, 10.0, 11.0]))
+    three = (Connection("W", 1, 2), Connection("WE", 1, 0), Connection("WE", 1, 1))
+    lf = Genome.around(net, three)
+    np.testing.assert_array_equal(lf.genes_of(net), [5.0, 0.0, 10.0])
+    W, WE = lf.weights(jnp.asarray([-1.0, 2.0, 3.0]))
+    assert float(W[1, 2]) == -1.0 and float(WE[1, 0]) == 2.0 and float(WE[1, 1]) == 3.0
+    assert float(W[0, 0]) == 0.0 and float(WE[2, 2]) == 11.0
+
+
+def test_evolution_is_deterministic_and_never_gets_worse():
+    task = CrossroadTask(variants=1, seconds=4.0)
+    genome = Genome()
+    fitness = crossroad_fitness(genome, task)
+    config = DEConfig(num_dims=12, popsize=6, maximize=True, lower=-100.0, upper=100.0)
+    key = jax.random.key(3)
+
+    def run():
+        state = start(key, config, fitness)
+        best = [float(state.best_fitness)]
+        for g in range(1, 4):
+            state = generation(key, g, state, config, fitness)
+            best.append(float(state.best_fitness))
+        return best, np.asarray(state.population)
+
+    a, pa = run()
+    b, pb = run()
+    assert a == b and np.array_equal(pa, pb)
+    assert all(x <= y for x, y in itertools.pairwise(a))
+    with pytest.raises(MbnInputError, match="generation"):
+        generation(key, 0, start(key, config, fitness), config, fitness)
