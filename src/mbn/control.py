@@ -21,7 +21,14 @@ from jax import Array
 from mbn.ctrnn import CTRNN, euler_step, firing_rate, rk4_step
 from mbn.errors import MbnInputError
 
-__all__ = ["CTRNNState", "MotorMap", "ctrnn_controller", "substeps_for"]
+__all__ = [
+    "CTRNNState",
+    "MotorMap",
+    "ProgrammedState",
+    "ctrnn_controller",
+    "interpreter_controller",
+    "substeps_for",
+]
 
 
 @dataclass(frozen=True)
@@ -90,6 +97,36 @@ def ctrnn_controller(
         v = motor.v_max * rate[..., motor.speed_neuron]
         w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)
         return CTRNNState(state.net, y), (v, w)
+
+    return control
+
+
+class ProgrammedState(NamedTuple):
+    """An interpreter controller's state: the fixed-weight network, its potentials, and the
+    program fed to its program inputs (``(K,)`` in [0, 1])."""
+
+    net: CTRNN
+    y: Array
+    program: Array
+
+
+def interpreter_controller(
+    *,
+    dt: float = 0.1,
+    substeps: int = 20,
+    motor: MotorMap | None = None,
+    method: str = "euler",
+) -> Callable[[ProgrammedState, Any], tuple[ProgrammedState, tuple[Array, Array]]]:
+    """A controller for a programmable interpreter (:mod:`mbn.programmable`): its inputs are the
+    paper's I1..I3 followed by the state's program; the motor neurons are the original network's
+    (the interpreter puts them first). The multipliers run at tau/10, so the default 20 sub-steps
+    of 5 ms keep h/tau_m = 0.1 for tau = 0.5 s."""
+    inner = ctrnn_controller(dt=dt, substeps=substeps, motor=motor, method=method)
+
+    def control(state: ProgrammedState, obs: Any) -> tuple[ProgrammedState, tuple[Array, Array]]:
+        u = jnp.concatenate([obs.inputs, state.program.astype(obs.inputs.dtype)], axis=-1)
+        inner_state, vw = inner(CTRNNState(state.net, state.y), obs._replace(inputs=u))
+        return ProgrammedState(state.net, inner_state.y, state.program), vw
 
     return control
 

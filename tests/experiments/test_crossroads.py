@@ -151,3 +151,28 @@ def test_evolution_is_deterministic_and_never_gets_worse():
     assert all(x <= y for x, y in itertools.pairwise(a))
     with pytest.raises(MbnInputError, match="generation"):
         generation(key, 0, start(key, config, fitness), config, fitness)
+
+
+def test_interpreter_programs_equal_the_builder():
+    """The batched, traceable interpreter of a network equals build_interpreter's."""
+    from mbn.experiments.evolve import interpreter_programs
+    from mbn.multiplier import load_default
+    from mbn.programmable import Programmable, build_interpreter
+
+    rng = np.random.default_rng(0)
+    conns = (Connection("W", 1, 2), Connection("WE", 1, 0), Connection("WE", 1, 1))
+    bounds = [Programmable(c, -100.0, 100.0) for c in conns]
+    template = build_interpreter(Genome().network(np.zeros(12)), bounds, load_default())
+    genes = rng.uniform(-90, 90, (4, 12))
+    W, WE = Genome().weights(jnp.asarray(genes))
+    net, program = interpreter_programs(template, W, WE)
+    for k in range(4):
+        ref = build_interpreter(Genome().network(genes[k]), bounds, load_default())
+        np.testing.assert_allclose(np.asarray(net.W[k]), np.asarray(ref.net.W), atol=1e-12)
+        np.testing.assert_allclose(np.asarray(net.WE[k]), np.asarray(ref.net.WE), atol=1e-12)
+        np.testing.assert_allclose(np.asarray(net.tau[k]), np.asarray(ref.net.tau), atol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(program[k]),
+            np.asarray(ref.program_of(Genome().network(genes[k]))),
+            atol=1e-12,
+        )

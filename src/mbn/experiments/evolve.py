@@ -18,12 +18,18 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from mbn.control import CTRNNState, ctrnn_controller, substeps_for
+from mbn.control import (
+    CTRNNState,
+    ProgrammedState,
+    ctrnn_controller,
+    interpreter_controller,
+    substeps_for,
+)
 from mbn.ctrnn import CTRNN, make_ctrnn
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, tell
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness
-from mbn.programmable import Connection
+from mbn.programmable import Connection, Interpreter
 from mbn.world.rollout import EpisodeStats, rollout
 
 __all__ = [
@@ -31,8 +37,11 @@ __all__ = [
     "RF_CONNECTIONS",
     "Genome",
     "crossroad_fitness",
+    "emulated_fitness",
+    "evaluate_interpreted",
     "evaluate_networks",
     "generation",
+    "interpreter_programs",
     "start",
 ]
 
@@ -196,3 +205,96 @@ def generation(
         raise MbnInputError(f"generation index must be >= 1, got {g}")
     trials = ask(jax.random.fold_in(key, g), state, config)
     return tell(state, trials, fitness(trials), config)
+
+
+def interpreter_programs(template: Interpreter, W: Array, WE: Array) -> tuple[CTRNN, Array]:
+    """The interpreter of networks ``(W, WE)`` (batched ``(..., n, n)``, ``(..., n, m)``) built
+    on ``template``'s wiring and bounds, and each network's program.
+
+    The interpreter's original block takes the networks' weights, except that a programmable
+    connection keeps its direct weight ``min`` (eq. 2); its multipliers and bounds are the
+    template's. Programs are ``(w - min) / (max - min)`` clipped to [0, 1].
+    """
+    n, m = template.num_original, template.num_data_inputs
+    batch = W.shape[:-2]
+    net = template.net
+    full_W = jnp.broadcast_to(net.W.astype(W.dtype), (*batch, *net.W.shape))
+    full_WE = jnp.broadcast_to(net.WE.astype(W.dtype), (*batch, *net.WE.shape))
+    full_W = full_W.at[..., :n, :n].set(W)
+    full_WE = full_WE.at[..., :n, :m].set(WE)
+    programs = []
+    for c, conn in enumerate(template.connections):
+        lo, hi = template.lower[c].astype(W.dtype), template.upper[c].astype(W.dtype)
+        if conn.kind == "W":
+            value = W[..., conn.i, conn.j]
+            full_W = full_W.at[..., conn.i, conn.j].set(lo)
+        else:
+            value = WE[..., conn.i, conn.j]
+            full_WE = full_WE.at[..., conn.i, conn.j].set(lo)
+        programs.append(jnp.clip((value - lo) / (hi - lo), 0.0, 1.0))
+    shape = (*batch, net.num_neurons)
+    interp = CTRNN(
+        W=full_W,
+        WE=full_WE,
+        tau=jnp.broadcast_to(net.tau.astype(W.dtype), shape),
+        bias=jnp.broadcast_to(net.bias.astype(W.dtype), shape),
+        gain=jnp.broadcast_to(net.gain.astype(W.dtype), shape),
+    )
+    return interp, jnp.stack(programs, -1)
+
+
+def evaluate_interpreted(
+    template: Interpreter,
+    W: Array,
+    WE: Array,
+    arrays: TaskArrays,
+    task: CrossroadTask,
+    substeps: int = 20,
+) -> EpisodeStats:
+    """Like :func:`evaluate_networks`, but each network runs as the interpreter programmed with
+    it (multipliers and all): stats ``(N * E,)``, network-major."""
+    e = arrays.episodes
+    W = jnp.repeat(W, e, 0)
+    WE = jnp.repeat(WE, e, 0)
+    net, program = interpreter_programs(template, W, WE)
+    n = W.shape[0]
+    controller = interpreter_controller(dt=task.dt, substeps=substeps)
+    state = ProgrammedState(net, jnp.zeros((n, template.num_neurons), W.dtype), program)
+    poses = jnp.asarray(np.tile(arrays.poses, (n // e, 1)), W.dtype)
+    maze_index = jnp.asarray(np.tile(arrays.maze_index, n // e))
+    return rollout(
+        arrays.world,
+        controller,
+        state,
+        poses,
+        maze_index,
+        task.rollout_config(),
+        junctions=arrays.junctions,
+    ).stats
+
+
+def emulated_fitness(
+    genome: Genome,
+    template: Interpreter,
+    task: CrossroadTask,
+    arrays: TaskArrays | None = None,
+    *,
+    substeps: int = 20,
+) -> Callable[[Array], Array]:
+    """Fitness of a population as the smaller of two: the networks themselves, and the
+    interpreter programmed with them. Evolution then finds networks that the fixed-weight
+    interpreter, with its trained multipliers, really emulates."""
+    arrays = arrays or task.arrays()
+    tiled = _tile_fitness(arrays)
+
+    @jax.jit
+    def fitness(population: Array) -> Array:
+        W, WE = genome.weights(population)
+        plain = evaluate_networks(W, WE, genome.tau, arrays, task)
+        emulated = evaluate_interpreted(template, W, WE, arrays, task, substeps)
+        p = population.shape[0]
+        f_plain = tiled(plain, task).reshape(p, arrays.episodes).sum(-1)
+        f_emulated = tiled(emulated, task).reshape(p, arrays.episodes).sum(-1)
+        return jnp.minimum(f_plain, f_emulated)
+
+    return fitness
