@@ -207,7 +207,13 @@ def generation(
     return tell(state, trials, fitness(trials), config)
 
 
-def interpreter_programs(template: Interpreter, W: Array, WE: Array) -> tuple[CTRNN, Array]:
+def interpreter_programs(
+    template: Interpreter,
+    W: Array,
+    WE: Array,
+    lower: Array | None = None,
+    upper: Array | None = None,
+) -> tuple[CTRNN, Array]:
     """The interpreter of networks ``(W, WE)`` (batched ``(..., n, n)``, ``(..., n, m)``) built
     on ``template``'s wiring and bounds, and each network's program.
 
@@ -224,7 +230,12 @@ def interpreter_programs(template: Interpreter, W: Array, WE: Array) -> tuple[CT
     full_WE = full_WE.at[..., :n, :m].set(WE)
     programs = []
     for c, conn in enumerate(template.connections):
-        lo, hi = template.lower[c].astype(W.dtype), template.upper[c].astype(W.dtype)
+        lo = template.lower[c].astype(W.dtype) if lower is None else lower[..., c]
+        hi = template.upper[c].astype(W.dtype) if upper is None else upper[..., c]
+        out = template.mul_block(c).start + template.mul_output
+        full_W = full_W.at[..., conn.i, out].set(jnp.broadcast_to(hi - lo, batch))
+        lo = jnp.broadcast_to(lo, batch)
+        hi = jnp.broadcast_to(hi, batch)
         if conn.kind == "W":
             value = W[..., conn.i, conn.j]
             full_W = full_W.at[..., conn.i, conn.j].set(lo)
@@ -250,13 +261,18 @@ def evaluate_interpreted(
     arrays: TaskArrays,
     task: CrossroadTask,
     substeps: int = 20,
+    lower: Array | None = None,
+    upper: Array | None = None,
 ) -> EpisodeStats:
     """Like :func:`evaluate_networks`, but each network runs as the interpreter programmed with
-    it (multipliers and all): stats ``(N * E,)``, network-major."""
+    it (multipliers and all): stats ``(N * E,)``, network-major. ``lower``/``upper`` ``(N, K)``
+    give each network's interpreter its own bounds (default: the template's)."""
     e = arrays.episodes
     W = jnp.repeat(W, e, 0)
     WE = jnp.repeat(WE, e, 0)
-    net, program = interpreter_programs(template, W, WE)
+    if lower is not None and upper is not None:
+        lower, upper = jnp.repeat(lower, e, 0), jnp.repeat(upper, e, 0)
+    net, program = interpreter_programs(template, W, WE, lower, upper)
     n = W.shape[0]
     controller = interpreter_controller(dt=task.dt, substeps=substeps)
     state = ProgrammedState(net, jnp.zeros((n, template.num_neurons), W.dtype), program)
