@@ -127,3 +127,13 @@ def test_a_scripted_right_turn_passes_a_one_junction_trial():
     assert run_trials(maze, left, turn_right, lambda n: jnp.zeros(n, jnp.int32))[0][
         "success"
     ].tolist() == [False]
+
+
+def test_judging_tiles_can_skip_the_junctions_before_the_first_tile():
+    spec = TrialSpec(behavior="tiles", initial="none")
+    # a wrong turn before any tile is not judged; the three after the tiles are
+    s = passes([L, R, L, L], right=[R, R, R, R], left=[L, L, L, L], tiles=[0, 1, 2, 2])
+    v = judge(s, spec)
+    assert v["success"].tolist() == [True] and v["judged"].tolist() == [3]
+    s = passes([L, R, L], right=[R, R, R], left=[L, L, L], tiles=[0, 1, 2])
+    assert judge(s, spec)["judged"].tolist() == [2]

@@ -53,7 +53,9 @@ class TrialSpec:
 
     Attributes:
         behavior: "right", "left" or "tiles" (the rule of the last tile driven over).
-        initial: the rule before the first tile ("tiles" only).
+        initial: the rule before the first tile ("tiles" only): "right", "left", or "none" —
+            junctions passed before the first tile are then not judged (the J judged junctions
+            are the first J after it).
         repeats: trials per start mark: the first from the mark exactly, the others jittered.
         junctions: consecutive junctions judged (the paper: 3).
         seconds: time limit of a trial.
@@ -74,8 +76,8 @@ class TrialSpec:
             raise MbnInputError(
                 f"behavior must be one of {', '.join(BEHAVIORS)}, got {self.behavior!r}"
             )
-        if self.initial not in ("right", "left"):
-            raise MbnInputError(f"initial must be right or left, got {self.initial!r}")
+        if self.initial not in ("right", "left", "none"):
+            raise MbnInputError(f"initial must be right, left or none, got {self.initial!r}")
         if not (isinstance(self.repeats, int) and self.repeats >= 1):
             raise MbnInputError(f"repeats must be an integer >= 1, got {self.repeats!r}")
         if not (isinstance(self.junctions, int) and 1 <= self.junctions <= 32):
@@ -122,28 +124,39 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     ``judged`` junctions (J or fewer if the robot passed fewer), ``stall`` fraction until the J-th
     junction was left (or over the whole trial if it never was)."""
     J = spec.junctions
-    n = np.asarray(stats.n_junctions)
-    exits = np.asarray(stats.junction_exit)[:, :J]
-    if exits.shape[1] < J:
+    kept = np.asarray(stats.junction_exit).shape[1]
+    n = np.minimum(np.asarray(stats.n_junctions), kept)
+    if kept < J:
         raise MbnInputError(
-            f"the rollout kept {exits.shape[1]} junction passes per episode; {J} are judged "
+            f"the rollout kept {kept} junction passes per episode; {J} are judged "
             "(raise RolloutConfig.max_junctions)"
         )
-    right = np.asarray(stats.junction_right)[:, :J]
-    left = np.asarray(stats.junction_left)[:, :J]
+    fields = {
+        name: np.asarray(getattr(stats, f"junction_{name}"))
+        for name in ("exit", "right", "left", "tile", "exit_step", "stalls")
+    }
+    if spec.behavior == "tiles" and spec.initial == "none":
+        # drop the passes made before the first tile: move the others to the front, in order
+        valid = (fields["tile"] > 0) & (np.arange(kept)[None, :] < n[:, None])
+        order = np.argsort(~valid, axis=1, kind="stable")
+        fields = {k: np.take_along_axis(v, order, axis=1) for k, v in fields.items()}
+        n = valid.sum(1)
+    exits = fields["exit"][:, :J]
+    right = fields["right"][:, :J]
+    left = fields["left"][:, :J]
     if spec.behavior == "right":
         rule = right
     elif spec.behavior == "left":
         rule = left
     else:
-        tile = np.asarray(stats.junction_tile)[:, :J]
+        tile = fields["tile"][:, :J]
         first = right if spec.initial == "right" else left
         rule = np.where(tile == 1, right, np.where(tile == 2, left, first))
     passed = np.arange(J)[None, :] < n[:, None]
     correct = passed & (exits == rule)
     judged = np.minimum(n, J)
-    out_step = np.asarray(stats.junction_exit_step)[:, J - 1]
-    stalls = np.asarray(stats.junction_stalls)[:, J - 1]
+    out_step = fields["exit_step"][:, J - 1]
+    stalls = fields["stalls"][:, J - 1]
     whole = np.asarray(stats.stall_fraction)
     stall = np.where(n >= J, stalls / np.maximum(out_step, 1), whole)
     success = (n >= J) & np.all(correct, axis=1) & (stall <= MAX_STALL_FRACTION)

@@ -1,0 +1,172 @@
+"""The program module (PM) and the whole Multiple Behavior Network (MBN = PM + IM).
+
+The PM is a small CTRNN whose inputs are the camera's reading, encoded as two inputs (a
+one-colour tile in view, a two-colour tile in view), and whose K output neurons' firing rates
+are the program fed to the interpreter's K program inputs. To keep "the program of the last tile
+seen until another tile is seen" it needs memory: biases are genes, so that neurons can be
+bistable (self-excitation above 4 with a bias near minus half of it latches).
+
+Training (paper, section 3.2): DE, population 18, initial weights in [-10, 10]; two trials per
+individual on the crossroads, one with one-colour tiles scored as a right-follower and one with
+two-colour tiles scored as a left-follower; the reward is the product of the two. The tile lies
+one cell north of the start: the camera sees it at once, the robot drives over it, and the
+junction comes 2.4 m later, out of the tile's sight — so the program must be remembered.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from mbn.control import MotorMap
+from mbn.ctrnn import CTRNN, euler_step, firing_rate
+from mbn.errors import MbnInputError
+from mbn.experiments.crossroads import CrossroadTask, TaskArrays
+from mbn.experiments.evolve import _tile_fitness
+from mbn.world.engine import CameraConfig
+from mbn.world.rollout import EpisodeStats, rollout
+
+__all__ = ["MBNState", "PMGenome", "mbn_controller", "pm_fitness"]
+
+
+class MBNState(NamedTuple):
+    """The MBN's state: the program module and the interpreter, each a network and potentials."""
+
+    pm: CTRNN
+    pm_y: Array
+    im: CTRNN
+    im_y: Array
+
+
+@dataclass(frozen=True)
+class PMGenome:
+    """Genes of a program module with ``programs`` output neurons: W (K x K), WE (K x 2) and
+    biases (K), row-major; all neurons share ``tau`` (seconds)."""
+
+    programs: int = 3
+    tau: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.programs < 1:
+            raise MbnInputError(f"programs must be >= 1, got {self.programs}")
+        if not self.tau > 0:
+            raise MbnInputError(f"tau must be > 0, got {self.tau}")
+
+    @property
+    def size(self) -> int:
+        k = self.programs
+        return k * k + 2 * k + k
+
+    def network(self, genes: Array) -> CTRNN:
+        """The PM network(s) of genes ``(..., size)``."""
+        genes = jnp.asarray(genes)
+        k = self.programs
+        batch = genes.shape[:-1]
+        W = genes[..., : k * k].reshape(*batch, k, k)
+        WE = genes[..., k * k : k * k + 2 * k].reshape(*batch, k, 2)
+        bias = genes[..., k * k + 2 * k :]
+        return CTRNN(
+            W=W,
+            WE=WE,
+            tau=jnp.full((*batch, k), self.tau, genes.dtype),
+            bias=bias,
+            gain=jnp.ones((*batch, k), genes.dtype),
+        )
+
+
+def mbn_controller(
+    *,
+    dt: float = 0.1,
+    im_substeps: int = 20,
+    pm_substeps: int = 4,
+    motor: MotorMap | None = None,
+) -> Callable[[MBNState, Any], tuple[MBNState, tuple[Array, Array]]]:
+    """The MBN as a controller: each step the PM integrates the camera reading for ``dt`` and
+    its firing rates become the interpreter's program; then the interpreter integrates the
+    sonar inputs and that program for ``dt`` (Euler sub-steps)."""
+    motor = motor or MotorMap()
+    h_pm, h_im = dt / pm_substeps, dt / im_substeps
+
+    def control(state: MBNState, obs: Any) -> tuple[MBNState, tuple[Array, Array]]:
+        dtype = obs.inputs.dtype
+        cam = jnp.stack([obs.camera == 1, obs.camera == 2]).astype(dtype)
+        y = state.pm_y
+        for _ in range(pm_substeps):
+            y = euler_step(state.pm, y, cam, h_pm)
+        program = firing_rate(state.pm, y)
+        u = jnp.concatenate([obs.inputs, program])
+        z = state.im_y
+        for _ in range(im_substeps):
+            z = euler_step(state.im, z, u, h_im)
+        rate = firing_rate(state.im, z)
+        v = motor.v_max * rate[motor.speed_neuron]
+        w = motor.w_max * (2.0 * rate[motor.turn_neuron] - 1.0)
+        return MBNState(state.pm, y, state.im, z), (v, w)
+
+    return control
+
+
+def _run(
+    genome: PMGenome,
+    im: CTRNN,
+    population: Array,
+    arrays: TaskArrays,
+    task: CrossroadTask,
+    controller: Callable[[MBNState, Any], tuple[MBNState, tuple[Array, Array]]],
+) -> EpisodeStats:
+    p, e = population.shape[0], arrays.episodes
+    n = p * e
+    pm = genome.network(jnp.repeat(population, e, 0))
+    dtype = population.dtype
+    im_b = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), im)
+    state = MBNState(
+        pm,
+        jnp.zeros((n, genome.programs), dtype),
+        im_b,
+        jnp.zeros((n, im.num_neurons), dtype),
+    )
+    config = task.rollout_config(camera=CameraConfig())
+    return rollout(
+        arrays.world,
+        controller,
+        state,
+        jnp.asarray(np.tile(arrays.poses, (p, 1)), dtype),
+        jnp.asarray(np.tile(arrays.maze_index, p)),
+        config,
+        junctions=arrays.junctions,
+    ).stats
+
+
+def pm_fitness(
+    genome: PMGenome,
+    im: CTRNN,
+    *,
+    variants: int = 3,
+    seed: int = 0,
+    im_substeps: int = 20,
+) -> Callable[[Array], Array]:
+    """The paper's PM reward: (right-rule fitness with one-colour tiles) x (left-rule fitness with
+    two-colour tiles), each summed over the crossroads (branch fitness, clipped at 0 so the
+    product is meaningful). ``im`` is the interpreter's fixed network."""
+    right = CrossroadTask(rule="right", tile=1, variants=variants, seed=seed)
+    left = CrossroadTask(rule="left", tile=2, variants=variants, seed=seed)
+    ar, al = right.arrays(), left.arrays()
+    fr, fl = _tile_fitness(ar), _tile_fitness(al)
+    controller = mbn_controller(dt=right.dt, im_substeps=im_substeps)
+
+    @jax.jit
+    def fitness(population: Array) -> Array:
+        p = population.shape[0]
+        sr = fr(_run(genome, im, population, ar, right, controller), right)
+        sl = fl(_run(genome, im, population, al, left, controller), left)
+        a = jnp.clip(sr.reshape(p, ar.episodes).sum(-1), 0.0, None)
+        b = jnp.clip(sl.reshape(p, al.episodes).sum(-1), 0.0, None)
+        return a * b
+
+    return fitness
