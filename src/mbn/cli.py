@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from mbn import __version__
+from mbn.cli_experiments import EXPERIMENT_COMMANDS, EXPERIMENT_EPILOG, add_experiment_commands
 from mbn.cli_world import WORLD_COMMANDS, WORLD_EPILOG, add_world_commands
 from mbn.errors import MbnInputError
 
@@ -74,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mbn",
         description="Programmable fixed-weight CTRNNs and the Multiple Behavior Network "
         "(Montone, Donnarumma & Prevete, ICANNGA 2011).",
-        epilog=MAIN_EPILOG + WORLD_EPILOG,
+        epilog=MAIN_EPILOG + WORLD_EPILOG + EXPERIMENT_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mbn {__version__}")
@@ -217,6 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="multiplier JSON (default: the shipped 3-neuron multiplier)",
     )
     add_world_commands(sub, _Parser)
+    add_experiment_commands(sub, _Parser)
     return parser
 
 
@@ -411,6 +413,7 @@ COMMANDS = {
     ("mul", "report"): _cmd_mul_report,
     ("pnn", "check"): _cmd_pnn_check,
     **WORLD_COMMANDS,
+    **EXPERIMENT_COMMANDS,
 }
 
 

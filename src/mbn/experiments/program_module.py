@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -25,23 +25,16 @@ import numpy as np
 from jax import Array
 
 from mbn.control import MotorMap
-from mbn.ctrnn import CTRNN, euler_step, firing_rate
+from mbn.ctrnn import CTRNN
 from mbn.errors import MbnInputError
+from mbn.experiments.controllers import MBNControllerState as MBNState
+from mbn.experiments.controllers import make_mbn_controller
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays
 from mbn.experiments.evolve import _tile_fitness
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, rollout
 
 __all__ = ["MBNState", "PMGenome", "mbn_controller", "pm_fitness"]
-
-
-class MBNState(NamedTuple):
-    """The MBN's state: the program module and the interpreter, each a network and potentials."""
-
-    pm: CTRNN
-    pm_y: Array
-    im: CTRNN
-    im_y: Array
 
 
 @dataclass(frozen=True)
@@ -82,34 +75,21 @@ class PMGenome:
 
 def mbn_controller(
     *,
+    programs: int = 3,
     dt: float = 0.1,
     im_substeps: int = 20,
     pm_substeps: int = 4,
     motor: MotorMap | None = None,
 ) -> Callable[[MBNState, Any], tuple[MBNState, tuple[Array, Array]]]:
-    """The MBN as a controller: each step the PM integrates the camera reading for ``dt`` and
-    its firing rates become the interpreter's program; then the interpreter integrates the
-    sonar inputs and that program for ``dt`` (Euler sub-steps)."""
-    motor = motor or MotorMap()
-    h_pm, h_im = dt / pm_substeps, dt / im_substeps
-
-    def control(state: MBNState, obs: Any) -> tuple[MBNState, tuple[Array, Array]]:
-        dtype = obs.inputs.dtype
-        cam = jnp.stack([obs.camera == 1, obs.camera == 2]).astype(dtype)
-        y = state.pm_y
-        for _ in range(pm_substeps):
-            y = euler_step(state.pm, y, cam, h_pm)
-        program = firing_rate(state.pm, y)
-        u = jnp.concatenate([obs.inputs, program])
-        z = state.im_y
-        for _ in range(im_substeps):
-            z = euler_step(state.im, z, u, h_im)
-        rate = firing_rate(state.im, z)
-        v = motor.v_max * rate[motor.speed_neuron]
-        w = motor.w_max * (2.0 * rate[motor.turn_neuron] - 1.0)
-        return MBNState(state.pm, y, state.im, z), (v, w)
-
-    return control
+    """The MBN as a controller whose program is the firing rates of the PM's first ``programs``
+    neurons (:func:`mbn.experiments.controllers.make_mbn_controller`)."""
+    return make_mbn_controller(
+        program_neurons=range(programs),
+        dt=dt,
+        substeps=im_substeps,
+        pm_substeps=pm_substeps,
+        motor=motor,
+    )
 
 
 def _run(
@@ -158,7 +138,7 @@ def pm_fitness(
     left = CrossroadTask(rule="left", tile=2, variants=variants, seed=seed)
     ar, al = right.arrays(), left.arrays()
     fr, fl = _tile_fitness(ar), _tile_fitness(al)
-    controller = mbn_controller(dt=right.dt, im_substeps=im_substeps)
+    controller = mbn_controller(programs=genome.programs, dt=right.dt, im_substeps=im_substeps)
 
     @jax.jit
     def fitness(population: Array) -> Array:
