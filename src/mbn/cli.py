@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -17,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from mbn import __version__
+from mbn.cli_args import positive_float, positive_int
+from mbn.cli_args import seed as seed_type
 from mbn.cli_experiments import EXPERIMENT_COMMANDS, EXPERIMENT_EPILOG, add_experiment_commands
 from mbn.cli_world import WORLD_COMMANDS, WORLD_EPILOG, add_world_commands
 from mbn.errors import MbnInputError
@@ -37,36 +38,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if not 0 <= value < 2**32:
-        raise argparse.ArgumentTypeError(f"must be in [0, 2**32), got {value}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -99,20 +70,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument(
         "--neurons",
-        type=_positive_int,
+        type=positive_int,
         default=3,
         help="neurons of the multiplier (default 3, the paper's)",
     )
-    train.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    train.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
     train.add_argument(
         "--restarts",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="restarts trained in parallel (default: the recipe's)",
     )
     train.add_argument(
         "--iterations",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="Adam iterations (default: the recipe's)",
     )
@@ -162,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument(
         "--seed",
-        type=_seed,
+        type=seed_type,
         default=None,
         help="seed of the validation pairs (default: the one the file records)",
     )
@@ -188,20 +159,20 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--json", action="store_true", help="print one JSON object")
     check.add_argument(
         "--sequences",
-        type=_positive_int,
+        type=positive_int,
         default=200,
         help="random input sequences per program (default 200)",
     )
     check.add_argument(
         "--seconds",
-        type=_positive_float,
+        type=positive_float,
         default=20.0,
         help="length of each sequence in seconds (default 20)",
     )
-    check.add_argument("--seed", type=_seed, default=0, help="random seed (default 0)")
+    check.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
     check.add_argument(
         "--tau-ratio",
-        type=_positive_float,
+        type=positive_float,
         default=0.1,
         help="multiplier time constant / network time constant (default 0.1, the paper's); the "
         "step is a tenth of the multipliers' time constant",

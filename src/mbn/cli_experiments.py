@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from mbn.cli_args import positive_float, positive_int, seed
 from mbn.errors import MbnInputError
 
 __all__ = ["EXPERIMENT_COMMANDS", "EXPERIMENT_EPILOG", "add_experiment_commands"]
@@ -33,36 +34,6 @@ examples:
 --json prints one object: {"trials", "successes", "success_rate", "junctions",
 "correct_junctions", "mean_stall_fraction"}
 """
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if not 0 <= value < 2**32:
-        raise argparse.ArgumentTypeError(f"must be in [0, 2**32), got {value}")
-    return value
 
 
 def add_experiment_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
@@ -107,23 +78,23 @@ def add_experiment_commands(sub: Any, parser_class: type[argparse.ArgumentParser
     )
     ev.add_argument(
         "--repeats",
-        type=_positive_int,
+        type=positive_int,
         default=1,
         help="trials per start mark (default 1)",
     )
     ev.add_argument(
         "--junctions",
-        type=_positive_int,
+        type=positive_int,
         default=3,
         help="consecutive junctions judged (default 3, the paper's)",
     )
     ev.add_argument(
         "--seconds",
-        type=_positive_float,
+        type=positive_float,
         default=60.0,
         help="time limit of a trial in seconds (default 60)",
     )
-    ev.add_argument("--seed", type=_seed, default=0, help="seed of the jitter (default 0)")
+    ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
     ev.add_argument("--json", action="store_true", help="print one JSON object")
 
 

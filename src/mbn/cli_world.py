@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from mbn.cli_args import numbers, positive_float
 from mbn.errors import MbnInputError
 
 __all__ = ["WORLD_COMMANDS", "add_world_commands"]
@@ -24,34 +24,11 @@ WORLD_EPILOG = """\
 
 
 def _triple(text: str) -> tuple[float, float, float]:
-    return _numbers(text, 3)  # type: ignore[return-value]
+    return numbers(text, 3)  # type: ignore[return-value]
 
 
 def _pair(text: str) -> tuple[float, float]:
-    return _numbers(text, 2)  # type: ignore[return-value]
-
-
-def _numbers(text: str, n: int) -> tuple[float, ...]:
-    parts = text.split(",")
-    if len(parts) != n:
-        raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}")
-    try:
-        values = tuple(float(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected numbers, got {text!r}") from None
-    if not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"numbers must be finite, got {text!r}")
-    return values
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
+    return numbers(text, 2)  # type: ignore[return-value]
 
 
 def add_world_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
@@ -103,8 +80,8 @@ def add_world_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) ->
     )
     drive.add_argument("--start", type=_triple, required=True, metavar="X,Y,THETA")
     drive.add_argument("--cmd", type=_pair, required=True, metavar="V,W")
-    drive.add_argument("--dt", type=_positive, default=0.1, help="step (s, default 0.1)")
-    drive.add_argument("--seconds", type=_positive, required=True, help="duration (s)")
+    drive.add_argument("--dt", type=positive_float, default=0.1, help="step (s, default 0.1)")
+    drive.add_argument("--seconds", type=positive_float, required=True, help="duration (s)")
     drive.add_argument("--out", type=Path, required=True, help="output CSV")
     drive.add_argument("--maze", default=None, help="built-in name or maze file (default none)")
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -128,15 +129,25 @@ def evaluate_networks(
         gain=jnp.ones((n * e, 3), dtype),
     )
     controller = ctrnn_controller(dt=task.dt, substeps=substeps_for(task.dt, tau))
-    poses = jnp.asarray(np.tile(arrays.poses, (n, 1)), dtype)
-    maze_index = jnp.asarray(np.tile(arrays.maze_index, n))
     state = CTRNNState(net, jnp.zeros((n * e, 3), dtype))
+    return _episodes(controller, state, n, dtype, arrays, task)
+
+
+def _episodes(
+    controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]],
+    state: Any,
+    n: int,
+    dtype: Any,
+    arrays: TaskArrays,
+    task: CrossroadTask,
+) -> EpisodeStats:
+    """Run ``n`` controllers (batched ``state``, network-major) on every episode of the task."""
     return rollout(
         arrays.world,
         controller,
         state,
-        poses,
-        maze_index,
+        jnp.asarray(np.tile(arrays.poses, (n, 1)), dtype),
+        jnp.asarray(np.tile(arrays.maze_index, n)),
         task.rollout_config(),
         junctions=arrays.junctions,
     ).stats
@@ -276,17 +287,7 @@ def evaluate_interpreted(
     n = W.shape[0]
     controller = interpreter_controller(dt=task.dt, substeps=substeps)
     state = ProgrammedState(net, jnp.zeros((n, template.num_neurons), W.dtype), program)
-    poses = jnp.asarray(np.tile(arrays.poses, (n // e, 1)), W.dtype)
-    maze_index = jnp.asarray(np.tile(arrays.maze_index, n // e))
-    return rollout(
-        arrays.world,
-        controller,
-        state,
-        poses,
-        maze_index,
-        task.rollout_config(),
-        junctions=arrays.junctions,
-    ).stats
+    return _episodes(controller, state, n // e, W.dtype, arrays, task)
 
 
 def emulated_fitness(
