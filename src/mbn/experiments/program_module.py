@@ -99,6 +99,7 @@ def _run(
     arrays: TaskArrays,
     task: CrossroadTask,
     controller: Callable[[MBNState, Any], tuple[MBNState, tuple[Array, Array]]],
+    camera: CameraConfig,
 ) -> EpisodeStats:
     p, e = population.shape[0], arrays.episodes
     n = p * e
@@ -111,7 +112,7 @@ def _run(
         im_b,
         jnp.zeros((n, im.num_neurons), dtype),
     )
-    config = task.rollout_config(camera=CameraConfig())
+    config = task.rollout_config(camera=camera)
     return rollout(
         arrays.world,
         controller,
@@ -130,10 +131,13 @@ def pm_fitness(
     variants: int = 3,
     seed: int = 0,
     im_substeps: int = 20,
+    camera: CameraConfig | None = None,
 ) -> Callable[[Array], Array]:
     """The paper's PM reward: (right-rule fitness with one-colour tiles) x (left-rule fitness with
     two-colour tiles), each summed over the crossroads (branch fitness, clipped at 0 so the
-    product is meaningful). ``im`` is the interpreter's fixed network."""
+    product is meaningful). ``im`` is the interpreter's fixed network; ``camera`` the blob
+    finder's settings (default :class:`~mbn.world.engine.CameraConfig`)."""
+    camera = camera or CameraConfig()
     right = CrossroadTask(rule="right", tile=1, variants=variants, seed=seed)
     left = CrossroadTask(rule="left", tile=2, variants=variants, seed=seed)
     ar, al = right.arrays(), left.arrays()
@@ -143,8 +147,8 @@ def pm_fitness(
     @jax.jit
     def fitness(population: Array) -> Array:
         p = population.shape[0]
-        sr = fr(_run(genome, im, population, ar, right, controller), right)
-        sl = fl(_run(genome, im, population, al, left, controller), left)
+        sr = fr(_run(genome, im, population, ar, right, controller, camera), right)
+        sl = fl(_run(genome, im, population, al, left, controller, camera), left)
         a = jnp.clip(sr.reshape(p, ar.episodes).sum(-1), 0.0, None)
         b = jnp.clip(sl.reshape(p, al.episodes).sum(-1), 0.0, None)
         return a * b
