@@ -23,6 +23,9 @@ from mbn.cli_world import WORLD_COMMANDS, WORLD_EPILOG, add_world_commands
 from mbn.errors import MbnInputError
 
 EXIT_BAD_INPUT = 2
+#: Commands that run in JAX's default float32 (the robot experiments: evolved and tested so);
+#: the others enable float64.
+FLOAT32_COMMANDS = ("reproduce", "evaluate")
 
 MAIN_EPILOG = """\
 examples:
@@ -393,7 +396,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     key = (str(args.command), str(getattr(args, f"{args.command}_command", "")))
-    _enable_x64()
+    if args.command not in FLOAT32_COMMANDS:
+        _enable_x64()
     try:
         return COMMANDS[key](args)
     except MbnInputError as exc:

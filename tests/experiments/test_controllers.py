@@ -176,8 +176,10 @@ def test_mbn_round_trip_drives_identically(tmp_path, mbn_spec):
     assert data["kind"] == KIND_MBN
     assert data["program_module"]["program_neurons"] == [0, 1, 2]
     assert data["program_module"]["substeps"] == 4
+    assert data["program_module"]["camera"] == {"fov_deg": 60.0, "range": 3.0}
     loaded = load_controller(path)
     assert loaded.kind == KIND_MBN and loaded.needs_camera and loaded.program is None
+    assert loaded.camera == mbn_spec.camera
     cameras = [0, 1, 1, 0, 2, 2]
     _, ours = _drive(make_controller(mbn_spec), cameras)
     _, theirs = _drive(loaded, cameras)
@@ -330,7 +332,26 @@ MBN_CASES = [
     (_set("program_module", "network", "WE", [[1.0] * 3] * 3), r"2 camera inputs"),
     (_set("program_module", "substeps", 0), r"program_module.substeps must be an integer >= 1"),
     (_set("program_module", _DELETE), r"missing field 'program_module'"),
+    (_set("program_module", "camera", "range", -1.0), r"camera range must be in \(0, "),
+    (_set("program_module", "camera", "zoom", 2.0), r"unknown field\(s\) 'zoom'"),
 ]
+
+
+def test_mbn_camera_is_kept_and_optional(tmp_path, mbn_spec):
+    """The camera the program module was trained with travels in the file; older files without
+    one get the default camera."""
+    import dataclasses
+
+    from mbn.world.engine import CameraConfig
+
+    narrow = dataclasses.replace(mbn_spec, camera=CameraConfig(fov_deg=40.0, range=1.5))
+    path = tmp_path / "mbn.json"
+    save_controller(path, narrow)
+    assert load_controller(path).camera == CameraConfig(fov_deg=40.0, range=1.5)
+    data = json.loads(path.read_text())
+    del data["program_module"]["camera"]
+    path.write_text(json.dumps(data))
+    assert load_controller(path).camera == CameraConfig()
 
 
 @pytest.mark.parametrize(("change", "message"), MBN_CASES)

@@ -176,3 +176,26 @@ def test_interpreter_programs_equal_the_builder():
             np.asarray(ref.program_of(Genome().network(genes[k]))),
             atol=1e-12,
         )
+
+
+def test_connection_search_fitness_equals_the_genome_fitness_for_every_triple():
+    """One compiled function for every choice of connections gives exactly what
+    crossroad_fitness of Genome.around gives."""
+    from mbn.experiments.evolve import connection_search_fitness
+    from mbn.paper import published_rf
+    from mbn.programmable import Connection
+
+    base = published_rf()
+    task = CrossroadTask(rule="left", variants=1, seconds=4.0)
+    arrays = task.arrays()
+    search = connection_search_fitness(base, task, arrays)
+    pop = jax.random.uniform(jax.random.key(1), (4, 3), minval=-20.0, maxval=20.0)
+    triples = [
+        (Connection("W", 1, 0), Connection("WE", 1, 1), Connection("WE", 1, 2)),
+        (Connection("W", 0, 2), Connection("W", 2, 2), Connection("WE", 0, 0)),
+    ]
+    for trip in triples:
+        expected = crossroad_fitness(Genome.around(base, trip), task, arrays)(pop)
+        np.testing.assert_array_equal(np.asarray(search(pop, trip)), np.asarray(expected))
+    with pytest.raises(MbnInputError, match="2 connections for genomes of 3 genes"):
+        search(pop, triples[0][:2])

@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 
 from mbn.errors import MbnInputError
-from mbn.experiments.trials import TrialSpec, judge, run_trials, summary, trial_starts
+from mbn.experiments.trials import (
+    TrialGroup,
+    TrialSpec,
+    judge,
+    run_trial_groups,
+    run_trials,
+    summary,
+    trial_starts,
+)
 from mbn.world.builtin import builtin_maze, crossroad
 from mbn.world.maze import Maze
 
@@ -137,3 +145,43 @@ def test_judging_tiles_can_skip_the_junctions_before_the_first_tile():
     assert v["success"].tolist() == [True] and v["judged"].tolist() == [3]
     s = passes([L, R, L], right=[R, R, R], left=[L, L, L], tiles=[0, 1, 2])
     assert judge(s, spec)["judged"].tolist() == [2]
+
+
+def test_all_jittered_starts_when_the_marks_are_left_out():
+    maze = builtin_maze("fig4")
+    with_marks = trial_starts(maze, TrialSpec(repeats=3, seed=4))
+    jittered = trial_starts(maze, TrialSpec(repeats=3, seed=4, exact_first=False))
+    assert jittered.shape == with_marks.shape == (30, 3)
+    marks = np.asarray(maze.starts)
+    # no jittered start is a mark, and each lies within the jitter of its own mark
+    d = np.abs(jittered.reshape(10, 3, 3) - marks[:, None, :])
+    assert np.all(d.max(-1) > 0)
+    assert np.all(np.hypot(d[..., 0], d[..., 1]) <= math.hypot(0.15, 0.3) + 1e-9)
+    assert np.all(d[..., 2] <= math.radians(10) + 1e-9)
+
+
+def test_trial_groups_judge_each_group_as_run_trials_would():
+    """Two tests of one controller function in one rollout, in two mazes, with two rules: each
+    verdict equals that of its own run_trials."""
+
+    def turn_right(state, obs):
+        step = state
+        v = jnp.where((step >= 72) & (step < 82), 0.0, 0.5)
+        w = jnp.where((step >= 72) & (step < 82), -math.pi / 2, 0.0)
+        return step + 1, (v, w)
+
+    init = lambda n: jnp.zeros(n, jnp.int32)  # noqa: E731
+    mazes = [crossroad("LSR"), crossroad("SR")]
+    right = TrialSpec(behavior="right", junctions=1, seconds=12.0, repeats=3, seed=2)
+    left = TrialSpec(behavior="left", junctions=1, seconds=12.0, repeats=2, seed=5)
+    groups = [TrialGroup("a", 0, right, init), TrialGroup("b", 1, left, init)]
+    verdicts, _, slices, poses = run_trial_groups(mazes, groups, turn_right, seconds=12.0)
+    assert slices == {"a": slice(0, 3), "b": slice(3, 5)}
+    assert poses.shape == (5, 3)
+    for name, maze, spec in (("a", mazes[0], right), ("b", mazes[1], left)):
+        alone, _, _ = run_trials(maze, spec, turn_right, init)
+        for k in ("success", "correct", "judged", "stall", "exits"):
+            np.testing.assert_array_equal(verdicts[name][k], alone[k], err_msg=f"{name} {k}")
+    assert verdicts["a"]["success"].all()
+    with pytest.raises(MbnInputError, match="distinct names"):
+        run_trial_groups(mazes, groups[:1] * 2, turn_right, seconds=1.0)

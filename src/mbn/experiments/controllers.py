@@ -45,6 +45,7 @@ from mbn.control import (
 from mbn.ctrnn import CTRNN, euler_step, firing_rate
 from mbn.errors import MbnInputError
 from mbn.programmable import Connection, Interpreter
+from mbn.world.engine import CameraConfig
 from mbn.world.sensors import PAPER_SONARS, SensorConfig
 
 __all__ = [
@@ -319,6 +320,7 @@ class MBNControllerSpec:
         program_neurons: PM neurons whose firing rates are the program, one per programmable
             connection, in program order.
         pm_substeps: Euler steps of the PM per robot step.
+        camera: the blob-finding camera the PM reads (field of view and range).
         metadata: free JSON-serialisable information: the file's ``metadata`` (that of
             ``interpreter_spec`` is not written).
         kind: the file kind (class constant).
@@ -329,9 +331,12 @@ class MBNControllerSpec:
     program_module: CTRNN
     program_neurons: tuple[int, ...]
     pm_substeps: int = 4
+    camera: CameraConfig = field(default_factory=CameraConfig)
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.camera, CameraConfig):
+            raise MbnInputError(f"camera must be a CameraConfig, got {type(self.camera).__name__}")
         if not isinstance(self.interpreter_spec, InterpreterControllerSpec):
             raise MbnInputError(
                 "interpreter_spec must be an InterpreterControllerSpec, got "
@@ -462,6 +467,7 @@ def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
                 "network": spec.program_module.to_dict(),
                 "program_neurons": list(spec.program_neurons),
                 "substeps": spec.pm_substeps,
+                "camera": {"fov_deg": spec.camera.fov_deg, "range": spec.camera.range},
             },
             "metadata": dict(spec.metadata),
         }
@@ -676,13 +682,20 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         return im_spec
     here = f"{where}: program_module"
     pm_data = _object(data["program_module"], here)
-    _fields(pm_data, here, ["network", "program_neurons", "substeps"])
+    _fields(pm_data, here, ["network", "program_neurons", "substeps"], ["camera"])
     pm = _network_from_dict(pm_data["network"], f"{here}.network")
     neurons = pm_data["program_neurons"]
     if not isinstance(neurons, list):
         raise MbnInputError(f"{here}.program_neurons: expected a list of integers, got {neurons!r}")
     neurons_t = tuple(_integer(i, f"{here}.program_neurons") for i in neurons)
     pm_substeps = _integer(pm_data["substeps"], f"{here}.substeps")
+    camera = CameraConfig()
+    if "camera" in pm_data:
+        cam = _object(pm_data["camera"], f"{here}.camera")
+        _fields(cam, f"{here}.camera", ["fov_deg", "range"])
+        fov = _number(cam["fov_deg"], f"{here}.camera.fov_deg")
+        rng = _number(cam["range"], f"{here}.camera.range")
+        camera = _build(f"{here}.camera", lambda: CameraConfig(fov_deg=fov, range=rng))
     return _build(
         where,
         lambda: MBNControllerSpec(
@@ -690,6 +703,7 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
             program_module=pm,
             program_neurons=neurons_t,
             pm_substeps=pm_substeps,
+            camera=camera,
             metadata=metadata,
         ),
     )
@@ -794,6 +808,7 @@ class LoadedController:
         sensors: the sonars to cast and their normalisation.
         dt: the robot step (s).
         needs_camera: whether the controller reads the camera (the whole MBN).
+        camera: the camera settings it reads (None when it reads none).
         programs: the file's named programs (empty for a plain CTRNN).
         program: the program in use (None for a plain CTRNN or the whole MBN).
         behavior: the behaviour a plain CTRNN file declares (else None).
@@ -806,6 +821,7 @@ class LoadedController:
     sensors: SensorConfig
     dt: float
     needs_camera: bool
+    camera: CameraConfig | None
     programs: dict[str, tuple[float, ...]]
     program: str | None
     behavior: str | None
@@ -858,6 +874,7 @@ def make_controller(
             sensors=spec.sensors,
             dt=spec.dt,
             needs_camera=False,
+            camera=None,
             programs={},
             program=None,
             behavior=spec.behavior,
@@ -890,6 +907,7 @@ def make_controller(
             sensors=im_spec.sensors,
             dt=im_spec.dt,
             needs_camera=True,
+            camera=spec.camera,
             programs=_programs_of(im_spec),
             program=None,
             behavior=None,
@@ -920,6 +938,7 @@ def make_controller(
             sensors=im_spec.sensors,
             dt=im_spec.dt,
             needs_camera=False,
+            camera=None,
             programs=programs,
             program=name,
             behavior=None,

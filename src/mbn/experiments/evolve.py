@@ -37,12 +37,14 @@ __all__ = [
     "DEFAULT_TAU",
     "RF_CONNECTIONS",
     "Genome",
+    "connection_search_fitness",
     "crossroad_fitness",
     "emulated_fitness",
     "evaluate_interpreted",
     "evaluate_networks",
     "generation",
     "interpreter_programs",
+    "set_connections",
     "start",
 ]
 
@@ -167,6 +169,58 @@ def crossroad_fitness(
         stats = evaluate_networks(W, WE, genome.tau, arrays, task)
         per_episode = tiled_fitness(stats, task)
         return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+
+    return fitness
+
+
+def set_connections(
+    base_W: Array, base_WE: Array, genes: Array, is_input: Array, rows: Array, cols: Array
+) -> tuple[Array, Array]:
+    """``(W, WE)`` ``(P, 3, 3)``: the base weights with connection g (``WE`` when
+    ``is_input[g]``, else ``W``; at ``rows[g], cols[g]``) set to ``genes[:, g]``. The connections
+    are arrays, not constants, so one compiled function serves every choice of connections."""
+    p = genes.shape[0]
+    W = jnp.broadcast_to(base_W.astype(genes.dtype), (p, 3, 3))
+    WE = jnp.broadcast_to(base_WE.astype(genes.dtype), (p, 3, 3))
+    for g in range(genes.shape[1]):
+        r, c = rows[g], cols[g]
+        W = W.at[:, r, c].set(jnp.where(is_input[g], W[:, r, c], genes[:, g]))
+        WE = WE.at[:, r, c].set(jnp.where(is_input[g], genes[:, g], WE[:, r, c]))
+    return W, WE
+
+
+def connection_search_fitness(
+    base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None = None
+) -> Callable[[Array, tuple[Connection, ...]], Array]:
+    """Fitness of populations that re-evolve a few connections of ``base`` (as
+    :func:`crossroad_fitness` with ``Genome.around(base, connections)``), compiled once for all
+    choices of the same number of connections: ``fitness(population, connections)``."""
+    arrays = arrays or task.arrays()
+    tiled_fitness = _tile_fitness(arrays)
+    tau = float(np.asarray(base.tau).reshape(-1)[0])
+    base_W, base_WE = jnp.asarray(base.W), jnp.asarray(base.WE)
+
+    @jax.jit
+    def run(population: Array, is_input: Array, rows: Array, cols: Array) -> Array:
+        W, WE = set_connections(base_W, base_WE, population, is_input, rows, cols)
+        stats = evaluate_networks(W, WE, tau, arrays, task)
+        per_episode = tiled_fitness(stats, task)
+        return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+
+    def fitness(population: Array, connections: tuple[Connection, ...]) -> Array:
+        if len(connections) != population.shape[1]:
+            raise MbnInputError(
+                f"{len(connections)} connections for genomes of {population.shape[1]} genes"
+            )
+        for c in connections:
+            if c.i >= 3 or c.j >= 3:
+                raise MbnInputError(f"connection {c}: out of range for 3 neurons and 3 inputs")
+        return run(
+            population,
+            jnp.asarray([c.kind == "WE" for c in connections]),
+            jnp.asarray([c.i for c in connections]),
+            jnp.asarray([c.j for c in connections]),
+        )
 
     return fitness
 

@@ -35,8 +35,10 @@ from mbn.world.sensors import SensorConfig
 __all__ = [
     "BEHAVIORS",
     "MAX_STALL_FRACTION",
+    "TrialGroup",
     "TrialSpec",
     "judge",
+    "run_trial_groups",
     "run_trials",
     "summary",
     "trial_starts",
@@ -61,6 +63,8 @@ class TrialSpec:
         seconds: time limit of a trial.
         jitter: lateral (m), along (m), heading (degrees) half-ranges.
         seed: seed of the jitter (NumPy, at this edge).
+        exact_first: whether the first trial of each mark starts from the mark exactly (else
+            all ``repeats`` trials of a mark are jittered).
     """
 
     behavior: str = "right"
@@ -70,6 +74,7 @@ class TrialSpec:
     seconds: float = 60.0
     jitter: tuple[float, float, float] = (0.15, 0.3, 10.0)
     seed: int = 0
+    exact_first: bool = True
 
     def __post_init__(self) -> None:
         if self.behavior not in BEHAVIORS:
@@ -99,13 +104,15 @@ class TrialSpec:
 
 def trial_starts(maze: Maze, spec: TrialSpec) -> np.ndarray:
     """Start poses ``(marks * repeats, 3)``: for each start mark, the mark itself and then
-    ``repeats - 1`` jittered copies (mark-major order)."""
+    ``repeats - 1`` jittered copies (``repeats`` jittered copies when ``spec.exact_first`` is
+    False), mark-major order."""
     rng = np.random.default_rng(spec.seed)
     lat, along, head = spec.jitter
     out = []
     for x, y, th in maze.starts:
-        out.append((x, y, th))
-        for _ in range(spec.repeats - 1):
+        if spec.exact_first:
+            out.append((x, y, th))
+        for _ in range(spec.repeats - int(spec.exact_first)):
             a = rng.uniform(-along, along)
             b = rng.uniform(-lat, lat)
             h = math.radians(rng.uniform(-head, head))
@@ -122,7 +129,8 @@ def trial_starts(maze: Maze, spec: TrialSpec) -> np.ndarray:
 def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     """Judge every episode: per trial ``success``, ``correct`` junctions among the first J,
     ``judged`` junctions (J or fewer if the robot passed fewer), ``stall`` fraction until the J-th
-    junction was left (or over the whole trial if it never was)."""
+    junction was left (or over the whole trial if it never was), and ``exits`` ``(n, J)``: the
+    exit taken at each judged junction (-1 where there was none)."""
     J = spec.junctions
     kept = np.asarray(stats.junction_exit).shape[1]
     n = np.minimum(np.asarray(stats.n_junctions), kept)
@@ -165,6 +173,7 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         "correct": correct.sum(1),
         "judged": judged,
         "stall": stall,
+        "exits": np.where(passed, exits, -1),
     }
 
 
@@ -221,3 +230,76 @@ def run_trials(
     )
     result = run(initial_state(n), jnp.asarray(poses, jnp.zeros(()).dtype), jnp.zeros(n, jnp.int32))
     return judge(result.stats, spec), result, poses
+
+
+@dataclass(frozen=True)
+class TrialGroup:
+    """One test of a batch run by :func:`run_trial_groups`: ``spec`` in ``mazes[maze]``, the
+    controller starting from ``initial_state(n)`` (its own network, program, ...)."""
+
+    name: str
+    maze: int
+    spec: TrialSpec
+    initial_state: Callable[[int], Any]
+
+
+def run_trial_groups(
+    mazes: list[Maze],
+    groups: list[TrialGroup],
+    controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]],
+    *,
+    seconds: float,
+    dt: float = 0.1,
+    sensors: SensorConfig | None = None,
+    camera: CameraConfig | None = None,
+    record_every: int = 0,
+    record_controller: bool = False,
+) -> tuple[dict[str, dict[str, np.ndarray]], RolloutResult, dict[str, slice], np.ndarray]:
+    """Run several tests of one controller function in one rollout (one compilation).
+
+    Every group's trials (:func:`trial_starts`) are concatenated in group order, with their
+    initial states; each group is judged by its own spec (its ``seconds`` is ignored: the batch
+    runs ``seconds``). Returns the verdicts by group name, the rollout result, each group's slice
+    of the batch, and the start poses.
+    """
+    if not groups:
+        raise MbnInputError("run_trial_groups needs at least one group")
+    names = [g.name for g in groups]
+    if len(set(names)) != len(names):
+        raise MbnInputError(f"trial groups must have distinct names, got {names}")
+    poses, index, states, slices = [], [], [], {}
+    offset = 0
+    for g in groups:
+        if not 0 <= g.maze < len(mazes):
+            raise MbnInputError(f"group {g.name!r}: maze index {g.maze} out of range")
+        g.spec.check_maze(mazes[g.maze])
+        p = trial_starts(mazes[g.maze], g.spec)
+        poses.append(p)
+        index.append(np.full(len(p), g.maze, np.int32))
+        states.append(g.initial_state(len(p)))
+        slices[g.name] = slice(offset, offset + len(p))
+        offset += len(p)
+    state = jax.tree.map(lambda *a: jnp.concatenate(a, 0), *states)
+    world = compile_mazes(mazes)
+    junctions = junction_arrays(mazes, world)
+    config = RolloutConfig(
+        steps=max(1, round(seconds / dt)),
+        dt=dt,
+        sensors=sensors or SensorConfig(),
+        camera=camera,
+        record_every=record_every,
+        record_controller=record_controller,
+        max_junctions=max(8, *(g.spec.junctions for g in groups)),
+    )
+    all_poses = np.concatenate(poses)
+    run = jax.jit(
+        lambda state, p, m: rollout(world, controller, state, p, m, config, junctions=junctions)
+    )
+    result = run(
+        state, jnp.asarray(all_poses, jnp.zeros(()).dtype), jnp.asarray(np.concatenate(index))
+    )
+    verdicts = {
+        g.name: judge(jax.tree.map(lambda a, s=slices[g.name]: a[s], result.stats), g.spec)
+        for g in groups
+    }
+    return verdicts, result, slices, all_poses

@@ -1,0 +1,129 @@
+"""The claims table of ``mbn reproduce``: what the paper says, what the run measured, pass/fail.
+
+Each claim is judged by an explicit criterion written next to it (``criterion``): the paper's own
+where it gives one ("success in all trials"), the project's targets where it gives none (jittered
+starts and the held-out maze: at least 95 %; the interpreter takes the same branches as the network
+it emulates in at least 98 % of the jittered trials).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["AGREEMENT_TARGET", "ROBUST_TARGET", "claims"]
+
+#: Success rate required from jittered starts and on the held-out maze.
+ROBUST_TARGET = 0.95
+#: Share of jittered trials in which the interpreter takes the same branches as its network.
+AGREEMENT_TARGET = 0.98
+#: Largest error of the multiplier on the 101 x 101 grid counted as "multiplies".
+MULTIPLIER_MAX_ERROR = 0.02
+
+_WHO = {
+    "rf": "RF",
+    "lf": "LF",
+    "im_rf": "IM with the RF program",
+    "im_lf": "IM with the LF program",
+    "mbn": "MBN (PM + IM)",
+    "published_rf": "published W_RF, WE_RF",
+    "published_lf": "published W_LF, WE_LF",
+}
+
+
+def _frac(t: dict[str, Any]) -> str:
+    return f"{t['successes']}/{t['trials']}"
+
+
+def _all(t: dict[str, Any]) -> bool:
+    return t["trials"] > 0 and t["successes"] == t["trials"]
+
+
+def claims(stages: dict[str, dict[str, Any]], settings: Any) -> list[dict[str, Any]]:
+    """The claims table from the stages' results (``stages[name]`` as written by the run)."""
+    tests = stages["tests"]["tests"]
+    agree = stages["tests"]["agreement"]
+    mul = stages["multiplier"]
+    out: list[dict[str, Any]] = []
+
+    def add(claim: str, paper: str, measured: str, ok: bool, criterion: str) -> None:
+        out.append(
+            {
+                "claim": claim,
+                "paper": paper,
+                "measured": measured,
+                "pass": bool(ok),
+                "criterion": criterion,
+            }
+        )
+
+    m = mul["metrics"]
+    add(
+        "A small CTRNN trained by BPTT multiplies its two inputs on [0, 1]^2 (section 2.1)",
+        "3-neuron CTRNN, trained by BPTT (no error figure given)",
+        f"{mul['neurons']}-neuron multiplier ({mul['source']}): max |error| "
+        f"{m['max_abs_error_grid']:.4f}, mean {m['mean_abs_error_grid']:.4f} on a 101 x 101 grid; "
+        f"{m['fraction_within_5pct']:.0%} of 100 random pairs within 5 %",
+        m["max_abs_error_grid"] <= MULTIPLIER_MAX_ERROR,
+        f"max |error| on the grid <= {MULTIPLIER_MAX_ERROR}",
+    )
+    lf = stages["lf"]
+    rows = [
+        ("rf", "DE evolves a right-wall follower (RF) on the crossroads (section 3.1)"),
+        (
+            "lf",
+            "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1; "
+            f"here {', '.join(lf['connections_paper_notation'])})",
+        ),
+        ("im_rf", "The interpreter (IM) with the RF program behaves as RF (section 3.2)"),
+        ("im_lf", "The interpreter (IM) with the LF program behaves as LF (section 3.2)"),
+        (
+            "mbn",
+            "The MBN follows the right wall after one-colour tiles and the left wall after "
+            "two-colour tiles (section 3.2)",
+        ),
+    ]
+    paper_all = "success in all trials (10 start positions, 3 consecutive crossroads)"
+    for name, claim in rows:
+        t = tests[name]
+        add(
+            claim,
+            paper_all,
+            f"{_frac(t)} ({settings.test_maze}, paper protocol)",
+            _all(t),
+            "all trials succeed",
+        )
+    for suffix, what in (
+        ("_jitter", f"{settings.jitter_per_mark * 10} jittered starts"),
+        ("_heldout", "the held-out maze"),
+    ):
+        parts = [f"{_WHO[n]} {tests[n + suffix]['success_rate']:.1%}" for n, _ in rows]
+        ok = all(tests[n + suffix]["success_rate"] >= ROBUST_TARGET for n, _ in rows)
+        add(
+            f"The five behaviours hold from {what}",
+            "not tested in the paper",
+            "; ".join(parts),
+            ok,
+            f"success rate >= {ROBUST_TARGET:.0%} for each",
+        )
+    for im_name, net in (("im_rf", "RF"), ("im_lf", "LF")):
+        a = agree[f"{im_name}_jitter"]
+        add(
+            f"The interpreter with the {net} program takes the same branches as {net} "
+            "(it emulates it, section 2)",
+            "the interpreter behaves as the network whose program it is given",
+            f"same branches at every judged junction in {a['same_branches']}/{a['trials']} "
+            f"jittered trials ({a['rate']:.1%})",
+            a["rate"] >= AGREEMENT_TARGET,
+            f"agreement >= {AGREEMENT_TARGET:.0%}",
+        )
+    for name, rule in (("published_rf", "right"), ("published_lf", "left")):
+        t = tests[name]
+        add(
+            f"The published weights ({_WHO[name]}) are a {rule}-wall follower",
+            "the networks of the paper's tests (success in all trials)",
+            f"{_frac(t)} (paper protocol), {tests[name + '_jitter']['success_rate']:.1%} "
+            f"jittered, {tests[name + '_heldout']['success_rate']:.1%} held-out",
+            _all(t),
+            "all trials succeed",
+        )
+    return out

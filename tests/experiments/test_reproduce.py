@@ -1,0 +1,247 @@
+"""``mbn reproduce``: a quick smoke run of every stage, its outputs, resuming after ``kill -9``, and
+the refusals of a bad ``--out``."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mbn.cli import main
+from mbn.experiments.controllers import load_controller
+from mbn.experiments.reproduce import CONTROLLERS, RUN_KIND, TEST_NAMES
+
+TEST_KEYS = {"trials", "successes", "success_rate"}
+CLAIM_KEYS = {"claim", "paper", "measured", "pass"}
+
+
+def _reproduce(*args: str, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "mbn", "reproduce", "--quiet", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        **kw,
+    )
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("quick") / "run"
+    t0 = time.perf_counter()
+    proc = _reproduce("--quick", "--out", str(out), "--seed", "3")
+    assert proc.returncode == 0, proc.stderr
+    return out, time.perf_counter() - t0
+
+
+def test_quick_run_writes_results_with_the_documented_schema(quick_run):
+    out, _ = quick_run
+    results = json.loads((out / "results.json").read_text())
+    assert results["seed"] == 3
+    assert {"mbn", "jax", "numpy", "python"} <= set(results["versions"])
+    assert {"multiplier", "rf", "lf_search", "lf", "im", "pm", "tests"} <= set(results["stages"])
+    required = {
+        f"{n}{s}"
+        for n in ("rf", "lf", "im_rf", "im_lf", "mbn")
+        for s in ("", "_jitter", "_heldout")
+    } | {"published_rf", "published_lf"}
+    assert required <= set(results["tests"]) == set(TEST_NAMES)
+    for name, t in results["tests"].items():
+        assert set(t) >= TEST_KEYS, name
+        assert t["trials"] > 0 and 0 <= t["successes"] <= t["trials"]
+        assert t["success_rate"] == pytest.approx(t["successes"] / t["trials"])
+    assert results["tests"]["rf"]["trials"] == 10  # fig4's start marks: the paper's protocol
+    assert results["tests"]["rf_jitter"]["trials"] == 20  # quick: 2 jittered per mark
+    claims = results["claims"]
+    assert len(claims) >= 10
+    for c in claims:
+        assert set(c) >= CLAIM_KEYS
+        assert isinstance(c["pass"], bool)
+        assert all(isinstance(c[k], str) and c[k] for k in ("claim", "paper", "measured"))
+    # the claims are computed from the tests, not written down
+    rf_claim = next(c for c in claims if c["claim"].startswith("DE evolves a right-wall"))
+    t = results["tests"]["rf"]
+    assert rf_claim["measured"].startswith(f"{t['successes']}/{t['trials']}")
+    assert rf_claim["pass"] == (t["successes"] == t["trials"])
+    # the chosen LF connections are those LF re-evolved and IM made programmable (a subset)
+    lf = results["stages"]["lf"]
+    assert lf["connections"] == results["stages"]["lf_search"]["chosen"]
+    assert set(results["stages"]["im"]["connections"]) <= set(lf["connections"])
+    # wall-clock times are kept out of results.json (it depends on the seed only)
+    text = json.dumps(results)
+    assert "timings" not in results and "wall_seconds" not in text and "train_seconds" not in text
+    assert "total_seconds" in json.loads((out / "timings.json").read_text())
+
+
+def test_quick_run_controllers_load_and_evaluate(quick_run):
+    out, _ = quick_run
+    for name in CONTROLLERS:
+        assert (out / "controllers" / f"{name}.json").is_file(), name
+    kinds = {
+        "rf": "mbn.controller.ctrnn",
+        "lf": "mbn.controller.ctrnn",
+        "im": "mbn.controller.interpreter",
+        "mbn": "mbn.controller.mbn",
+    }
+    for name, kind in kinds.items():
+        data = json.loads((out / "controllers" / f"{name}.json").read_text())
+        assert data["kind"] == kind and "mbn_version" in data
+        program = "right" if name == "im" else None
+        loaded = load_controller(out / "controllers" / f"{name}.json", program=program)
+        assert loaded.kind == kind
+    assert set(load_controller(out / "controllers" / "im.json", "right").programs) == {
+        "right",
+        "left",
+    }
+    # mbn evaluate reproduces the run's own paper-protocol figure for RF
+    results = json.loads((out / "results.json").read_text())
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mbn",
+            "evaluate",
+            "--controller",
+            str(out / "controllers" / "rf.json"),
+            "--maze",
+            "fig4",
+            "--behavior",
+            "right",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout)
+    assert got["trials"] == 10
+    assert got["successes"] == results["tests"]["rf"]["successes"]
+
+
+def test_quick_run_report_is_self_contained(quick_run):
+    out, seconds = quick_run
+    md = (out / "report.md").read_text()
+    for link in re.findall(r"\]\((figures/[^)]+)\)", md):
+        assert (out / link).is_file(), link
+    for fig in (
+        "multiplier_error.png",
+        "de_curves.png",
+        "trajectories_mbn.png",
+        "mbn_traces.png",
+        "mbn.gif",
+    ):
+        assert (out / "figures" / fig).stat().st_size > 1000, fig
+    page = (out / "report.html").read_text()
+    assert "Claims: the paper and this run" in page
+    srcs = re.findall(r"src='([^']*)'", page) + re.findall(r'src="([^"]*)"', page)
+    assert srcs and all(s.startswith("data:image/") for s in srcs)
+    assert "data:image/gif;base64," in page
+    assert page.count("<tr") >= 12 + 21  # claims and tests tables
+    from PIL import Image
+
+    with Image.open(out / "figures" / "mbn.gif") as gif:
+        assert gif.n_frames > 10
+    assert seconds < 300  # the target is < 2 min on 2 cores; this only catches a runaway
+
+
+def test_resume_after_kill_gives_the_same_results(quick_run, tmp_path):
+    """Kill -9 in the middle of the LF evolution, resume, compare results.json with the
+    uninterrupted run of the same seed."""
+    reference, _ = quick_run
+    out = tmp_path / "run"
+    command = ["reproduce", "--quiet", "--quick", "--out", str(out), "--seed", "3"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mbn", *command],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    target = out / "checkpoints" / "lf.npz"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if target.exists():
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    time.sleep(0.3)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "results.json").exists()
+    assert not (out / "stages" / "lf.json").exists()
+    done = _reproduce("--quick", "--out", str(out), "--seed", "3", "--resume")
+    assert done.returncode == 0, done.stderr
+    a = json.loads((reference / "results.json").read_text())
+    b = json.loads((out / "results.json").read_text())
+    assert a == b
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input: one line, exit status 2, nothing lost
+# ---------------------------------------------------------------------------------------------
+
+
+def _fake_run(folder: Path, seed: int = 5) -> None:
+    folder.mkdir(parents=True)
+    (folder / "run.json").write_text(json.dumps({"kind": RUN_KIND, "seed": seed, "settings": {}}))
+    (folder / "results.json").write_text('{"keep": true}')
+
+
+def _one_line_error(capsys, *words: str) -> None:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    for w in words:
+        assert w in err, err
+
+
+def test_out_holding_another_run_is_refused(tmp_path, capsys):
+    _fake_run(tmp_path / "r")
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "r")]) == 2
+    _one_line_error(capsys, "holds another run", "--resume", "--force")
+    assert (tmp_path / "r" / "results.json").read_text() == '{"keep": true}'
+
+
+def test_resume_with_other_seed_is_refused(tmp_path, capsys):
+    _fake_run(tmp_path / "r", seed=5)
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"), "--resume"]) == 2
+    _one_line_error(capsys, "run.json", "other seed")
+    assert (tmp_path / "r" / "results.json").read_text() == '{"keep": true}'
+
+
+def test_out_with_foreign_files_is_refused_even_with_force(tmp_path, capsys):
+    (tmp_path / "r").mkdir()
+    (tmp_path / "r" / "notes.txt").write_text("mine")
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"), "--force"]) == 2
+    _one_line_error(capsys, "other files")
+    assert (tmp_path / "r" / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize(
+    ("setup", "flags", "words"),
+    [
+        ("none", ["--resume"], ["nothing to resume"]),
+        ("file", [], ["is a file"]),
+        ("run", ["--resume", "--force"], ["exclude each other"]),
+    ],
+)
+def test_other_bad_out_folders(tmp_path, capsys, setup, flags, words):
+    out = tmp_path / "r"
+    if setup == "file":
+        out.write_text("x")
+    elif setup == "run":
+        _fake_run(out)
+    assert main(["reproduce", "--quick", "--out", str(out), *flags]) == 2
+    _one_line_error(capsys, *words)
+
+
+def test_bad_seed_is_one_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["reproduce", "--seed", "minus one"])
+    assert exc.value.code == 2
+    _one_line_error(capsys, "--seed")
