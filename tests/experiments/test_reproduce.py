@@ -245,3 +245,33 @@ def test_bad_seed_is_one_line(capsys):
         main(["reproduce", "--seed", "minus one"])
     assert exc.value.code == 2
     _one_line_error(capsys, "--seed")
+
+
+@pytest.mark.slow
+def test_report_renders_in_a_headless_browser(quick_run, tmp_path):
+    """report.html opens in headless Chromium and renders a full page (skipped when no Chromium
+    is installed)."""
+    import shutil
+
+    browser = next(
+        (b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None
+    )
+    if browser is None:
+        pytest.skip("no Chromium on this machine")
+    out, _ = quick_run
+    shot = tmp_path / "report.png"
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars"]
+    page = (out / "report.html").as_uri()
+    proc = subprocess.run(
+        [browser, *flags, "--window-size=1200,2400", f"--screenshot={shot}", page],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert shot.exists(), proc.stderr
+    from PIL import Image
+
+    with Image.open(shot) as img:
+        assert img.size == (1200, 2400)
+        colours = img.convert("RGB").getcolors(maxcolors=1 << 20)
+    assert colours is not None and len(colours) > 50  # text, tables and figures, not a blank page
