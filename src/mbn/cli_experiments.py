@@ -19,7 +19,7 @@ __all__ = ["EXPERIMENT_COMMANDS", "EXPERIMENT_EPILOG", "add_experiment_commands"
 
 EXPERIMENT_EPILOG = """\
   mbn reproduce --out runs/full                the paper's whole experiment and its report
-  mbn reproduce --quick --out runs/quick       a smoke run of every stage (about a minute)
+  mbn reproduce --quick --out runs/quick       a smoke run of every stage (under 2 minutes)
   mbn evaluate --controller rf.json --maze fig4 --behavior right --repeats 3 --json
 """
 
@@ -113,7 +113,7 @@ lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figu
 timings.json, stages/, checkpoints/, run.json
 
 examples:
-  mbn reproduce                                full run into runs/reproduce (about 10 minutes)
+  mbn reproduce                                full run into runs/reproduce (about 8 minutes)
   mbn reproduce --quick --out /tmp/q           smoke run
   mbn reproduce --out runs/s2 --seed 2         another seed
   mbn reproduce --out runs/s2 --seed 2 --resume    continue it after an interruption
