@@ -50,3 +50,57 @@ def test_a_latching_program_module_keeps_the_last_tile_program():
     programs = np.array(programs)
     assert programs[59, 0] > 0.98 and np.all(programs[59, 1:] < 0.02)  # one-colour, remembered
     assert programs[119, 0] < 0.02 and np.all(programs[119, 1:] > 0.98)  # two-colour, remembered
+
+
+def _switch_latch() -> np.ndarray:
+    """A hand-made PM that starts as the right-follower program (1, 0, 0): neurons 2 and 3 hold
+    themselves on (self-excitation 10, bias -5) once a two-colour tile is seen, neuron 1 is their
+    inverse; a one-colour tile resets them."""
+    W = np.array([[0.0, -10.0, -10.0], [0.0, 10.0, 0.0], [0.0, 0.0, 10.0]])
+    WE = np.array([[10.0, -10.0], [-10.0, 10.0], [-10.0, 10.0]])
+    return np.concatenate([W.ravel(), WE.ravel(), [5.0, -5.0, -5.0]])
+
+
+def test_memory_reward_episodes_and_maximum():
+    from mbn.experiments.program_module import MemoryReward, memory_reward_maximum
+
+    reward = MemoryReward()
+    eps = reward.episodes()
+    # 4 crossroads where the rules part x (plain, switch, memory) x 2 rules, plus 3 rest
+    assert len(eps) == 4 * 6 + 3
+    assert {e[3] for e in eps} == {0, 1, 2}
+    for kind, tile, seq, label in eps:
+        if label == 2:
+            assert tile is None and seq == "rest"
+        elif seq == "rest":
+            assert tile == label + 1  # plain: the rule's own tile
+        elif seq.startswith("after_"):
+            assert tile == label + 1 and seq == ("after_two" if label == 0 else "after_one")
+        else:
+            assert tile is None and seq == ("memory_one" if label == 0 else "memory_two")
+    # each rule has 12 episodes per start, rest 3: (12 * 1.1 * v + z) ** 2 with z = 0.5 * 3 * 1.1 v
+    v = 2
+    assert memory_reward_maximum(reward, v) == pytest.approx((12 * 1.1 * v + 0.5 * 3 * 1.1 * v) ** 2)
+
+
+def test_priming_shows_a_latch_remembers_and_a_leaky_module_forgets():
+    from mbn.experiments.program_module import MemoryReward, camera_inputs, prime
+
+    seqs = MemoryReward().sequences()
+    names = ["rest", "after_one", "after_two", "memory_one", "memory_two"]
+    inputs = [camera_inputs(seqs[n]) for n in names]
+    assert inputs[0].shape == (0, 2)
+    assert inputs[3].shape == (round((1.5 + 20 + 1.5 + 50) / 0.1), 2)
+    g = PMGenome(3)
+    leaky = _switch_latch()
+    leaky[[4, 8]] = 0.0  # no self-excitation: the program decays once the tile is out of view
+    pm = g.network(jnp.asarray(np.stack([_switch_latch(), leaky])))
+    y = np.asarray(prime(pm, inputs))  # (2 networks, 5 sequences, 3 neurons)
+    rates = 1.0 / (1.0 + np.exp(-(y + np.asarray(pm.bias)[:, None, :])))
+    right, left = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0])
+    latch = rates[0]
+    for k, name in enumerate(names):
+        want = left if name in ("after_two", "memory_two") else right
+        np.testing.assert_allclose(latch[k], want, atol=0.02, err_msg=name)
+    # the leaky module has forgotten the two-colour tile 50 s later
+    np.testing.assert_allclose(rates[1, names.index("memory_two")], right, atol=0.02)

@@ -34,7 +34,17 @@ from mbn.experiments.evolve import _tile_fitness
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, rollout
 
-__all__ = ["MBNState", "PMGenome", "mbn_controller", "pm_fitness"]
+__all__ = [
+    "MBNState",
+    "MemoryReward",
+    "PMGenome",
+    "camera_inputs",
+    "mbn_controller",
+    "memory_reward_maximum",
+    "pm_fitness",
+    "pm_memory_fitness",
+    "prime",
+]
 
 
 @dataclass(frozen=True)
@@ -154,3 +164,220 @@ def pm_fitness(
         return a * b
 
     return fitness
+
+
+#: Camera inputs of the program module: a one-colour tile in view, a two-colour tile, nothing.
+_ONE, _TWO, _NONE = (1.0, 0.0), (0.0, 1.0), (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class MemoryReward:
+    """The PM reward with switching and memory episodes (``docs/experiments.md``).
+
+    The paper's two trials (one-colour tiles scored as a right-follower, two-colour tiles as a
+    left-follower) start the PM from rest: they never ask it to *switch*, nor to hold a program
+    longer than an episode. Here, on the crossroads ``kinds`` (those where the two rules part), each
+    rule has three episodes:
+
+    * ``plain``: the paper's, the rule's tile one cell north of the start, PM from rest;
+    * ``switch``: the same, but the PM was first shown the *other* tile for ``see`` seconds and then
+      nothing for ``hold`` seconds;
+    * ``memory``: no tile; the PM was shown the other tile (``see``), nothing (``gap``), the rule's
+      tile (``see``) and nothing for ``memory`` seconds;
+
+    and on ``rest_kinds`` a PM from rest in a crossroad without tiles is scored by the better of
+    the two rules (it must drive as some wall follower). Before an episode the PM alone is
+    integrated through its camera sequence (standing for tiles seen earlier). The reward keeps the
+    paper's product: ``(R + Z) (L + Z)`` with R (L) the summed branch fitness of the right (left)
+    episodes and Z = ``rest_weight`` x the rest episodes' sum, each clipped at 0.
+    """
+
+    kinds: tuple[str, ...] = ("LS", "LR", "SR", "LSR")
+    rest_kinds: tuple[str, ...] = ("L", "R", "LSR")
+    rest_weight: float = 0.5
+    see: float = 1.5
+    hold: float = 30.0
+    gap: float = 20.0
+    memory: float = 50.0
+
+    def sequences(self) -> dict[str, list[tuple[tuple[float, float], float]]]:
+        """Camera sequences ``[(input, seconds), ...]`` fed to the PM before each kind of
+        episode."""
+        return {
+            "rest": [],
+            "after_one": [(_ONE, self.see), (_NONE, self.hold)],
+            "after_two": [(_TWO, self.see), (_NONE, self.hold)],
+            "memory_one": [
+                (_TWO, self.see),
+                (_NONE, self.gap),
+                (_ONE, self.see),
+                (_NONE, self.memory),
+            ],
+            "memory_two": [
+                (_ONE, self.see),
+                (_NONE, self.gap),
+                (_TWO, self.see),
+                (_NONE, self.memory),
+            ],
+        }
+
+    def episodes(self) -> list[tuple[str, int | None, str, int]]:
+        """``(crossroad kind, tile, sequence, label)`` with label 0 right, 1 left, 2 rest."""
+        from mbn.world.builtin import CROSSROAD_KINDS
+
+        out: list[tuple[str, int | None, str, int]] = []
+        for k in CROSSROAD_KINDS:
+            if k in self.kinds:
+                out += [
+                    (k, 1, "rest", 0),
+                    (k, 2, "rest", 1),
+                    (k, 1, "after_two", 0),
+                    (k, 2, "after_one", 1),
+                    (k, None, "memory_one", 0),
+                    (k, None, "memory_two", 1),
+                ]
+            if k in self.rest_kinds:
+                out.append((k, None, "rest", 2))
+        return out
+
+
+def camera_inputs(sequence: list[tuple[tuple[float, float], float]], dt: float = 0.1) -> np.ndarray:
+    """A camera sequence ``[(input, seconds), ...]`` as one input row per robot step."""
+    rows = [x for x, secs in sequence for _ in range(round(secs / dt))]
+    return np.array(rows, np.float32).reshape(-1, 2)
+
+
+def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 4) -> Array:
+    """Program-module states after each camera input sequence, from rest: ``(P, S, n)`` for a
+    batch of ``P`` networks and ``S`` sequences (``inputs[s]``: ``(steps, 2)``, one row per robot
+    step of ``dt`` seconds, integrated in ``substeps`` Euler steps as the MBN controller does)."""
+    from mbn.ctrnn import euler_step
+
+    p, n = pm.W.shape[0], pm.W.shape[-1]
+    dtype = pm.W.dtype
+    h = dt / substeps
+    outs = []
+    for seq in inputs:
+        y = jnp.zeros((p, n), dtype)
+        if len(seq):
+
+            def step(y: Array, x: Array) -> tuple[Array, None]:
+                for _ in range(substeps):
+                    y = euler_step(pm, y, jnp.broadcast_to(x, (p, 2)), h)
+                return y, None
+
+            y, _ = jax.lax.scan(step, y, jnp.asarray(seq, dtype))
+        outs.append(y)
+    return jnp.stack(outs, 1)
+
+
+def pm_memory_fitness(
+    genome: PMGenome,
+    im: CTRNN,
+    *,
+    reward: MemoryReward | None = None,
+    variants: int = 2,
+    seed: int = 0,
+    im_substeps: int = 20,
+    pm_substeps: int = 4,
+    camera: CameraConfig | None = None,
+    seconds: float = 30.0,
+) -> Callable[[Array], Array]:
+    """A jitted map from a PM population to the :class:`MemoryReward` (``variants`` starts per
+    episode: the mark and jittered ones, seeded by ``seed``)."""
+    from mbn.experiments.crossroads import _ARM_VECTORS, episode_fitness, rule_arm
+    from mbn.world.builtin import crossroad
+    from mbn.world.engine import compile_mazes
+    from mbn.world.rollout import RolloutConfig, junction_arrays
+
+    reward = reward or MemoryReward()
+    camera = camera or CameraConfig()
+    specs = reward.episodes()
+    if not specs:
+        raise MbnInputError("the PM reward has no episodes (kinds and rest_kinds are empty)")
+    task = CrossroadTask(seconds=seconds, variants=variants, seed=seed)
+    dt = task.dt
+    mazes = [crossroad(k, tile=t) for k, t, _, _ in specs]
+    rng = np.random.default_rng(seed)
+    base = np.stack([m.starts[0] for m in mazes])
+    starts = [base]
+    lat, along, head = task.jitter
+    for _ in range(variants - 1):
+        j = np.zeros_like(base)
+        j[:, 0] = rng.uniform(-lat, lat, len(base))
+        j[:, 1] = rng.uniform(-along, along, len(base))
+        j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
+        starts.append(base + j)
+    poses = np.concatenate(starts)
+    index = np.tile(np.arange(len(mazes)), variants)
+    e = len(poses)
+    centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])[index]
+    target = {
+        rule: np.array([_ARM_VECTORS[rule_arm(k, rule)] for k, *_ in specs])[index]
+        for rule in ("right", "left")
+    }
+    label = jnp.asarray(np.array([s[3] for s in specs])[index])
+    names = sorted(reward.sequences())
+    which = np.array([names.index(s[2]) for s in specs])[index]
+    inputs = [camera_inputs(reward.sequences()[n], dt) for n in names]
+    world = compile_mazes(mazes)
+    junctions = junction_arrays(mazes, world)
+    config = RolloutConfig(steps=task.steps, dt=dt, sensors=task.sensors, camera=camera)
+    controller = mbn_controller(
+        programs=genome.programs, dt=dt, im_substeps=im_substeps, pm_substeps=pm_substeps
+    )
+    k = genome.programs
+
+    def arrays(rule: str, p: int) -> TaskArrays:
+        return TaskArrays(
+            mazes=mazes,
+            world=world,
+            junctions=junctions,
+            poses=np.tile(poses, (p, 1)),
+            maze_index=np.tile(index, p),
+            target=np.tile(target[rule], (p, 1)),
+            centre=np.tile(centre, (p, 1)),
+            cell=float(mazes[0].cell or 1.2),
+            arm_length=3 * float(mazes[0].cell or 1.2),
+        )
+
+    @jax.jit
+    def fitness(population: Array) -> Array:
+        p, dtype = population.shape[0], population.dtype
+        n = p * e
+        y0 = prime(genome.network(population), inputs, dt, pm_substeps)[:, jnp.asarray(which)]
+        im_b = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), im)
+        state = MBNState(
+            genome.network(jnp.repeat(population, e, 0)),
+            y0.reshape(n, k),
+            im_b,
+            jnp.zeros((n, im.num_neurons), dtype),
+        )
+        stats = rollout(
+            world,
+            controller,
+            state,
+            jnp.asarray(np.tile(poses, (p, 1)), dtype),
+            jnp.asarray(np.tile(index, p)),
+            config,
+            junctions=junctions,
+        ).stats
+        f_right = episode_fitness(stats, arrays("right", p), task).reshape(p, e)
+        f_left = episode_fitness(stats, arrays("left", p), task).reshape(p, e)
+        r = jnp.clip(jnp.where(label == 0, f_right, 0.0).sum(-1), 0.0, None)
+        left = jnp.clip(jnp.where(label == 1, f_left, 0.0).sum(-1), 0.0, None)
+        best = jnp.maximum(f_right, f_left)
+        z = reward.rest_weight * jnp.clip(jnp.where(label == 2, best, 0.0).sum(-1), 0.0, None)
+        return (r + z) * (left + z)
+
+    return fitness
+
+
+def memory_reward_maximum(reward: MemoryReward, variants: int) -> float:
+    """The largest value of the :class:`MemoryReward` (every episode scoring its maximum, 1.1)."""
+    specs = reward.episodes()
+    per = 1.1 * variants
+    r = per * sum(1 for s in specs if s[3] == 0)
+    left = per * sum(1 for s in specs if s[3] == 1)
+    z = reward.rest_weight * per * sum(1 for s in specs if s[3] == 2)
+    return (r + z) * (left + z)

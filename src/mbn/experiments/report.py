@@ -335,9 +335,16 @@ def _sections(repro: Any, results: dict[str, Any], images: dict[str, Any]) -> li
                 f"IM: programmable {', '.join(im['connections_paper_notation'])}, "
                 f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
                 f"LF program {_vec(im['programs']['left'])}.",
-                f"PM: {pm['generations']} generations, reward {pm['best_fitness']:.1f} of "
-                f"{pm['max_fitness']:.0f} (right-rule score with one-colour tiles x left-rule "
-                f"score with two-colour tiles), camera range {pm['camera_range']:g} m.",
+                f"PM: {pm['generations']} generations, reward {pm['best_fitness']:.1f} of at most "
+                f"{pm['max_fitness']:.0f} ("
+                + (
+                    "the paper's two trials: right-rule score with one-colour tiles x left-rule "
+                    "score with two-colour tiles"
+                    if pm["reward"] == "paper"
+                    else "the paper's product, over its two trials plus switching, memory and "
+                    "rest episodes: docs/experiments.md"
+                )
+                + f"), camera range {pm['camera_range']:g} m.",
             ],
             images=[images["de"]],
         )

@@ -98,10 +98,11 @@ class ReproduceSettings:
     lf_search_variants: int = 2
     lf_generations: int = 400
     lf_variants: int = 6
-    pm_generations: int = 200
-    pm_variants: int = 3
+    pm_generations: int = 250
+    pm_variants: int = 2
     pm_bound: float = 10.0
-    camera_range: float = 3.0
+    pm_reward: str = "memory"
+    camera_range: float = 1.0
     episode_seconds: float = 30.0
     test_seconds: float = 60.0
     mbn_seconds: float = 90.0
@@ -131,6 +132,10 @@ class ReproduceSettings:
             jitter_per_mark=2,
             heldout_repeats=2,
         )
+
+    def __post_init__(self) -> None:
+        if self.pm_reward not in ("paper", "memory"):
+            raise MbnInputError(f"pm_reward must be paper or memory, got {self.pm_reward!r}")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -508,30 +513,43 @@ class Reproduction:
             CTRNNControllerSpec(net=net, behavior=behavior, metadata=metadata),
         )
 
-    def _rf(self) -> dict[str, Any]:
-        from mbn.experiments.evolve import Genome, crossroad_fitness
+    def _evolve_follower(
+        self, name: str, genome: Any, rule: str, variants: int, generations: int
+    ) -> dict[str, Any]:
+        """Evolve ``genome`` for ``rule`` on the crossroads, score the best (branch fitness and
+        the paper's terms) and save it as ``controllers/NAME.json``."""
+        from mbn.experiments.evolve import crossroad_fitness
 
-        s = self.settings
-        genome = Genome()
-        task = self._task("right", s.rf_variants)
-        fit = crossroad_fitness(genome, task)
         de = self.evolve(
-            "rf",
-            self._de_config(genome.size, s.weight_bound),
-            fit,
-            self.stage_key("rf"),
-            s.rf_generations,
-            "RF: DE generations",
+            name,
+            self._de_config(genome.size, self.settings.weight_bound),
+            crossroad_fitness(genome, self._task(rule, variants)),
+            self.stage_key(name),
+            generations,
+            f"{name.upper()}: DE generations",
         )
         net = genome.network(jnp.asarray(de["best_genome"]))
-        score = self._score(net, "right", s.rf_variants)
+        score = self._score(net, rule, variants)
+        connections = [str(c) for c in genome.connections]
         self._save_ctrnn(
-            "rf",
+            name,
             net,
-            "right",
-            {"made_by": "mbn reproduce", "stage": "rf", "seed": self.seed, **score},
+            rule,
+            {
+                "made_by": "mbn reproduce",
+                "stage": name,
+                "seed": self.seed,
+                "evolved": connections,
+                **score,
+            },
         )
-        return {**de, "connections": [str(c) for c in genome.connections], **score}
+        return {**de, "connections": connections, **score}
+
+    def _rf(self) -> dict[str, Any]:
+        from mbn.experiments.evolve import Genome
+
+        s = self.settings
+        return self._evolve_follower("rf", Genome(), "right", s.rf_variants, s.rf_generations)
 
     def _rf_net(self) -> Any:
         from mbn.experiments.controllers import read_controller_spec
@@ -578,42 +596,15 @@ class Reproduction:
         }
 
     def _lf(self) -> dict[str, Any]:
-        from mbn.experiments.evolve import Genome, crossroad_fitness
+        from mbn.experiments.evolve import Genome
         from mbn.programmable import Connection
 
         s = self.settings
-        rf = self._rf_net()
         conns = tuple(Connection.parse(c) for c in self.stage("lf_search")["chosen"])
-        genome = Genome.around(rf, conns)
-        task = self._task("left", s.lf_variants)
-        de = self.evolve(
-            "lf",
-            self._de_config(3, s.weight_bound),
-            crossroad_fitness(genome, task),
-            self.stage_key("lf"),
-            s.lf_generations,
-            "LF: DE generations",
-        )
-        net = genome.network(jnp.asarray(de["best_genome"]))
-        score = self._score(net, "left", s.lf_variants)
-        self._save_ctrnn(
-            "lf",
-            net,
-            "left",
-            {
-                "made_by": "mbn reproduce",
-                "stage": "lf",
-                "seed": self.seed,
-                "re_evolved": [str(c) for c in conns],
-                **score,
-            },
-        )
-        return {
-            **de,
-            "connections": [str(c) for c in conns],
-            "connections_paper_notation": [_paper_name(str(c)) for c in conns],
-            **score,
-        }
+        genome = Genome.around(self._rf_net(), conns)
+        data = self._evolve_follower("lf", genome, "left", s.lf_variants, s.lf_generations)
+        data["connections_paper_notation"] = [_paper_name(str(c)) for c in conns]
+        return data
 
     def _im(self) -> dict[str, Any]:
         from mbn.experiments.controllers import (
@@ -656,7 +647,13 @@ class Reproduction:
 
     def _pm(self) -> dict[str, Any]:
         from mbn.experiments.controllers import MBNControllerSpec, save_controller
-        from mbn.experiments.program_module import PMGenome, pm_fitness
+        from mbn.experiments.program_module import (
+            MemoryReward,
+            PMGenome,
+            memory_reward_maximum,
+            pm_fitness,
+            pm_memory_fitness,
+        )
         from mbn.world.engine import CameraConfig
 
         s = self.settings
@@ -664,14 +661,18 @@ class Reproduction:
         k = len(im_spec.interpreter.connections)
         genome = PMGenome(programs=k)
         camera = CameraConfig(range=s.camera_range)
-        fit = pm_fitness(
-            genome,
-            im_spec.interpreter.net,
-            variants=s.pm_variants,
-            seed=self.seeds["pm_crossroad_jitter"],
-            im_substeps=im_spec.substeps,
-            camera=camera,
-        )
+        common = {
+            "variants": s.pm_variants,
+            "seed": self.seeds["pm_crossroad_jitter"],
+            "im_substeps": im_spec.substeps,
+            "camera": camera,
+        }
+        if s.pm_reward == "memory":
+            fit = pm_memory_fitness(genome, im_spec.interpreter.net, **common)
+            maximum = memory_reward_maximum(MemoryReward(), s.pm_variants)
+        else:
+            fit = pm_fitness(genome, im_spec.interpreter.net, **common)
+            maximum = (7 * s.pm_variants * 1.1) ** 2
         de = self.evolve(
             "pm",
             self._de_config(genome.size, s.pm_bound),
@@ -696,8 +697,12 @@ class Reproduction:
                 },
             ),
         )
-        episodes = 7 * s.pm_variants
-        return {**de, "max_fitness": float(episodes * episodes), "camera_range": s.camera_range}
+        return {
+            **de,
+            "reward": s.pm_reward,
+            "max_fitness": float(maximum),
+            "camera_range": s.camera_range,
+        }
 
     # -- tests --------------------------------------------------------------------------------
 
