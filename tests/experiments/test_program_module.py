@@ -69,7 +69,7 @@ def test_memory_reward_episodes_and_maximum():
     # 4 crossroads where the rules part x (plain, switch, memory) x 2 rules, plus 3 rest
     assert len(eps) == 4 * 6 + 3
     assert {e[3] for e in eps} == {0, 1, 2}
-    for kind, tile, seq, label in eps:
+    for _kind, tile, seq, label in eps:
         if label == 2:
             assert tile is None and seq == "rest"
         elif seq == "rest":
@@ -80,7 +80,9 @@ def test_memory_reward_episodes_and_maximum():
             assert tile is None and seq == ("memory_one" if label == 0 else "memory_two")
     # each rule has 12 episodes per start, rest 3: (12 * 1.1 * v + z) ** 2 with z = 0.5 * 3 * 1.1 v
     v = 2
-    assert memory_reward_maximum(reward, v) == pytest.approx((12 * 1.1 * v + 0.5 * 3 * 1.1 * v) ** 2)
+    assert memory_reward_maximum(reward, v) == pytest.approx(
+        (12 * 1.1 * v + 0.5 * 3 * 1.1 * v) ** 2
+    )
 
 
 def test_priming_shows_a_latch_remembers_and_a_leaky_module_forgets():
