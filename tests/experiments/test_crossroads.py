@@ -115,6 +115,40 @@ def test_task_episodes_and_validation():
         CrossroadTask(variants=0)
 
 
+def test_corner_approaches_add_the_seven_kinds_entered_round_a_corner():
+    task = CrossroadTask(variants=3, seed=4, approaches=("south", "west", "east"))
+    a = task.arrays()
+    assert a.episodes == 63 and len(a.mazes) == 21
+    assert [m.name for m in a.mazes[7:9]] == ["cross_L_from_west", "cross_S_from_west"]
+    # the south approach keeps the paper's starts; west/east start at the far end of the south
+    # corridor facing the arm, i.e. east (heading 0) and west (heading pi)
+    np.testing.assert_allclose(a.poses[:7, 2], np.pi / 2)
+    np.testing.assert_allclose(a.poses[7:14], np.tile([0.6, 0.6, 0.0], (7, 1)))
+    np.testing.assert_allclose(a.poses[14:21], np.tile([7.8, 0.6, np.pi], (7, 1)))
+    # every kind's target arm is the same whichever way the south arm was entered
+    np.testing.assert_array_equal(a.target[:7], a.target[7:14])
+    np.testing.assert_array_equal(a.target[:7], a.target[14:21])
+    # jitter is relative to the heading: along it up to 0.3 m, across it up to 0.15 m
+    base = np.tile(a.poses[:21], (2, 1))
+    offsets = a.poses[21:] - base
+    ahead = np.stack([np.cos(base[:, 2]), np.sin(base[:, 2])], -1)
+    along = np.sum(offsets[:, :2] * ahead, -1)
+    across = offsets[:, 0] * ahead[:, 1] - offsets[:, 1] * ahead[:, 0]
+    assert np.all(np.abs(along) <= 0.3 + 1e-12) and np.all(np.abs(across) <= 0.15 + 1e-12)
+    assert np.abs(along[7:21]).max() > 0.15  # the west/east starts move along x
+    # the south approach alone gives exactly the default task
+    np.testing.assert_array_equal(
+        CrossroadTask(variants=3, seed=4, approaches=("south",)).arrays().poses,
+        CrossroadTask(variants=3, seed=4).arrays().poses,
+    )
+    with pytest.raises(MbnInputError, match="approaches"):
+        CrossroadTask(approaches=("north",))
+    with pytest.raises(MbnInputError, match="approaches"):
+        CrossroadTask(approaches=())
+    with pytest.raises(MbnInputError, match="twice"):
+        CrossroadTask(approaches=("west", "west"))
+
+
 def test_genome_maps_genes_to_connections():
     g = Genome()
     assert g.size == 12 and g.connections == RF_CONNECTIONS

@@ -89,6 +89,30 @@ def test_crossroads_have_exactly_their_exits(kind: str):
     assert maze.tiles == ()
 
 
+@pytest.mark.parametrize("approach", ["west", "east"])
+def test_crossroads_entered_round_a_corner(approach: str):
+    maze = crossroad("LS", approach=approach)
+    assert maze.name == f"cross_LS_from_{approach}"
+    heading = {"west": 0.0, "east": math.pi}[approach]
+    x = {"west": 0.6, "east": 7.8}[approach]
+    np.testing.assert_allclose(maze.starts, [[x, 0.6, heading]])
+    # the south corridor leads from the start to the south arm's end cell, then north
+    for c in range(7):
+        on_corridor = c <= 3 if approach == "west" else c >= 3
+        assert maze.is_free(0.6 + 1.2 * c, 0.6) == on_corridor
+    # the junction and its exits are those of the plain crossroad
+    plain = crossroad("LS")
+    assert free_neighbours(maze)[(3, 3)].tolist() == free_neighbours(plain)[(3, 3)].tolist()
+    assert rule_exit(maze, (3, 3), "N", "left") == "left"
+    # the corner is turned away from the approach: left from the west, right from the east
+    text = crossroad_text("LS", approach=approach)
+    assert text.splitlines()[-1] == (">...###" if approach == "west" else "###...<")
+    with pytest.raises(MbnInputError, match="tile needs the approach"):
+        crossroad("LS", approach=approach, tile=1)
+    with pytest.raises(MbnInputError, match="approach must be"):
+        crossroad("LS", approach="north")
+
+
 def test_cross_lr_rules_and_arm_lengths():
     maze = crossroad("cross_LR")
     assert rule_exit(maze, (3, 3), "N", "right") == "right"

@@ -35,7 +35,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.world.builtin import CROSSROAD_KINDS, crossroad
+from mbn.world.builtin import APPROACHES, CROSSROAD_KINDS, crossroad
 from mbn.world.engine import World, compile_mazes
 from mbn.world.maze import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
@@ -85,6 +85,10 @@ class CrossroadTask:
         seed: seed of the jittered starts (recorded in results).
         sensors: sonar settings (normalisation of S).
         tile: put a tile of this many colours in every crossroad's south arm (PM training).
+        approaches: how the robot enters each crossroad's south arm: ``"south"`` (the paper's:
+            it starts in the arm) and/or ``"west"``/``"east"`` (it starts in a corridor and
+            turns a corner into the arm, as in a maze; :func:`mbn.world.builtin.crossroad`).
+            Every approach gets the seven kinds.
     """
 
     rule: str = "right"
@@ -96,6 +100,7 @@ class CrossroadTask:
     seed: int = 0
     sensors: SensorConfig = field(default_factory=SensorConfig)
     tile: int | None = None
+    approaches: tuple[str, ...] = ("south",)
 
     def __post_init__(self) -> None:
         if self.rule not in RULES:
@@ -110,6 +115,12 @@ class CrossroadTask:
             raise MbnInputError("seconds and dt must be > 0")
         if any(j < 0 for j in self.jitter):
             raise MbnInputError(f"jitter must be >= 0, got {self.jitter!r}")
+        if not self.approaches or any(a not in APPROACHES for a in self.approaches):
+            raise MbnInputError(
+                f"approaches must be some of {', '.join(APPROACHES)}, got {self.approaches!r}"
+            )
+        if len(set(self.approaches)) != len(self.approaches):
+            raise MbnInputError(f"approaches: listed twice in {self.approaches!r}")
 
     @property
     def steps(self) -> int:
@@ -120,21 +131,29 @@ class CrossroadTask:
 
     def arrays(self) -> TaskArrays:
         """Mazes, compiled world and per-episode arrays (NumPy at this edge, once)."""
-        mazes = [crossroad(kind, tile=self.tile) for kind in CROSSROAD_KINDS]
+        kinds = list(CROSSROAD_KINDS) * len(self.approaches)
+        mazes = [
+            crossroad(kind, tile=self.tile, approach=approach)
+            for approach in self.approaches
+            for kind in CROSSROAD_KINDS
+        ]
         world = compile_mazes(mazes)
         rng = np.random.default_rng(self.seed)
-        base = np.stack([m.starts[0] for m in mazes])  # all face north
+        base = np.stack([m.starts[0] for m in mazes])  # axis-aligned headings
+        ahead = np.stack([np.round(np.cos(base[:, 2])), np.round(np.sin(base[:, 2]))], -1)
+        right = np.stack([ahead[:, 1], -ahead[:, 0]], -1)
         starts = [base]
         lat, along, head = self.jitter
         for _ in range(self.variants - 1):
             j = np.zeros_like(base)
-            j[:, 0] = rng.uniform(-lat, lat, len(base))
-            j[:, 1] = rng.uniform(-along, along, len(base))
+            u = rng.uniform(-lat, lat, len(base))
+            v = rng.uniform(-along, along, len(base))
+            j[:, :2] = u[:, None] * right + v[:, None] * ahead
             j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
             starts.append(base + j)
         poses = np.concatenate(starts)
         maze_index = np.tile(np.arange(len(mazes)), self.variants)
-        target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for k in CROSSROAD_KINDS])
+        target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for k in kinds])
         centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])
         return TaskArrays(
             mazes=mazes,

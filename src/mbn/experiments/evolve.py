@@ -44,6 +44,8 @@ __all__ = [
     "evaluate_networks",
     "generation",
     "interpreter_programs",
+    "perturbations",
+    "robust_fitness",
     "set_connections",
     "start",
 ]
@@ -171,6 +173,42 @@ def crossroad_fitness(
         return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
 
     return fitness
+
+
+def perturbations(key: Array, copies: int, size: int, sigma: float) -> Array:
+    """``copies`` fixed perturbations of a genome of ``size`` genes, normal with deviation
+    ``sigma`` (drawn once from ``key``: every evaluation of a run sees the same ones, so the
+    fitness stays deterministic and DE's greedy replacement stays fair)."""
+    if copies < 0 or not sigma >= 0:
+        raise MbnInputError(
+            f"perturbations: need copies >= 0 and sigma >= 0, got {copies}, {sigma}"
+        )
+    return sigma * jax.random.normal(key, (copies, size))
+
+
+def robust_fitness(fitness: Callable[[Array], Array], noise: Array) -> Callable[[Array], Array]:
+    """``fitness`` averaged over each genome and its perturbed copies ``genome + noise[k]``.
+
+    Networks evolved this way keep their behaviour when their weights move by about ``sigma``,
+    which is what the interpreter does to them: its trained multipliers are off by up to 0.016,
+    times the range of the programmable weight (``docs/reproduce.md``). With no perturbation
+    (``noise`` of shape ``(0, size)``) it is ``fitness`` itself. One call evaluates all copies
+    in one batch.
+    """
+    noise = jnp.asarray(noise)
+    copies = noise.shape[0]
+    if copies == 0:
+        return fitness
+
+    def averaged(population: Array) -> Array:
+        p, d = population.shape
+        if noise.shape[1] != d:
+            raise MbnInputError(f"perturbations of {noise.shape[1]} genes for genomes of {d}")
+        shifted = (population[None] + noise[:, None].astype(population.dtype)).reshape(-1, d)
+        values = fitness(jnp.concatenate([population, shifted]))
+        return values.reshape(copies + 1, p).mean(0)
+
+    return averaged
 
 
 def set_connections(

@@ -72,13 +72,16 @@ def _de_curves(stages: dict[str, Any], path: Path) -> None:
     rows = stages["lf_search"]["triples"]
     chosen = stages["lf_search"]["chosen"]
     fit = [r["best_fitness"] for r in rows]
+    robust = [r.get("robust_fitness", np.nan) for r in rows]
     labels = [", ".join(_short(c) for c in r["connections"]) for r in rows]
     colors = ["C2" if r["connections"] == chosen else "C7" for r in rows]
     y = np.arange(len(rows))
-    ax.barh(y, fit, color=colors)
+    ax.barh(y, fit, color="none", edgecolor="C7", label="best fitness")
+    ax.barh(y, robust, color=colors, height=0.6, label="with perturbed copies (chooses)")
     ax.set_yticks(y, labels, fontsize=6)
     ax.invert_yaxis()
-    ax.set_xlabel("best left-rule fitness")
+    ax.set_xlabel("left-rule fitness")
+    ax.legend(loc="lower left", fontsize=7)
     ax.set_title("LF: which 3 connections to re-evolve (green: chosen)")
     fig.tight_layout()
     _save(fig, path)
@@ -325,7 +328,9 @@ def _sections(repro: Any, results: dict[str, Any], images: dict[str, Any]) -> li
             "Evolution",
             [
                 f"RF: {rf['generations']} generations, best fitness {rf['best_fitness']:.2f} "
-                f"(branch fitness over {rf['episodes']} crossroad episodes; the paper's terms of "
+                f"(branch fitness over {rf['episodes']} crossroad episodes, averaged over the "
+                f"genome and {rf['noise']['copies']} copies perturbed by N(0, "
+                f"{rf['noise']['sigma']}²); the paper's terms of "
                 f"the best: F_M {rf['paper_F_M']:.2f}, F_R {rf['paper_F_R']:.2f}, F_L "
                 f"{rf['paper_F_L']:.2f}).",
                 f"LF: the 3 connections re-evolved are {', '.join(lf['connections'])} (paper "

@@ -91,13 +91,16 @@ class ReproduceSettings:
     multiplier_neurons: int = 6
     retrain_multiplier: bool = False
     weight_bound: float = 20.0
-    rf_generations: int = 500
+    noise_sigma: float = 0.3
+    noise_copies: int = 3
+    rf_generations: int = 300
     rf_variants: int = 4
     lf_candidates: tuple[str, ...] = _TURNING_CANDIDATES
     lf_search_generations: int = 100
     lf_search_variants: int = 2
-    lf_generations: int = 400
-    lf_variants: int = 6
+    lf_generations: int = 200
+    lf_variants: int = 4
+    lf_approaches: tuple[str, ...] = ("south", "west", "east")
     pm_generations: int = 250
     pm_variants: int = 2
     pm_bound: float = 10.0
@@ -121,6 +124,7 @@ class ReproduceSettings:
         return cls(
             quick=True,
             retrain_multiplier=retrain_multiplier,
+            noise_copies=1,
             rf_generations=30,
             rf_variants=1,
             lf_search_generations=2,
@@ -136,10 +140,13 @@ class ReproduceSettings:
     def __post_init__(self) -> None:
         if self.pm_reward not in ("paper", "memory"):
             raise MbnInputError(f"pm_reward must be paper or memory, got {self.pm_reward!r}")
+        if self.noise_copies < 0 or not self.noise_sigma >= 0:
+            raise MbnInputError("noise_copies and noise_sigma must be >= 0")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["lf_candidates"] = list(self.lf_candidates)
+        d["lf_approaches"] = list(self.lf_approaches)
         return d
 
 
@@ -357,17 +364,19 @@ class Reproduction:
         key: jax.Array,
         generations: int,
         description: str,
+        population: np.ndarray | None = None,
     ) -> dict[str, Any]:
         """DE for ``generations`` generations, checkpointed after each one in
-        ``checkpoints/NAME.npz``; resumes from that file when it exists. Returns the best genome,
-        its fitness, and the best and mean fitness of every generation."""
+        ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
+        at random unless ``population`` is given. Returns the best genome, its fitness, and the
+        best and mean fitness of every generation."""
         from mbn.experiments.evolve import generation, start
 
         path = self.out / "checkpoints" / f"{name}.npz"
         if path.exists():
             state, history = _load_checkpoint(path)
         else:
-            state = start(key, config, fitness)
+            state = start(key, config, fitness, population)
             history = [_gen_stats(state)]
             _save_checkpoint(path, state, history)
         g0 = int(state.generation)
@@ -476,7 +485,7 @@ class Reproduction:
             init_high=bound,
         )
 
-    def _task(self, rule: str, variants: int) -> Any:
+    def _task(self, rule: str, variants: int, approaches: tuple[str, ...] = ("south",)) -> Any:
         from mbn.experiments.crossroads import CrossroadTask
 
         return CrossroadTask(
@@ -484,14 +493,17 @@ class Reproduction:
             variants=variants,
             seconds=self.settings.episode_seconds,
             seed=self.seeds["crossroad_jitter"],
+            approaches=approaches,
         )
 
-    def _score(self, net: Any, rule: str, variants: int) -> dict[str, Any]:
+    def _score(
+        self, net: Any, rule: str, variants: int, approaches: tuple[str, ...] = ("south",)
+    ) -> dict[str, Any]:
         """Branch fitness and the paper's F_M, F_R, F_L of a network on the crossroads."""
         from mbn.experiments.crossroads import episode_fitness, paper_terms
         from mbn.experiments.evolve import evaluate_networks
 
-        task = self._task(rule, variants)
+        task = self._task(rule, variants, approaches)
         arrays = task.arrays()
         stats = evaluate_networks(
             jnp.asarray(net.W)[None], jnp.asarray(net.WE)[None], _tau(net), arrays, task
@@ -513,23 +525,44 @@ class Reproduction:
             CTRNNControllerSpec(net=net, behavior=behavior, metadata=metadata),
         )
 
+    def _noise(self, name: str, size: int) -> jax.Array:
+        """The fixed weight perturbations of stage ``name`` (its key folded with 10**6, which no
+        generation index reaches)."""
+        from mbn.experiments.evolve import perturbations
+
+        s = self.settings
+        key = jax.random.fold_in(self.stage_key(name), 10**6)
+        return perturbations(key, s.noise_copies, size, s.noise_sigma)
+
     def _evolve_follower(
-        self, name: str, genome: Any, rule: str, variants: int, generations: int
+        self,
+        name: str,
+        genome: Any,
+        rule: str,
+        variants: int,
+        generations: int,
+        population: np.ndarray | None = None,
+        approaches: tuple[str, ...] = ("south",),
     ) -> dict[str, Any]:
-        """Evolve ``genome`` for ``rule`` on the crossroads, score the best (branch fitness and
-        the paper's terms) and save it as ``controllers/NAME.json``."""
-        from mbn.experiments.evolve import crossroad_fitness
+        """Evolve ``genome`` for ``rule`` on the crossroads (fitness averaged over the genome and
+        its perturbed copies), score the best (branch fitness and the paper's terms) and save it
+        as ``controllers/NAME.json``."""
+        from mbn.experiments.evolve import crossroad_fitness, robust_fitness
 
         de = self.evolve(
             name,
             self._de_config(genome.size, self.settings.weight_bound),
-            crossroad_fitness(genome, self._task(rule, variants)),
+            robust_fitness(
+                crossroad_fitness(genome, self._task(rule, variants, approaches)),
+                self._noise(name, genome.size),
+            ),
             self.stage_key(name),
             generations,
             f"{name.upper()}: DE generations",
+            population,
         )
         net = genome.network(jnp.asarray(de["best_genome"]))
-        score = self._score(net, rule, variants)
+        score = self._score(net, rule, variants, approaches)
         connections = [str(c) for c in genome.connections]
         self._save_ctrnn(
             name,
@@ -543,7 +576,14 @@ class Reproduction:
                 **score,
             },
         )
-        return {**de, "connections": connections, **score}
+        noise = {"copies": self.settings.noise_copies, "sigma": self.settings.noise_sigma}
+        return {
+            **de,
+            "connections": connections,
+            "noise": noise,
+            "approaches": list(approaches),
+            **score,
+        }
 
     def _rf(self) -> dict[str, Any]:
         from mbn.experiments.evolve import Genome
@@ -557,7 +597,7 @@ class Reproduction:
         return read_controller_spec(self.out / "controllers" / "rf.json").net  # type: ignore[union-attr]
 
     def _lf_search(self) -> dict[str, Any]:
-        from mbn.experiments.evolve import connection_search_fitness
+        from mbn.experiments.evolve import connection_search_fitness, robust_fitness
         from mbn.programmable import Connection
 
         s = self.settings
@@ -569,30 +609,46 @@ class Reproduction:
         if not triples:
             raise MbnInputError("lf_candidates: need at least 3 connections")
         key = self.stage_key("lf_search")
+        noise = self._noise("lf_search", 3)
+        # Choosing: the crossroads entered round a corner too, as in a maze.
+        choose = connection_search_fitness(
+            rf, self._task("left", s.lf_search_variants, s.lf_approaches)
+        )
         rows = []
         for t, trip in enumerate(triples):
+            name = f"lf_search_{t:02d}"
             de = self.evolve(
-                f"lf_search_{t:02d}",
+                name,
                 self._de_config(3, s.weight_bound),
                 _bind(search, trip),
                 jax.random.fold_in(key, t),
                 s.lf_search_generations,
                 f"LF search {t + 1}/{len(triples)}: {', '.join(map(str, trip))}",
             )
+            # The final population scored with perturbed copies too: an LF that keeps its
+            # behaviour when its weights move is one the interpreter can emulate.
+            final, _ = _load_checkpoint(self.out / "checkpoints" / f"{name}.npz")
+            robust = np.asarray(robust_fitness(_bind(choose, trip), noise)(final.population))
+            i = int(np.argmax(robust))
             rows.append(
                 {
                     "connections": [str(c) for c in trip],
                     "best_fitness": de["best_fitness"],
                     "best_genome": de["best_genome"],
+                    "robust_fitness": float(robust[i]),
+                    "robust_genome": np.asarray(final.population[i], dtype=float).tolist(),
                 }
             )
-        best = max(range(len(rows)), key=lambda i: (rows[i]["best_fitness"], -i))
+        best = max(range(len(rows)), key=lambda i: (rows[i]["robust_fitness"], -i))
         return {
             "triples": rows,
             "chosen": rows[best]["connections"],
+            "chosen_index": best,
             "chosen_paper_notation": [_paper_name(c) for c in rows[best]["connections"]],
             "generations": s.lf_search_generations,
             "episodes": task.variants * 7,
+            "noise": {"copies": s.noise_copies, "sigma": s.noise_sigma},
+            "choice_approaches": list(s.lf_approaches),
         }
 
     def _lf(self) -> dict[str, Any]:
@@ -600,9 +656,22 @@ class Reproduction:
         from mbn.programmable import Connection
 
         s = self.settings
-        conns = tuple(Connection.parse(c) for c in self.stage("lf_search")["chosen"])
+        search = self.stage("lf_search")
+        conns = tuple(Connection.parse(c) for c in search["chosen"])
         genome = Genome.around(self._rf_net(), conns)
-        data = self._evolve_follower("lf", genome, "left", s.lf_variants, s.lf_generations)
+        # Warm start: the chosen triple's final search population.
+        start, _ = _load_checkpoint(
+            self.out / "checkpoints" / f"lf_search_{search['chosen_index']:02d}.npz"
+        )
+        data = self._evolve_follower(
+            "lf",
+            genome,
+            "left",
+            s.lf_variants,
+            s.lf_generations,
+            np.asarray(start.population),
+            s.lf_approaches,
+        )
         data["connections_paper_notation"] = [_paper_name(str(c)) for c in conns]
         return data
 

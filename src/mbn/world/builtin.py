@@ -99,9 +99,19 @@ def _normalise_kind(kind: str) -> str:
     return k
 
 
-def crossroad_text(kind: str, *, arm_cells: int = 3, tile: int | None = None) -> str:
+#: Ways into a crossroad's south arm (:func:`crossroad`).
+APPROACHES = ("south", "west", "east")
+
+
+def crossroad_text(
+    kind: str, *, arm_cells: int = 3, tile: int | None = None, approach: str = "south"
+) -> str:
     """The ``.maze`` grid of a crossroad (see :func:`crossroad`), without header."""
     k = _normalise_kind(kind)
+    if approach not in APPROACHES:
+        raise MbnInputError(f"approach must be one of {', '.join(APPROACHES)}, got {approach!r}")
+    if approach != "south" and tile is not None:
+        raise MbnInputError("a tile needs the approach from the south")
     if isinstance(arm_cells, bool) or not isinstance(arm_cells, int) or arm_cells < 1:
         raise MbnInputError(f"arm_cells must be an integer >= 1, got {arm_cells!r}")
     if tile is not None and tile not in (1, 2):
@@ -123,7 +133,13 @@ def crossroad_text(kind: str, *, arm_cells: int = 3, tile: int | None = None) ->
     if "R" in k:
         for c in range(a + 1, size):
             grid[a][c] = "."
-    grid[size - 1][a] = "^"
+    if approach == "south":
+        grid[size - 1][a] = "^"
+    else:  # a corridor along the south edge, entered at its far end, turning into the arm
+        cols = range(a) if approach == "west" else range(a + 1, size)
+        for c in cols:
+            grid[size - 1][c] = "."
+        grid[size - 1][0 if approach == "west" else size - 1] = ">" if approach == "west" else "<"
     if tile is not None:
         grid[size - 2][a] = str(tile)
     return "\n".join("".join(row) for row in grid) + "\n"
@@ -135,6 +151,7 @@ def crossroad(
     arm_cells: int = 3,
     cell: float = DEFAULT_CELL,
     tile: int | None = None,
+    approach: str = "south",
 ) -> Maze:
     """A crossroad entered from the south.
 
@@ -148,12 +165,18 @@ def crossroad(
         arm_cells: length of each arm in cells.
         cell: the cell side (metres).
         tile: 1 or 2 puts a one- or two-colour tile in the south arm one cell north of the start.
+        approach: ``"south"`` (the paper's: the start is in the south arm, facing the junction),
+            ``"west"`` or ``"east"``: the south arm's end cell opens onto a corridor of ``a``
+            cells along the south edge, and the start is at that corridor's far end facing the
+            arm, so the robot turns a corner (left from the west, right from the east) ``a``
+            cells before the junction, as it does in a maze.
     """
     k = _normalise_kind(kind)
     if not (isinstance(cell, int | float) and math.isfinite(cell) and cell > 0):
         raise MbnInputError(f"cell must be a finite number > 0, got {cell!r}")
-    body = crossroad_text(k, arm_cells=arm_cells, tile=tile)
+    body = crossroad_text(k, arm_cells=arm_cells, tile=tile, approach=approach)
     name = f"cross_{k}" + (f"_tile{tile}" if tile is not None else "")
+    name += f"_from_{approach}" if approach != "south" else ""
     text = f"name = {name}\ncell = {float(cell)!r}\n{body}"
     return parse_maze_text(text, f"<builtin {name}>", source="builtin")
 
