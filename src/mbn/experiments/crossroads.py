@@ -48,6 +48,7 @@ __all__ = [
     "CrossroadTask",
     "TaskArrays",
     "episode_fitness",
+    "jittered_starts",
     "paper_terms",
     "rule_arm",
 ]
@@ -138,20 +139,8 @@ class CrossroadTask:
             for kind in CROSSROAD_KINDS
         ]
         world = compile_mazes(mazes)
-        rng = np.random.default_rng(self.seed)
-        base = np.stack([m.starts[0] for m in mazes])  # axis-aligned headings
-        ahead = np.stack([np.round(np.cos(base[:, 2])), np.round(np.sin(base[:, 2]))], -1)
-        right = np.stack([ahead[:, 1], -ahead[:, 0]], -1)
-        starts = [base]
-        lat, along, head = self.jitter
-        for _ in range(self.variants - 1):
-            j = np.zeros_like(base)
-            u = rng.uniform(-lat, lat, len(base))
-            v = rng.uniform(-along, along, len(base))
-            j[:, :2] = u[:, None] * right + v[:, None] * ahead
-            j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
-            starts.append(base + j)
-        poses = np.concatenate(starts)
+        base = np.stack([m.starts[0] for m in mazes])
+        poses = jittered_starts(base, self.variants, self.jitter, self.seed)
         maze_index = np.tile(np.arange(len(mazes)), self.variants)
         target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for k in kinds])
         centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])
@@ -166,6 +155,28 @@ class CrossroadTask:
             cell=float(mazes[0].cell or 1.2),
             arm_length=3 * float(mazes[0].cell or 1.2),
         )
+
+
+def jittered_starts(
+    base: np.ndarray, variants: int, jitter: tuple[float, float, float], seed: int
+) -> np.ndarray:
+    """``variants`` copies of the start poses ``base (S, 3)`` (axis-aligned headings), stacked
+    variant-major: the poses themselves, then ``variants - 1`` jittered copies, each pose moved
+    across its heading by up to ``jitter[0]`` m, along it by up to ``jitter[1]`` m and turned by
+    up to ``jitter[2]`` degrees (uniform; a NumPy generator seeded by ``seed``, at this edge)."""
+    rng = np.random.default_rng(seed)
+    ahead = np.stack([np.round(np.cos(base[:, 2])), np.round(np.sin(base[:, 2]))], -1)
+    right = np.stack([ahead[:, 1], -ahead[:, 0]], -1)
+    starts = [base]
+    lat, along, head = jitter
+    for _ in range(variants - 1):
+        j = np.zeros_like(base)
+        u = rng.uniform(-lat, lat, len(base))
+        v = rng.uniform(-along, along, len(base))
+        j[:, :2] = u[:, None] * right + v[:, None] * ahead
+        j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
+        starts.append(base + j)
+    return np.concatenate(starts)
 
 
 @dataclass(frozen=True)

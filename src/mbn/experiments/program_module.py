@@ -285,7 +285,12 @@ def pm_memory_fitness(
 ) -> Callable[[Array], Array]:
     """A jitted map from a PM population to the :class:`MemoryReward` (``variants`` starts per
     episode: the mark and jittered ones, seeded by ``seed``)."""
-    from mbn.experiments.crossroads import _ARM_VECTORS, episode_fitness, rule_arm
+    from mbn.experiments.crossroads import (
+        _ARM_VECTORS,
+        episode_fitness,
+        jittered_starts,
+        rule_arm,
+    )
     from mbn.world.builtin import crossroad
     from mbn.world.engine import compile_mazes
     from mbn.world.rollout import RolloutConfig, junction_arrays
@@ -298,17 +303,8 @@ def pm_memory_fitness(
     task = CrossroadTask(seconds=seconds, variants=variants, seed=seed)
     dt = task.dt
     mazes = [crossroad(k, tile=t) for k, t, _, _ in specs]
-    rng = np.random.default_rng(seed)
     base = np.stack([m.starts[0] for m in mazes])
-    starts = [base]
-    lat, along, head = task.jitter
-    for _ in range(variants - 1):
-        j = np.zeros_like(base)
-        j[:, 0] = rng.uniform(-lat, lat, len(base))
-        j[:, 1] = rng.uniform(-along, along, len(base))
-        j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
-        starts.append(base + j)
-    poses = np.concatenate(starts)
+    poses = jittered_starts(base, variants, task.jitter, seed)
     index = np.tile(np.arange(len(mazes)), variants)
     e = len(poses)
     centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])[index]

@@ -365,11 +365,11 @@ class Reproduction:
         generations: int,
         description: str,
         population: np.ndarray | None = None,
-    ) -> dict[str, Any]:
+    ) -> tuple[dict[str, Any], DEState]:
         """DE for ``generations`` generations, checkpointed after each one in
         ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
-        at random unless ``population`` is given. Returns the best genome, its fitness, and the
-        best and mean fitness of every generation."""
+        at random unless ``population`` is given. Returns the stage data (the best genome, its
+        fitness, and the best and mean fitness of every generation) and the final state."""
         from mbn.experiments.evolve import generation, start
 
         path = self.out / "checkpoints" / f"{name}.npz"
@@ -388,12 +388,13 @@ class Reproduction:
             _save_checkpoint(path, state, history)
             self._bars.update(bar, completed=g, info=f"best {history[-1][0]:.2f}")
         h = np.asarray(history, dtype=float)
-        return {
+        data = {
             "best_genome": np.asarray(state.best_genome, dtype=float).tolist(),
             "best_fitness": float(state.best_fitness),
             "generations": generations,
             "history": {"best": h[:, 0].tolist(), "mean": h[:, 1].tolist()},
         }
+        return data, state
 
     # -- stages -------------------------------------------------------------------------------
 
@@ -549,7 +550,7 @@ class Reproduction:
         as ``controllers/NAME.json``."""
         from mbn.experiments.evolve import crossroad_fitness, robust_fitness
 
-        de = self.evolve(
+        de, _ = self.evolve(
             name,
             self._de_config(genome.size, self.settings.weight_bound),
             robust_fitness(
@@ -617,7 +618,7 @@ class Reproduction:
         rows = []
         for t, trip in enumerate(triples):
             name = f"lf_search_{t:02d}"
-            de = self.evolve(
+            de, final = self.evolve(
                 name,
                 self._de_config(3, s.weight_bound),
                 _bind(search, trip),
@@ -627,7 +628,6 @@ class Reproduction:
             )
             # The final population scored with perturbed copies too: an LF that keeps its
             # behaviour when its weights move is one the interpreter can emulate.
-            final, _ = _load_checkpoint(self.out / "checkpoints" / f"{name}.npz")
             robust = np.asarray(robust_fitness(_bind(choose, trip), noise)(final.population))
             i = int(np.argmax(robust))
             rows.append(
@@ -742,7 +742,7 @@ class Reproduction:
         else:
             fit = pm_fitness(genome, im_spec.interpreter.net, **common)
             maximum = (7 * s.pm_variants * 1.1) ** 2
-        de = self.evolve(
+        de, _ = self.evolve(
             "pm",
             self._de_config(genome.size, s.pm_bound),
             fit,

@@ -209,27 +209,20 @@ def run_trials(
     is on for "tiles" (default :class:`~mbn.world.engine.CameraConfig`) unless given. Returns the
     verdict of :func:`judge`, the rollout result and the start poses.
     """
-    spec.check_maze(maze)
-    poses = trial_starts(maze, spec)
-    n = len(poses)
-    world = compile_mazes([maze])
-    junctions = junction_arrays([maze], world)
     if camera is None and spec.behavior == "tiles":
         camera = CameraConfig()
-    config = RolloutConfig(
-        steps=max(1, round(spec.seconds / dt)),
+    verdicts, result, _, poses = run_trial_groups(
+        [maze],
+        [TrialGroup("trials", 0, spec, initial_state)],
+        controller,
+        seconds=spec.seconds,
         dt=dt,
-        sensors=sensors or SensorConfig(),
+        sensors=sensors,
         camera=camera,
         record_every=record_every,
         record_controller=record_controller,
-        max_junctions=max(8, spec.junctions),
     )
-    run = jax.jit(
-        lambda state, p, m: rollout(world, controller, state, p, m, config, junctions=junctions)
-    )
-    result = run(initial_state(n), jnp.asarray(poses, jnp.zeros(()).dtype), jnp.zeros(n, jnp.int32))
-    return judge(result.stats, spec), result, poses
+    return verdicts["trials"], result, poses
 
 
 @dataclass(frozen=True)
