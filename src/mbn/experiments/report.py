@@ -76,12 +76,12 @@ def _de_curves(stages: dict[str, Any], path: Path) -> None:
     labels = [", ".join(_short(c) for c in r["connections"]) for r in rows]
     colors = ["C2" if r["connections"] == chosen else "C7" for r in rows]
     y = np.arange(len(rows))
-    ax.barh(y, fit, color="none", edgecolor="C7", label="best fitness")
-    ax.barh(y, robust, color=colors, height=0.6, label="with perturbed copies (chooses)")
+    ax.barh(y, robust, color=colors, height=0.6, label="choice score: perturbed copies, corners")
+    ax.barh(y, fit, color="none", edgecolor="k", lw=0.8, zorder=3, label="search's best fitness")
     ax.set_yticks(y, labels, fontsize=6)
     ax.invert_yaxis()
     ax.set_xlabel("left-rule fitness")
-    ax.legend(loc="lower left", fontsize=7)
+    ax.legend(loc="lower right", fontsize=7)
     ax.set_title("LF: which 3 connections to re-evolve (green: chosen)")
     fig.tight_layout()
     _save(fig, path)
