@@ -69,7 +69,8 @@ def test_memory_reward_episodes_and_maximum():
     # 4 crossroads where the rules part x (plain, switch, memory) x 2 rules, plus 3 rest
     assert len(eps) == 4 * 6 + 3
     assert {e[3] for e in eps} == {0, 1, 2}
-    for _kind, tile, seq, label in eps:
+    assert {e[4] for e in eps} == {"south"}
+    for _kind, tile, seq, label, _approach in eps:
         if label == 2:
             assert tile is None and seq == "rest"
         elif seq == "rest":
@@ -83,6 +84,30 @@ def test_memory_reward_episodes_and_maximum():
     assert memory_reward_maximum(reward, v) == pytest.approx(
         (12 * 1.1 * v + 0.5 * 3 * 1.1 * v) ** 2
     )
+
+
+def test_memory_reward_adds_corner_approaches_to_the_episodes_without_a_tile():
+    from mbn.experiments.program_module import MemoryReward, memory_reward_maximum
+
+    reward = MemoryReward(approaches=("south", "west", "east"))
+    eps = reward.episodes()
+    # south: 27 as above; each corner approach: 4 kinds x 2 memory episodes + 3 rest
+    assert len(eps) == 27 + 2 * (4 * 2 + 3)
+    corner = [e for e in eps if e[4] != "south"]
+    assert all(
+        tile is None and seq in ("memory_one", "memory_two", "rest") for _, tile, seq, *_ in corner
+    )
+    assert {e[4] for e in corner} == {"west", "east"}
+    # per rule 12 + 2 * 4 episodes, rest 3 * 3
+    assert memory_reward_maximum(reward, 1) == pytest.approx((20 * 1.1 + 0.5 * 9 * 1.1) ** 2)
+
+
+@pytest.mark.parametrize("approaches", [(), ("north",), ("west", "west")])
+def test_memory_reward_rejects_bad_approaches(approaches):
+    from mbn.experiments.program_module import MemoryReward
+
+    with pytest.raises(MbnInputError, match="approaches"):
+        MemoryReward(approaches=approaches)
 
 
 def test_priming_shows_a_latch_remembers_and_a_leaky_module_forgets():

@@ -165,20 +165,26 @@ TURN = {"straight": 0, "right": 1, "back": 2, "left": 3}
 MARK_HEADING = {"^": 0, ">": 1, "v": 2, "<": 3}
 
 
-def walk(maze: Maze, row: int, col: int, heading: int, rule: str, moves: int) -> list:
-    """Cells with >= 3 free neighbours that a rule-following walker enters, in order."""
+def walk_cells(maze: Maze, row: int, col: int, heading: int, rule: str, moves: int) -> list:
+    """The cells a rule-following walker enters, in order."""
     assert maze.grid is not None
-    nb = free_neighbours(maze)
-    seen = []
+    cells = []
     for _ in range(moves):
         exit_ = rule_exit(maze, (row, col), "NESW"[heading], rule)  # type: ignore[arg-type]
         heading = (heading + TURN[exit_]) % 4
         dr, dc = STEP[heading]
         row, col = row + dr, col + dc
         assert maze.grid[row, col] != "#"
-        if nb[row, col].sum() >= 3:
-            seen.append((row, col))
-    return seen
+        cells.append((row, col))
+    return cells
+
+
+def walk(maze: Maze, row: int, col: int, heading: int, rule: str, moves: int) -> list:
+    """Cells with >= 3 free neighbours that a rule-following walker enters, in order."""
+    nb = free_neighbours(maze)
+    return [
+        (r, c) for r, c in walk_cells(maze, row, col, heading, rule, moves) if nb[r, c].sum() >= 3
+    ]
 
 
 @pytest.mark.parametrize(("name", "min_starts"), [("fig4", 10), ("heldout", 10)])
@@ -211,6 +217,23 @@ def test_test_mazes(name: str, min_starts: int):
     # tiles lie in corridor cells (not on starts or walls) across the corridor
     for tile in maze.tiles:
         assert maze.is_free(tile.x, tile.y) and tile.width == 1.2
+
+
+@pytest.mark.parametrize("name", ["fig4", "heldout"])
+def test_every_wall_following_circuit_of_the_test_mazes_meets_a_tile(name: str):
+    # The MBN is judged from the first tile it drives over: a start from which a wall follower
+    # circles without ever meeting a tile would test nothing (docs/mazes.md).
+    maze = load_maze(name)
+    assert maze.grid is not None
+    nb = free_neighbours(maze)
+    for r, c in zip(*np.nonzero(np.isin(maze.grid, list(MARK_HEADING))), strict=True):
+        h = MARK_HEADING[str(maze.grid[r, c])]
+        for rule in ("right", "left"):
+            cells = walk_cells(maze, int(r), int(c), h, rule, moves=80)
+            first = next((k for k, (a, b) in enumerate(cells) if maze.grid[a, b] in "12"), None)
+            assert first is not None, (name, int(r), int(c), rule)
+            after = [cell for cell in cells[first:] if nb[cell].sum() >= 3]
+            assert len(after) >= 3, (name, int(r), int(c), rule)
 
 
 def test_fig4_and_heldout_differ():

@@ -186,7 +186,10 @@ class MemoryReward:
       tile (``see``) and nothing for ``memory`` seconds;
 
     and on ``rest_kinds`` a PM from rest in a crossroad without tiles is scored by the better of
-    the two rules (it must drive as some wall follower). Before an episode the PM alone is
+    the two rules (it must drive as some wall follower). The episodes without a tile (memory and
+    rest) are also run from each of ``approaches`` other than ``"south"``: the crossroad entered
+    round a corner (:func:`mbn.world.builtin.crossroad`), where a program that is nearly but
+    not quite a wall follower's gives itself away. Before an episode the PM alone is
     integrated through its camera sequence (standing for tiles seen earlier). The reward keeps the
     paper's product: ``(R + Z) (L + Z)`` with R (L) the summed branch fitness of the right (left)
     episodes and Z = ``rest_weight`` x the rest episodes' sum, each clipped at 0.
@@ -199,6 +202,17 @@ class MemoryReward:
     hold: float = 30.0
     gap: float = 20.0
     memory: float = 50.0
+    approaches: tuple[str, ...] = ("south",)
+
+    def __post_init__(self) -> None:
+        from mbn.world.builtin import APPROACHES
+
+        bad = [a for a in self.approaches if a not in APPROACHES]
+        if bad or not self.approaches or len(set(self.approaches)) != len(self.approaches):
+            raise MbnInputError(
+                f"approaches must be distinct values of {', '.join(APPROACHES)}, "
+                f"got {self.approaches!r}"
+            )
 
     def sequences(self) -> dict[str, list[tuple[tuple[float, float], float]]]:
         """Camera sequences ``[(input, seconds), ...]`` fed to the PM before each kind of
@@ -221,23 +235,26 @@ class MemoryReward:
             ],
         }
 
-    def episodes(self) -> list[tuple[str, int | None, str, int]]:
-        """``(crossroad kind, tile, sequence, label)`` with label 0 right, 1 left, 2 rest."""
+    def episodes(self) -> list[tuple[str, int | None, str, int, str]]:
+        """``(crossroad kind, tile, sequence, label, approach)`` with label 0 right, 1 left,
+        2 rest."""
         from mbn.world.builtin import CROSSROAD_KINDS
 
-        out: list[tuple[str, int | None, str, int]] = []
-        for k in CROSSROAD_KINDS:
-            if k in self.kinds:
-                out += [
-                    (k, 1, "rest", 0),
-                    (k, 2, "rest", 1),
-                    (k, 1, "after_two", 0),
-                    (k, 2, "after_one", 1),
-                    (k, None, "memory_one", 0),
-                    (k, None, "memory_two", 1),
-                ]
-            if k in self.rest_kinds:
-                out.append((k, None, "rest", 2))
+        out: list[tuple[str, int | None, str, int, str]] = []
+        for a in self.approaches:
+            south = a == "south"
+            for k in CROSSROAD_KINDS:
+                if k in self.kinds:
+                    if south:  # a tile lies in the south arm
+                        out += [
+                            (k, 1, "rest", 0, a),
+                            (k, 2, "rest", 1, a),
+                            (k, 1, "after_two", 0, a),
+                            (k, 2, "after_one", 1, a),
+                        ]
+                    out += [(k, None, "memory_one", 0, a), (k, None, "memory_two", 1, a)]
+                if k in self.rest_kinds:
+                    out.append((k, None, "rest", 2, a))
         return out
 
 
@@ -302,7 +319,7 @@ def pm_memory_fitness(
         raise MbnInputError("the PM reward has no episodes (kinds and rest_kinds are empty)")
     task = CrossroadTask(seconds=seconds, variants=variants, seed=seed)
     dt = task.dt
-    mazes = [crossroad(k, tile=t) for k, t, _, _ in specs]
+    mazes = [crossroad(k, tile=t, approach=a) for k, t, _, _, a in specs]
     base = np.stack([m.starts[0] for m in mazes])
     poses = jittered_starts(base, variants, task.jitter, seed)
     index = np.tile(np.arange(len(mazes)), variants)

@@ -102,8 +102,12 @@ class ReproduceSettings:
     lf_variants: int = 4
     lf_approaches: tuple[str, ...] = ("south", "west", "east")
     pm_generations: int = 250
-    pm_variants: int = 2
+    pm_variants: int = 1
     pm_bound: float = 10.0
+    pm_init: float = 10.0
+    pm_noise_sigma: float = 1.0
+    pm_noise_copies: int = 0
+    pm_approaches: tuple[str, ...] = ("south", "west", "east")
     pm_reward: str = "memory"
     camera_range: float = 1.0
     episode_seconds: float = 30.0
@@ -142,11 +146,16 @@ class ReproduceSettings:
             raise MbnInputError(f"pm_reward must be paper or memory, got {self.pm_reward!r}")
         if self.noise_copies < 0 or not self.noise_sigma >= 0:
             raise MbnInputError("noise_copies and noise_sigma must be >= 0")
+        if self.pm_noise_copies < 0 or not self.pm_noise_sigma >= 0:
+            raise MbnInputError("pm_noise_copies and pm_noise_sigma must be >= 0")
+        if not 0 < self.pm_init <= self.pm_bound:
+            raise MbnInputError("pm_init must be in (0, pm_bound]")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["lf_candidates"] = list(self.lf_candidates)
         d["lf_approaches"] = list(self.lf_approaches)
+        d["pm_approaches"] = list(self.pm_approaches)
         return d
 
 
@@ -473,7 +482,8 @@ class Reproduction:
 
         return load_multiplier(self.out / "controllers" / "multiplier.json")
 
-    def _de_config(self, dims: int, bound: float) -> DEConfig:
+    def _de_config(self, dims: int, bound: float, init: float | None = None) -> DEConfig:
+        init = bound if init is None else init
         return DEConfig(
             num_dims=dims,
             popsize=self.settings.popsize,
@@ -482,8 +492,8 @@ class Reproduction:
             maximize=True,
             lower=-bound,
             upper=bound,
-            init_low=-bound,
-            init_high=bound,
+            init_low=-init,
+            init_high=init,
         )
 
     def _task(self, rule: str, variants: int, approaches: tuple[str, ...] = ("south",)) -> Any:
@@ -526,14 +536,18 @@ class Reproduction:
             CTRNNControllerSpec(net=net, behavior=behavior, metadata=metadata),
         )
 
-    def _noise(self, name: str, size: int) -> jax.Array:
+    def _noise(
+        self, name: str, size: int, copies: int | None = None, sigma: float | None = None
+    ) -> jax.Array:
         """The fixed weight perturbations of stage ``name`` (its key folded with 10**6, which no
-        generation index reaches)."""
+        generation index reaches); ``copies`` and ``sigma`` default to the followers'."""
         from mbn.experiments.evolve import perturbations
 
         s = self.settings
         key = jax.random.fold_in(self.stage_key(name), 10**6)
-        return perturbations(key, s.noise_copies, size, s.noise_sigma)
+        copies = s.noise_copies if copies is None else copies
+        sigma = s.noise_sigma if sigma is None else sigma
+        return perturbations(key, copies, size, sigma)
 
     def _evolve_follower(
         self,
@@ -716,6 +730,7 @@ class Reproduction:
 
     def _pm(self) -> dict[str, Any]:
         from mbn.experiments.controllers import MBNControllerSpec, save_controller
+        from mbn.experiments.evolve import robust_fitness
         from mbn.experiments.program_module import (
             MemoryReward,
             PMGenome,
@@ -737,15 +752,17 @@ class Reproduction:
             "camera": camera,
         }
         if s.pm_reward == "memory":
-            fit = pm_memory_fitness(genome, im_spec.interpreter.net, **common)
-            maximum = memory_reward_maximum(MemoryReward(), s.pm_variants)
+            reward = MemoryReward(approaches=s.pm_approaches)
+            fit = pm_memory_fitness(genome, im_spec.interpreter.net, reward=reward, **common)
+            maximum = memory_reward_maximum(reward, s.pm_variants)
         else:
             fit = pm_fitness(genome, im_spec.interpreter.net, **common)
             maximum = (7 * s.pm_variants * 1.1) ** 2
+        noise = self._noise("pm", genome.size, s.pm_noise_copies, s.pm_noise_sigma)
         de, _ = self.evolve(
             "pm",
-            self._de_config(genome.size, s.pm_bound),
-            fit,
+            self._de_config(genome.size, s.pm_bound, s.pm_init),
+            jax.jit(robust_fitness(fit, noise)),
             self.stage_key("pm"),
             s.pm_generations,
             "PM: DE generations",
