@@ -207,8 +207,8 @@ class MemoryReward:
     def __post_init__(self) -> None:
         from mbn.world.builtin import APPROACHES
 
-        bad = [a for a in self.approaches if a not in APPROACHES]
-        if bad or not self.approaches or len(set(self.approaches)) != len(self.approaches):
+        a = self.approaches
+        if not a or not set(a) <= set(APPROACHES) or len(set(a)) != len(a):
             raise MbnInputError(
                 f"approaches must be distinct values of {', '.join(APPROACHES)}, "
                 f"got {self.approaches!r}"
