@@ -22,6 +22,7 @@ from mbn.ctrnn import CTRNN, euler_step, firing_rate, rk4_step
 from mbn.errors import MbnInputError
 
 __all__ = [
+    "NETWORK_SUBSTEPS",
     "CTRNNState",
     "MotorMap",
     "ProgrammedState",
@@ -29,6 +30,15 @@ __all__ = [
     "interpreter_controller",
     "substeps_for",
 ]
+
+#: Network steps per 0.1 s robot step for every network of the experiment: h = 5 ms, so
+#: h / tau = 0.01 for the followers (tau = 0.5 s) and h / tau_m = 0.1 for the multipliers at
+#: tau / 10 (the step they were trained with). The followers run at the step of the interpreter
+#: that emulates them, so that the interpreter with exact products retraces them step for step:
+#: an evolved network can depend on its integration step (docs/reproduce.md), and one step for
+#: all leaves the multipliers' errors as the only difference between a network and its
+#: emulation.
+NETWORK_SUBSTEPS = 20
 
 
 @dataclass(frozen=True)
@@ -113,7 +123,7 @@ class ProgrammedState(NamedTuple):
 def interpreter_controller(
     *,
     dt: float = 0.1,
-    substeps: int = 20,
+    substeps: int = NETWORK_SUBSTEPS,
     motor: MotorMap | None = None,
     method: str = "euler",
 ) -> Callable[[ProgrammedState, Any], tuple[ProgrammedState, tuple[Array, Array]]]:

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from mbn.cli import main
+from mbn.control import NETWORK_SUBSTEPS
 from mbn.experiments.controllers import load_controller
 from mbn.experiments.reproduce import CONTROLLERS, RUN_KIND, TEST_NAMES
 
@@ -100,6 +101,12 @@ def test_quick_run_controllers_load_and_evaluate(quick_run):
         "right",
         "left",
     }
+    # the networks run at the step of the interpreter that emulates them
+    steps = {
+        name: json.loads((out / "controllers" / f"{name}.json").read_text())["substeps"]
+        for name in ("rf", "lf", "im")
+    }
+    assert steps == dict.fromkeys(steps, NETWORK_SUBSTEPS)
     # mbn evaluate reproduces the run's own paper-protocol figure for RF
     results = json.loads((out / "results.json").read_text())
     proc = subprocess.run(
@@ -114,6 +121,8 @@ def test_quick_run_controllers_load_and_evaluate(quick_run):
             "fig4",
             "--behavior",
             "right",
+            "--seconds",
+            str(results["settings"]["test_seconds"]),
             "--json",
         ],
         capture_output=True,

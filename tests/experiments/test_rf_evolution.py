@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mbn.control import ctrnn_controller, initial_state, substeps_for
+from mbn.control import NETWORK_SUBSTEPS, ctrnn_controller, initial_state
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import Genome, crossroad_fitness, generation, start
@@ -26,7 +26,7 @@ def test_evolved_right_follower_passes_the_paper_protocol():
     for g in range(1, 601):
         state = generation(key, g, state, config, fitness)
     net = genome.network(np.asarray(state.population[int(jnp.argmax(state.fitness))]))
-    controller = ctrnn_controller(dt=0.1, substeps=substeps_for(0.1, genome.tau))
+    controller = ctrnn_controller(dt=0.1, substeps=NETWORK_SUBSTEPS)
 
     def init(n):
         return initial_state(jax.tree.map(lambda a: jnp.broadcast_to(a, (n, *a.shape)), net))

@@ -36,6 +36,7 @@ import numpy as np
 from jax import Array
 
 from mbn.control import (
+    NETWORK_SUBSTEPS,
     CTRNNState,
     MotorMap,
     ProgrammedState,
@@ -155,7 +156,7 @@ class CTRNNControllerSpec:
     sensors: SensorConfig = field(default_factory=SensorConfig)
     motor: MotorMap = field(default_factory=MotorMap)
     dt: float = 0.1
-    substeps: int = 4
+    substeps: int = NETWORK_SUBSTEPS
     method: str = "euler"
     behavior: str | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
@@ -292,7 +293,7 @@ class InterpreterControllerSpec:
     sensors: SensorConfig = field(default_factory=SensorConfig)
     motor: MotorMap = field(default_factory=MotorMap)
     dt: float = 0.1
-    substeps: int = 20
+    substeps: int = NETWORK_SUBSTEPS
     method: str = "euler"
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
@@ -760,7 +761,7 @@ def make_mbn_controller(
     *,
     program_neurons: Sequence[int],
     dt: float = 0.1,
-    substeps: int = 20,
+    substeps: int = NETWORK_SUBSTEPS,
     pm_substeps: int = 4,
     motor: MotorMap | None = None,
     method: str = "euler",

@@ -20,11 +20,11 @@ import numpy as np
 from jax import Array
 
 from mbn.control import (
+    NETWORK_SUBSTEPS,
     CTRNNState,
     ProgrammedState,
     ctrnn_controller,
     interpreter_controller,
-    substeps_for,
 )
 from mbn.ctrnn import CTRNN, make_ctrnn
 from mbn.errors import MbnInputError
@@ -117,10 +117,15 @@ class Genome:
 
 
 def evaluate_networks(
-    W: Array, WE: Array, tau: float, arrays: TaskArrays, task: CrossroadTask
+    W: Array,
+    WE: Array,
+    tau: float,
+    arrays: TaskArrays,
+    task: CrossroadTask,
+    substeps: int = NETWORK_SUBSTEPS,
 ) -> EpisodeStats:
-    """Run every network ``(N, 3, 3)`` on every episode of the task: stats of shape ``(N * E,)``,
-    network-major."""
+    """Run every network ``(N, 3, 3)`` on every episode of the task (``substeps`` Euler steps per
+    robot step): stats of shape ``(N * E,)``, network-major."""
     n, e = W.shape[0], arrays.episodes
     W = jnp.repeat(W, e, 0)
     WE = jnp.repeat(WE, e, 0)
@@ -132,7 +137,7 @@ def evaluate_networks(
         bias=jnp.zeros((n * e, 3), dtype),
         gain=jnp.ones((n * e, 3), dtype),
     )
-    controller = ctrnn_controller(dt=task.dt, substeps=substeps_for(task.dt, tau))
+    controller = ctrnn_controller(dt=task.dt, substeps=substeps)
     state = CTRNNState(net, jnp.zeros((n * e, 3), dtype))
     return _episodes(controller, state, n, dtype, arrays, task)
 
@@ -363,7 +368,7 @@ def evaluate_interpreted(
     WE: Array,
     arrays: TaskArrays,
     task: CrossroadTask,
-    substeps: int = 20,
+    substeps: int = NETWORK_SUBSTEPS,
     lower: Array | None = None,
     upper: Array | None = None,
 ) -> EpisodeStats:
@@ -388,7 +393,7 @@ def emulated_fitness(
     task: CrossroadTask,
     arrays: TaskArrays | None = None,
     *,
-    substeps: int = 20,
+    substeps: int = NETWORK_SUBSTEPS,
 ) -> Callable[[Array], Array]:
     """Fitness of a population as the smaller of two: the networks themselves, and the
     interpreter programmed with them. Evolution then finds networks that the fixed-weight

@@ -111,8 +111,8 @@ class ReproduceSettings:
     pm_reward: str = "memory"
     camera_range: float = 1.0
     episode_seconds: float = 30.0
-    test_seconds: float = 60.0
-    mbn_seconds: float = 90.0
+    test_seconds: float = 90.0
+    mbn_seconds: float = 120.0
     jitter_per_mark: int = 20
     heldout_repeats: int = 17
     test_maze: str = "fig4"
