@@ -35,7 +35,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.world.builtin import APPROACHES, CROSSROAD_KINDS, crossroad
+from mbn.world.builtin import CROSSROAD_KINDS, check_approaches, crossroad
 from mbn.world.engine import World, compile_mazes
 from mbn.world.maze import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
@@ -116,12 +116,7 @@ class CrossroadTask:
             raise MbnInputError("seconds and dt must be > 0")
         if any(j < 0 for j in self.jitter):
             raise MbnInputError(f"jitter must be >= 0, got {self.jitter!r}")
-        if not self.approaches or any(a not in APPROACHES for a in self.approaches):
-            raise MbnInputError(
-                f"approaches must be some of {', '.join(APPROACHES)}, got {self.approaches!r}"
-            )
-        if len(set(self.approaches)) != len(self.approaches):
-            raise MbnInputError(f"approaches: listed twice in {self.approaches!r}")
+        check_approaches(self.approaches)
 
     @property
     def steps(self) -> int:
@@ -132,17 +127,13 @@ class CrossroadTask:
 
     def arrays(self) -> TaskArrays:
         """Mazes, compiled world and per-episode arrays (NumPy at this edge, once)."""
-        kinds = list(CROSSROAD_KINDS) * len(self.approaches)
-        mazes = [
-            crossroad(kind, tile=self.tile, approach=approach)
-            for approach in self.approaches
-            for kind in CROSSROAD_KINDS
-        ]
+        pairs = [(a, k) for a in self.approaches for k in CROSSROAD_KINDS]
+        mazes = [crossroad(k, tile=self.tile, approach=a) for a, k in pairs]
         world = compile_mazes(mazes)
         base = np.stack([m.starts[0] for m in mazes])
         poses = jittered_starts(base, self.variants, self.jitter, self.seed)
         maze_index = np.tile(np.arange(len(mazes)), self.variants)
-        target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for k in kinds])
+        target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for _, k in pairs])
         centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])
         return TaskArrays(
             mazes=mazes,

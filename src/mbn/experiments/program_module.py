@@ -205,14 +205,9 @@ class MemoryReward:
     approaches: tuple[str, ...] = ("south",)
 
     def __post_init__(self) -> None:
-        from mbn.world.builtin import APPROACHES
+        from mbn.world.builtin import check_approaches
 
-        a = self.approaches
-        if not a or not set(a) <= set(APPROACHES) or len(set(a)) != len(a):
-            raise MbnInputError(
-                f"approaches must be distinct values of {', '.join(APPROACHES)}, "
-                f"got {self.approaches!r}"
-            )
+        check_approaches(self.approaches)
 
     def sequences(self) -> dict[str, list[tuple[tuple[float, float], float]]]:
         """Camera sequences ``[(input, seconds), ...]`` fed to the PM before each kind of

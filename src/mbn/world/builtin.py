@@ -103,6 +103,16 @@ def _normalise_kind(kind: str) -> str:
 APPROACHES = ("south", "west", "east")
 
 
+def check_approaches(approaches: tuple[str, ...]) -> None:
+    """A non-empty tuple of distinct :data:`APPROACHES`, or one clear error naming it."""
+    if not approaches or not set(approaches) <= set(APPROACHES):
+        raise MbnInputError(
+            f"approaches must be some of {', '.join(APPROACHES)}, got {approaches!r}"
+        )
+    if len(set(approaches)) != len(approaches):
+        raise MbnInputError(f"approaches: listed twice in {approaches!r}")
+
+
 def crossroad_text(
     kind: str, *, arm_cells: int = 3, tile: int | None = None, approach: str = "south"
 ) -> str:
