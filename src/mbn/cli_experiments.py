@@ -113,7 +113,7 @@ lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figu
 timings.json, stages/, checkpoints/, run.json
 
 examples:
-  mbn reproduce                                full run into runs/reproduce (about 10 minutes)
+  mbn reproduce                                full run into runs/reproduce (about 12 minutes)
   mbn reproduce --quick --out /tmp/q           smoke run
   mbn reproduce --out runs/s2 --seed 2         another seed
   mbn reproduce --out runs/s2 --seed 2 --resume    continue it after an interruption

@@ -26,8 +26,10 @@ __all__ = [
     "CTRNNState",
     "MotorMap",
     "ProgrammedState",
+    "ShadowedState",
     "ctrnn_controller",
     "interpreter_controller",
+    "shadowed",
     "substeps_for",
 ]
 
@@ -137,6 +139,40 @@ def interpreter_controller(
         u = jnp.concatenate([obs.inputs, state.program.astype(obs.inputs.dtype)], axis=-1)
         inner_state, vw = inner(CTRNNState(state.net, state.y), obs._replace(inputs=u))
         return ProgrammedState(state.net, inner_state.y, state.program), vw
+
+    return control
+
+
+class ShadowedState(NamedTuple):
+    """A controller's state with reference networks riding along (:func:`shadowed`): the inner
+    controller's state, the references' (network ``(R, ...)`` and potentials ``(R, n)``), and the
+    motor mismatch with each reference summed over the steps so far (``(R,)``)."""
+
+    inner: Any
+    references: CTRNNState
+    mismatch: Array
+
+
+def shadowed(
+    controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]],
+    *,
+    dt: float = 0.1,
+    substeps: int = NETWORK_SUBSTEPS,
+    motor: MotorMap | None = None,
+) -> Callable[[ShadowedState, Any], tuple[ShadowedState, tuple[Array, Array]]]:
+    """``controller`` drives the robot while reference CTRNNs read the same observations (their
+    I1..I3) without driving; each step adds, for each reference, how far apart the two motor
+    commands are: ``|v - v_ref| / v_max + |w - w_ref| / (2 w_max)`` (0 when they agree, at most 2).
+    Divided by the number of steps, the sum is the mean motor mismatch: how closely the controller
+    behaves as each reference would in its place."""
+    motor = motor or MotorMap()
+    reference = ctrnn_controller(dt=dt, substeps=substeps, motor=motor)
+
+    def control(state: ShadowedState, obs: Any) -> tuple[ShadowedState, tuple[Array, Array]]:
+        inner, (v, w) = controller(state.inner, obs)
+        refs, (vr, wr) = reference(state.references, obs)
+        d = jnp.abs(v - vr) / motor.v_max + jnp.abs(w - wr) / (2.0 * motor.w_max)
+        return ShadowedState(inner, refs, state.mismatch + d), (v, w)
 
     return control
 

@@ -131,3 +131,42 @@ def test_priming_shows_a_latch_remembers_and_a_leaky_module_forgets():
         np.testing.assert_allclose(latch[k], want, atol=0.02, err_msg=name)
     # the leaky module has forgotten the two-colour tile 50 s later
     np.testing.assert_allclose(rates[1, names.index("memory_two")], right, atol=0.02)
+
+
+def test_fidelity_costs_a_shifted_program_more_than_the_programs_themselves():
+    """With the right- and left-follower riding along, the reward's fidelity term costs a PM
+    whose left code is shifted (third value 0.6 instead of 1) more than one that outputs the
+    interpreter's programs exactly."""
+    import jax
+
+    from mbn.experiments.program_module import MemoryReward, pm_memory_fitness
+    from mbn.programmable import differing_connections
+
+    genes = np.asarray(jax.random.uniform(jax.random.key(4), (12,), minval=-1, maxval=1))
+    rf = Genome().network(jnp.asarray(genes))
+    # LF differs in three connections into neuron 2 so that the programs are RF (1, 0, 0) and
+    # LF (0, 1, 1), the codes the hand-made latch puts out
+    lf_genes = genes.copy()
+    lf_genes[[3, 4, 10]] = genes[[3, 4, 10]] + np.array([-2.0, 2.0, 2.0])
+    lf = Genome().network(jnp.asarray(lf_genes))
+    im = build_interpreter(rf, differing_connections(rf, lf, margin=0.0), load_default())
+    np.testing.assert_allclose(np.asarray(im.program_of(rf)), [1, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(np.asarray(im.program_of(lf)), [0, 1, 1], atol=1e-6)
+    exact = _switch_latch()
+    shifted = exact.copy()
+    shifted[8] = 0.0  # neuron 3 no longer holds itself: its left code sags to about 0.6
+    population = jnp.asarray(np.stack([exact, shifted]), jnp.float32)
+    kw = {"variants": 1, "seconds": 1.5, "references": (rf, lf)}
+    small = {"kinds": ("LS",), "rest_kinds": ()}
+    plain = pm_memory_fitness(PMGenome(3), im.net, reward=MemoryReward(**small), **kw)
+    faithful = pm_memory_fitness(
+        PMGenome(3), im.net, reward=MemoryReward(**small, fidelity=0.05), **kw
+    )
+    before = np.asarray(plain(population))
+    share = (before - np.asarray(faithful(population))) / before  # what the fidelity term costs
+    assert np.all(before > 0) and np.all(share > 0)
+    assert share[1] > share[0] + 0.2
+    with pytest.raises(MbnInputError, match="references"):
+        pm_memory_fitness(PMGenome(3), im.net, reward=MemoryReward(fidelity=1.0))
+    with pytest.raises(MbnInputError, match="fidelity"):
+        MemoryReward(fidelity=-1.0)

@@ -75,6 +75,18 @@ def test_quick_run_writes_results_with_the_documented_schema(quick_run):
     lf = results["stages"]["lf"]
     assert lf["connections"] == results["stages"]["lf_search"]["chosen"]
     assert set(results["stages"]["im"]["connections"]) <= set(lf["connections"])
+    # RF is evolved twice from independent populations; the fitter restart is kept
+    rf = results["stages"]["rf"]
+    best = [r["best_fitness"] for r in rf["restarts"]]
+    assert len(best) == 2 and best[0] != best[1]
+    assert rf["best_fitness"] == max(best) and rf["chosen_restart"] == best.index(max(best))
+    assert rf["history"] == rf["restarts"][rf["chosen_restart"]]["history"]
+    assert (out / "checkpoints" / "rf.npz").exists()
+    assert (out / "checkpoints" / "rf_restart1.npz").exists()
+    # the PM's reward carries the fidelity term, and the MBN file the camera it was trained with
+    assert results["stages"]["pm"]["fidelity"] > 0
+    mbn = json.loads((out / "controllers" / "mbn.json").read_text())
+    assert mbn["program_module"]["camera"]["range"] == results["stages"]["pm"]["camera_range"]
     # wall-clock times are kept out of results.json (it depends on the seed only)
     text = json.dumps(results)
     assert "timings" not in results and "wall_seconds" not in text and "train_seconds" not in text

@@ -193,6 +193,14 @@ class MemoryReward:
     integrated through its camera sequence (standing for tiles seen earlier). The reward keeps the
     paper's product: ``(R + Z) (L + Z)`` with R (L) the summed branch fitness of the right (left)
     episodes and Z = ``rest_weight`` x the rest episodes' sum, each clipped at 0.
+
+    ``fidelity`` > 0 makes each episode's score its branch fitness minus ``fidelity`` x the mean
+    motor mismatch (:func:`mbn.control.shadowed`) between the MBN and the network whose rule the
+    episode rewards (RF or LF, riding along on the same sensor readings; rest episodes take the
+    better of the two). The branch fitness alone cannot tell a program from a slightly shifted one
+    that happens to score higher on the crossroads and stalls elsewhere; the mismatch is least for
+    the program itself (``docs/experiments.md``). It needs the reference networks
+    (:func:`pm_memory_fitness` ``references``).
     """
 
     kinds: tuple[str, ...] = ("LS", "LR", "SR", "LSR")
@@ -203,11 +211,14 @@ class MemoryReward:
     gap: float = 20.0
     memory: float = 50.0
     approaches: tuple[str, ...] = ("south",)
+    fidelity: float = 0.0
 
     def __post_init__(self) -> None:
         from mbn.world.builtin import check_approaches
 
         check_approaches(self.approaches)
+        if not self.fidelity >= 0:
+            raise MbnInputError(f"fidelity must be >= 0, got {self.fidelity!r}")
 
     def sequences(self) -> dict[str, list[tuple[tuple[float, float], float]]]:
         """Camera sequences ``[(input, seconds), ...]`` fed to the PM before each kind of
@@ -294,9 +305,13 @@ def pm_memory_fitness(
     pm_substeps: int = 4,
     camera: CameraConfig | None = None,
     seconds: float = 30.0,
+    references: tuple[CTRNN, CTRNN] | None = None,
 ) -> Callable[[Array], Array]:
     """A jitted map from a PM population to the :class:`MemoryReward` (``variants`` starts per
-    episode: the mark and jittered ones, seeded by ``seed``)."""
+    episode: the mark and jittered ones, seeded by ``seed``). ``references``: the right- and the
+    left-follower the interpreter's programs stand for (needed when ``reward.fidelity`` > 0; they
+    run with ``im_substeps`` too)."""
+    from mbn.control import CTRNNState, ShadowedState, shadowed
     from mbn.experiments.crossroads import (
         _ARM_VECTORS,
         episode_fitness,
@@ -309,6 +324,10 @@ def pm_memory_fitness(
 
     reward = reward or MemoryReward()
     camera = camera or CameraConfig()
+    if reward.fidelity > 0 and references is None:
+        raise MbnInputError(
+            "MemoryReward.fidelity > 0 needs the reference networks: references=(rf, lf)"
+        )
     specs = reward.episodes()
     if not specs:
         raise MbnInputError("the PM reward has no episodes (kinds and rest_kinds are empty)")
@@ -331,10 +350,13 @@ def pm_memory_fitness(
     world = compile_mazes(mazes)
     junctions = junction_arrays(mazes, world)
     config = RolloutConfig(steps=task.steps, dt=dt, sensors=task.sensors, camera=camera)
-    controller = mbn_controller(
+    controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]] = mbn_controller(
         programs=genome.programs, dt=dt, im_substeps=im_substeps, pm_substeps=pm_substeps
     )
     k = genome.programs
+    if references is not None:
+        controller = shadowed(controller, dt=dt, substeps=im_substeps)
+        refs = jax.tree.map(lambda a, b: jnp.stack([jnp.asarray(a), jnp.asarray(b)]), *references)
 
     def arrays(rule: str, p: int) -> TaskArrays:
         return TaskArrays(
@@ -355,13 +377,17 @@ def pm_memory_fitness(
         n = p * e
         y0 = prime(genome.network(population), inputs, dt, pm_substeps)[:, jnp.asarray(which)]
         im_b = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), im)
-        state = MBNState(
+        state: Any = MBNState(
             genome.network(jnp.repeat(population, e, 0)),
             y0.reshape(n, k),
             im_b,
             jnp.zeros((n, im.num_neurons), dtype),
         )
-        stats = rollout(
+        if references is not None:
+            r_net = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), refs)
+            r_y = jnp.zeros((n, 2, r_net.W.shape[-1]), dtype)
+            state = ShadowedState(state, CTRNNState(r_net, r_y), jnp.zeros((n, 2), dtype))
+        result = rollout(
             world,
             controller,
             state,
@@ -369,9 +395,14 @@ def pm_memory_fitness(
             jnp.asarray(np.tile(index, p)),
             config,
             junctions=junctions,
-        ).stats
+        )
+        stats = result.stats
         f_right = episode_fitness(stats, arrays("right", p), task).reshape(p, e)
         f_left = episode_fitness(stats, arrays("left", p), task).reshape(p, e)
+        if references is not None and reward.fidelity > 0:
+            mismatch = (result.controller_state.mismatch / config.steps).reshape(p, e, 2)
+            f_right = f_right - reward.fidelity * mismatch[..., 0]
+            f_left = f_left - reward.fidelity * mismatch[..., 1]
         r = jnp.clip(jnp.where(label == 0, f_right, 0.0).sum(-1), 0.0, None)
         left = jnp.clip(jnp.where(label == 1, f_left, 0.0).sum(-1), 0.0, None)
         best = jnp.maximum(f_right, f_left)

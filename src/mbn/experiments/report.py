@@ -60,6 +60,17 @@ def _de_curves(stages: dict[str, Any], path: Path) -> None:
     ):
         h = stages[name]["history"]
         g = np.arange(len(h["best"]))
+        chosen = stages[name].get("chosen_restart")
+        for r, other in enumerate(stages[name].get("restarts", [])):
+            if r != chosen:
+                ax.plot(
+                    np.arange(len(other["history"]["best"])),
+                    other["history"]["best"],
+                    color="C0",
+                    alpha=0.35,
+                    lw=1,
+                    label=f"best, restart {r + 1} (not kept)",
+                )
         ax.plot(g, h["best"], label="best", color="C0")
         ax.plot(g, h["mean"], label="population mean", color="C1", alpha=0.8)
         if name == "pm":
@@ -182,7 +193,7 @@ def _mbn_traces(spec: Any, traj: Any, b: int, path: Path) -> None:
             ax[1].axhline(v, color=f"C{k}", ls=style, lw=0.8, alpha=0.6)
     ax[1].set_ylabel("PM output")
     ax[1].set_ylim(-0.05, 1.05)
-    ax[1].legend(loc="upper right", fontsize=8, title="dotted: RF program, dashed: LF", ncol=3)
+    ax[1].legend(loc="center right", fontsize=8, title="dotted: RF program, dashed: LF", ncol=3)
     for k in range(n0):
         ax[2].plot(t, rates[:, k], label=f"neuron {k + 1}", color=f"C{k + 3}")
     ax[2].set_ylabel("IM firing rate")

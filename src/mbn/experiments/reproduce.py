@@ -95,6 +95,7 @@ class ReproduceSettings:
     noise_copies: int = 3
     rf_generations: int = 300
     rf_variants: int = 4
+    rf_restarts: int = 2
     lf_candidates: tuple[str, ...] = _TURNING_CANDIDATES
     lf_search_generations: int = 100
     lf_search_variants: int = 2
@@ -109,7 +110,8 @@ class ReproduceSettings:
     pm_noise_copies: int = 0
     pm_approaches: tuple[str, ...] = ("south", "west", "east")
     pm_reward: str = "memory"
-    camera_range: float = 1.0
+    pm_fidelity: float = 2.0
+    camera_range: float = 0.8
     episode_seconds: float = 30.0
     test_seconds: float = 90.0
     mbn_seconds: float = 120.0
@@ -131,6 +133,7 @@ class ReproduceSettings:
             noise_copies=1,
             rf_generations=30,
             rf_variants=1,
+            rf_restarts=2,
             lf_search_generations=2,
             lf_search_variants=1,
             lf_generations=20,
@@ -150,6 +153,10 @@ class ReproduceSettings:
             raise MbnInputError("pm_noise_copies and pm_noise_sigma must be >= 0")
         if not 0 < self.pm_init <= self.pm_bound:
             raise MbnInputError("pm_init must be in (0, pm_bound]")
+        if self.rf_restarts < 1:
+            raise MbnInputError(f"rf_restarts must be >= 1, got {self.rf_restarts}")
+        if not self.pm_fidelity >= 0:
+            raise MbnInputError(f"pm_fidelity must be >= 0, got {self.pm_fidelity}")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -558,24 +565,40 @@ class Reproduction:
         generations: int,
         population: np.ndarray | None = None,
         approaches: tuple[str, ...] = ("south",),
+        restarts: int = 1,
     ) -> dict[str, Any]:
         """Evolve ``genome`` for ``rule`` on the crossroads (fitness averaged over the genome and
-        its perturbed copies), score the best (branch fitness and the paper's terms) and save it
-        as ``controllers/NAME.json``."""
+        its perturbed copies), ``restarts`` times from independent random populations (restart 0
+        with the stage's key, checkpoint ``NAME``; restart r with the key folded with r,
+        checkpoint ``NAME_restartR``), keep the restart with the best fitness, score its best
+        (branch fitness and the paper's terms) and save it as ``controllers/NAME.json``."""
         from mbn.experiments.evolve import crossroad_fitness, robust_fitness
 
-        de, _ = self.evolve(
-            name,
-            self._de_config(genome.size, self.settings.weight_bound),
-            robust_fitness(
-                crossroad_fitness(genome, self._task(rule, variants, approaches)),
-                self._noise(name, genome.size),
-            ),
-            self.stage_key(name),
-            generations,
-            f"{name.upper()}: DE generations",
-            population,
+        fitness = robust_fitness(
+            crossroad_fitness(genome, self._task(rule, variants, approaches)),
+            self._noise(name, genome.size),
         )
+        runs = []
+        for r in range(restarts):
+            key = self.stage_key(name)
+            de, _ = self.evolve(
+                name if r == 0 else f"{name}_restart{r}",
+                self._de_config(genome.size, self.settings.weight_bound),
+                fitness,
+                key if r == 0 else jax.random.fold_in(key, r),
+                generations,
+                f"{name.upper()}: DE generations"
+                + (f" (restart {r + 1}/{restarts})" if restarts > 1 else ""),
+                population,
+            )
+            runs.append(de)
+        chosen = max(range(restarts), key=lambda r: (runs[r]["best_fitness"], -r))
+        de = dict(runs[chosen])
+        if restarts > 1:
+            de["restarts"] = [
+                {"best_fitness": d["best_fitness"], "history": d["history"]} for d in runs
+            ]
+            de["chosen_restart"] = chosen
         net = genome.network(jnp.asarray(de["best_genome"]))
         score = self._score(net, rule, variants, approaches)
         connections = [str(c) for c in genome.connections]
@@ -604,12 +627,19 @@ class Reproduction:
         from mbn.experiments.evolve import Genome
 
         s = self.settings
-        return self._evolve_follower("rf", Genome(), "right", s.rf_variants, s.rf_generations)
+        return self._evolve_follower(
+            "rf", Genome(), "right", s.rf_variants, s.rf_generations, restarts=s.rf_restarts
+        )
 
     def _rf_net(self) -> Any:
         from mbn.experiments.controllers import read_controller_spec
 
         return read_controller_spec(self.out / "controllers" / "rf.json").net  # type: ignore[union-attr]
+
+    def _lf_net(self) -> Any:
+        from mbn.experiments.controllers import read_controller_spec
+
+        return read_controller_spec(self.out / "controllers" / "lf.json").net  # type: ignore[union-attr]
 
     def _lf_search(self) -> dict[str, Any]:
         from mbn.experiments.evolve import connection_search_fitness, robust_fitness
@@ -692,13 +722,11 @@ class Reproduction:
     def _im(self) -> dict[str, Any]:
         from mbn.experiments.controllers import (
             InterpreterControllerSpec,
-            read_controller_spec,
             save_controller,
         )
         from mbn.programmable import build_interpreter, differing_connections
 
-        rf = self._rf_net()
-        lf = read_controller_spec(self.out / "controllers" / "lf.json").net  # type: ignore[union-attr]
+        rf, lf = self._rf_net(), self._lf_net()
         programmable = differing_connections(rf, lf, margin=0.0)
         interp = build_interpreter(rf, programmable, self._multiplier_model())
         programs = {
@@ -752,8 +780,11 @@ class Reproduction:
             "camera": camera,
         }
         if s.pm_reward == "memory":
-            reward = MemoryReward(approaches=s.pm_approaches)
-            fit = pm_memory_fitness(genome, im_spec.interpreter.net, reward=reward, **common)
+            reward = MemoryReward(approaches=s.pm_approaches, fidelity=s.pm_fidelity)
+            references = (self._rf_net(), self._lf_net())
+            fit = pm_memory_fitness(
+                genome, im_spec.interpreter.net, reward=reward, references=references, **common
+            )
             maximum = memory_reward_maximum(reward, s.pm_variants)
         else:
             fit = pm_fitness(genome, im_spec.interpreter.net, **common)
@@ -786,6 +817,7 @@ class Reproduction:
         return {
             **de,
             "reward": s.pm_reward,
+            "fidelity": s.pm_fidelity if s.pm_reward == "memory" else None,
             "max_fitness": float(maximum),
             "camera_range": s.camera_range,
         }
