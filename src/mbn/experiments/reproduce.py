@@ -131,7 +131,7 @@ class ReproduceSettings:
             quick=True,
             retrain_multiplier=retrain_multiplier,
             noise_copies=1,
-            rf_generations=30,
+            rf_generations=15,
             rf_variants=1,
             rf_restarts=2,
             lf_search_generations=2,
