@@ -102,6 +102,11 @@ def mbn_controller(
     )
 
 
+def _broadcast(tree: Any, n: int, dtype: Any) -> Any:
+    """``n`` copies of a network (a leading batch axis) in ``dtype``, without copying memory."""
+    return jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), tree)
+
+
 def _run(
     genome: PMGenome,
     im: CTRNN,
@@ -115,7 +120,7 @@ def _run(
     n = p * e
     pm = genome.network(jnp.repeat(population, e, 0))
     dtype = population.dtype
-    im_b = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), im)
+    im_b = _broadcast(im, n, dtype)
     state = MBNState(
         pm,
         jnp.zeros((n, genome.programs), dtype),
@@ -376,7 +381,7 @@ def pm_memory_fitness(
         p, dtype = population.shape[0], population.dtype
         n = p * e
         y0 = prime(genome.network(population), inputs, dt, pm_substeps)[:, jnp.asarray(which)]
-        im_b = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), im)
+        im_b = _broadcast(im, n, dtype)
         state: Any = MBNState(
             genome.network(jnp.repeat(population, e, 0)),
             y0.reshape(n, k),
@@ -384,7 +389,7 @@ def pm_memory_fitness(
             jnp.zeros((n, im.num_neurons), dtype),
         )
         if references is not None:
-            r_net = jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), refs)
+            r_net = _broadcast(refs, n, dtype)
             r_y = jnp.zeros((n, 2, r_net.W.shape[-1]), dtype)
             state = ShadowedState(state, CTRNNState(r_net, r_y), jnp.zeros((n, 2), dtype))
         result = rollout(
