@@ -60,10 +60,6 @@ def test_shipped_3_neuron_multiplier_meets_target_a():
     assert metrics["fixed_point"]["passed"]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="target b not met on the grid: max abs error 0.0156 > 0.01 (relative target met, 4.1 %)",
-)
 def test_shipped_6_neuron_multiplier_meets_target_b():
     mul = load_default(6)
     assert mul.num_neurons <= 6
@@ -78,8 +74,8 @@ def test_shipped_multipliers_hold_a_fixed_point_and_their_recorded_accuracy(num_
     metrics = evaluate(load_default(num_neurons), shipped_validation(num_neurons))
     assert metrics["fixed_point"]["passed"]
     # what was measured when they were trained (docs/multiplier.md); a regression guard
-    assert metrics["fraction_within_5pct"] >= {3: 0.86, 6: 0.93}[num_neurons]
-    assert metrics["max_abs_error_grid"] <= {3: 0.16, 6: 0.016}[num_neurons]
+    assert metrics["fraction_within_5pct"] >= {3: 0.86, 6: 0.94}[num_neurons]
+    assert metrics["max_abs_error_grid"] <= {3: 0.16, 6: 0.008}[num_neurons]
     if num_neurons == 6:
         assert metrics["max_rel_error_product_ge_0.05"] <= 0.05
 
@@ -106,6 +102,43 @@ def test_transient_exploiting_network_fails_the_fixed_point_check():
     check = fixed_point_check(Multiplier(net=net, output=0), dense_grid(5))
     assert not check["passed"]
     assert check["max_abs_diff_2T"] > FIXED_POINT_TOL
+
+
+def test_minimax_fine_tuning_lowers_the_largest_grid_error():
+    # The shipped 3-neuron multiplier is 0.15 off at (1, 1); the minimax objective goes for it.
+    base = load_default(3)
+    key = jax.random.key(0)
+    before = evaluate(base, validation_pairs(key, 50))["max_abs_error_grid"]
+    cfg = TrainConfig(
+        num_neurons=3,
+        objective="minimax",
+        method="euler",
+        minimax_points=21,
+        learning_rate=0.003,
+        num_restarts=1,
+        num_iterations=200,
+        num_validation=50,
+        grid_error_cap=1.0,
+    )
+    _, after = train(key, cfg, init=base, validation_key=key)
+    assert after["max_abs_error_grid"] < 0.8 * before
+    assert after["fixed_point"]["passed"]
+
+
+def test_smooth_max_lies_within_temperature_log_n_below_the_max():
+    from mbn.multiplier import _smooth_max
+
+    v = jnp.asarray([[0.1, 0.5, 0.2, 0.5], [0.0, 0.0, 0.0, 0.3]])
+    t = 0.01
+    sm = np.asarray(_smooth_max(v, t))
+    top = np.asarray(v.max(-1))
+    assert np.all(sm <= top + 1e-7)
+    assert np.all(sm >= top - t * np.log(4) - 1e-7)
+
+
+def test_unknown_training_objective_is_refused():
+    with pytest.raises(MbnInputError, match="objective"):
+        TrainConfig(objective="median")
 
 
 def test_bptt_training_reduces_the_error():

@@ -195,7 +195,7 @@ def robust_fitness(fitness: Callable[[Array], Array], noise: Array) -> Callable[
     """``fitness`` averaged over each genome and its perturbed copies ``genome + noise[k]``.
 
     Networks evolved this way keep their behaviour when their weights move by about ``sigma``,
-    which is what the interpreter does to them: its trained multipliers are off by up to 0.016,
+    which is what the interpreter does to them: its trained multipliers are off by up to 0.008,
     times the range of the programmable weight (``docs/reproduce.md``). With no perturbation
     (``noise`` of shape ``(0, size)``) it is ``fitness`` itself. One call evaluates all copies
     in one batch.
