@@ -430,9 +430,10 @@ def _make_loss(cfg: TrainConfig, pairs: Array) -> Callable[[Params], Array]:
         speed = vector_field(net, y, everything)  # dy/dt at T, in units of 1/tau_m
         fixed_point = cfg.fixed_point_weight * jnp.mean(speed**2, (-2, -1))
         if cfg.objective == "minimax":
+            err = jnp.abs(out - target)
             return (
-                _smooth_max(jnp.abs(out - target), cfg.minimax_temperature)
-                + cfg.minimax_rel_weight * _smooth_max(jnp.abs(out - target) * relative_scale, 0.01)
+                _smooth_max(err, cfg.minimax_temperature)
+                + cfg.minimax_rel_weight * _smooth_max(err * relative_scale, 0.01)
                 + fixed_point
             )
         sq_err = (out - target) ** 2

@@ -359,7 +359,10 @@ def pm_memory_fitness(
         programs=genome.programs, dt=dt, im_substeps=im_substeps, pm_substeps=pm_substeps
     )
     k = genome.programs
-    if references is not None:
+    # The references ride along only when their mismatch is scored.
+    shadow = references is not None and reward.fidelity > 0
+    if shadow:
+        assert references is not None
         controller = shadowed(controller, dt=dt, substeps=im_substeps)
         refs = jax.tree.map(lambda a, b: jnp.stack([jnp.asarray(a), jnp.asarray(b)]), *references)
 
@@ -388,7 +391,7 @@ def pm_memory_fitness(
             im_b,
             jnp.zeros((n, im.num_neurons), dtype),
         )
-        if references is not None:
+        if shadow:
             r_net = _broadcast(refs, n, dtype)
             r_y = jnp.zeros((n, 2, r_net.W.shape[-1]), dtype)
             state = ShadowedState(state, CTRNNState(r_net, r_y), jnp.zeros((n, 2), dtype))
@@ -404,7 +407,7 @@ def pm_memory_fitness(
         stats = result.stats
         f_right = episode_fitness(stats, arrays("right", p), task).reshape(p, e)
         f_left = episode_fitness(stats, arrays("left", p), task).reshape(p, e)
-        if references is not None and reward.fidelity > 0:
+        if shadow:
             mismatch = (result.controller_state.mismatch / config.steps).reshape(p, e, 2)
             f_right = f_right - reward.fidelity * mismatch[..., 0]
             f_left = f_left - reward.fidelity * mismatch[..., 1]

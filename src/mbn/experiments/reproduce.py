@@ -579,8 +579,8 @@ class Reproduction:
             self._noise(name, genome.size),
         )
         runs = []
+        key = self.stage_key(name)
         for r in range(restarts):
-            key = self.stage_key(name)
             de, _ = self.evolve(
                 name if r == 0 else f"{name}_restart{r}",
                 self._de_config(genome.size, self.settings.weight_bound),
@@ -631,15 +631,17 @@ class Reproduction:
             "rf", Genome(), "right", s.rf_variants, s.rf_generations, restarts=s.rf_restarts
         )
 
-    def _rf_net(self) -> Any:
+    def _net(self, name: str) -> Any:
+        """The CTRNN of ``controllers/NAME.json`` (``rf`` or ``lf``)."""
         from mbn.experiments.controllers import read_controller_spec
 
-        return read_controller_spec(self.out / "controllers" / "rf.json").net  # type: ignore[union-attr]
+        return read_controller_spec(self.out / "controllers" / f"{name}.json").net  # type: ignore[union-attr]
+
+    def _rf_net(self) -> Any:
+        return self._net("rf")
 
     def _lf_net(self) -> Any:
-        from mbn.experiments.controllers import read_controller_spec
-
-        return read_controller_spec(self.out / "controllers" / "lf.json").net  # type: ignore[union-attr]
+        return self._net("lf")
 
     def _lf_search(self) -> dict[str, Any]:
         from mbn.experiments.evolve import connection_search_fitness, robust_fitness
