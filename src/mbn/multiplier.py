@@ -238,7 +238,12 @@ class TrainConfig:
             ``minimax_temperature``), plus ``minimax_rel_weight`` times the smooth maximum of the
             relative error over grid points whose product is at least ``minimax_rel_floor``
             (``t`` = 0.01), plus the fixed-point penalty; the training pairs, ``abs_weight`` and
-            ``edge_weight`` are not used).
+            ``edge_weight`` are not used), or ``"count"`` (for fine-tuning towards the paper's
+            criterion: on the same grid, the soft count ``mean sigmoid((rel - count_threshold) /
+            count_width)`` of the grid points with product at least ``count_floor`` whose
+            relative error ``rel`` exceeds the threshold, plus the fixed-point penalty; a point far
+            outside costs no more than one just outside, so the fit gives up hopeless points near
+            0 for the many it can keep within 5 %).
     """
 
     num_neurons: int = 3
@@ -264,6 +269,9 @@ class TrainConfig:
     minimax_temperature: float = 0.001
     minimax_rel_weight: float = 0.2
     minimax_rel_floor: float = 0.04
+    count_threshold: float = 0.04
+    count_width: float = 0.005
+    count_floor: float = 0.01
 
     def __post_init__(self) -> None:
         checks = {
@@ -284,6 +292,9 @@ class TrainConfig:
             "minimax_temperature": self.minimax_temperature > 0,
             "minimax_rel_weight": self.minimax_rel_weight >= 0,
             "minimax_rel_floor": 0 < self.minimax_rel_floor < 1,
+            "count_threshold": self.count_threshold > 0,
+            "count_width": self.count_width > 0,
+            "count_floor": 0 < self.count_floor < 1,
         }
         for name, ok in checks.items():
             if not ok:
@@ -292,8 +303,10 @@ class TrainConfig:
             raise MbnInputError(f"dtype: expected 'float32' or 'float64', got {self.dtype!r}")
         if self.method not in ("euler", "rk4"):
             raise MbnInputError(f"method: expected 'euler' or 'rk4', got {self.method!r}")
-        if self.objective not in ("mean", "minimax"):
-            raise MbnInputError(f"objective: expected 'mean' or 'minimax', got {self.objective!r}")
+        if self.objective not in ("mean", "minimax", "count"):
+            raise MbnInputError(
+                f"objective: expected 'mean', 'minimax' or 'count', got {self.objective!r}"
+            )
 
 
 Params = dict[str, Array]
@@ -400,13 +413,15 @@ _euler_from_rest.defvjp(_euler_from_rest_fwd, _euler_from_rest_bwd)
 def _make_loss(cfg: TrainConfig, pairs: Array) -> Callable[[Params], Array]:
     """Training loss of every restart: params with a leading restart axis -> losses ``(R,)``."""
     num_pairs = pairs.shape[0]
-    if cfg.objective == "minimax":
+    if cfg.objective in ("minimax", "count"):
         everything = dense_grid(cfg.minimax_points, pairs.dtype)
     else:
         everything = jnp.concatenate([pairs, edge_points(cfg.num_edge_points, pairs.dtype)])
     target = everything[:, 0] * everything[:, 1]
     not_small = target >= cfg.minimax_rel_floor
     relative_scale = jnp.where(not_small, 1.0 / jnp.where(not_small, target, 1.0), 0.0)
+    counted = target >= cfg.count_floor
+    count_scale = jnp.where(counted, 1.0 / jnp.where(counted, target, 1.0), 0.0)
     num_steps = round(T_OVER_TAU / cfg.dt_over_tau)
     inputs = jnp.broadcast_to(everything, (num_steps, *everything.shape))
 
@@ -436,6 +451,11 @@ def _make_loss(cfg: TrainConfig, pairs: Array) -> Callable[[Params], Array]:
                 + cfg.minimax_rel_weight * _smooth_max(err * relative_scale, 0.01)
                 + fixed_point
             )
+        if cfg.objective == "count":
+            outside = jax.nn.sigmoid(
+                (jnp.abs(out - target) * count_scale - cfg.count_threshold) / cfg.count_width
+            )
+            return jnp.sum(jnp.where(counted, outside, 0.0), -1) / jnp.sum(counted) + fixed_point
         sq_err = (out - target) ** 2
         log_ratio = jnp.log(out[:, :num_pairs]) - jnp.log(target[:num_pairs])
         if cfg.rel_loss == "cauchy":  # robust: saturates for pairs far outside 5 %
