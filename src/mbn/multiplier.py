@@ -418,10 +418,15 @@ def _make_loss(cfg: TrainConfig, pairs: Array) -> Callable[[Params], Array]:
     else:
         everything = jnp.concatenate([pairs, edge_points(cfg.num_edge_points, pairs.dtype)])
     target = everything[:, 0] * everything[:, 1]
-    not_small = target >= cfg.minimax_rel_floor
-    relative_scale = jnp.where(not_small, 1.0 / jnp.where(not_small, target, 1.0), 0.0)
+
+    def inverse_from(floor: float) -> Array:
+        """``1 / target`` where the target is at least ``floor``, else 0 (relative errors)."""
+        kept = target >= floor
+        return jnp.where(kept, 1.0 / jnp.where(kept, target, 1.0), 0.0)
+
+    relative_scale = inverse_from(cfg.minimax_rel_floor)
     counted = target >= cfg.count_floor
-    count_scale = jnp.where(counted, 1.0 / jnp.where(counted, target, 1.0), 0.0)
+    count_scale = inverse_from(cfg.count_floor)
     num_steps = round(T_OVER_TAU / cfg.dt_over_tau)
     inputs = jnp.broadcast_to(everything, (num_steps, *everything.shape))
 
