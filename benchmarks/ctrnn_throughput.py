@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.ctrnn import make_ctrnn, simulate
+from mbn.networks.ctrnn import make_ctrnn, simulate
 
 
 def measure(num_neurons: int, batch: int, num_steps: int, repeats: int, method: str) -> dict:

@@ -21,12 +21,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.control import ctrnn_controller, initial_state, substeps_for
-from mbn.ctrnn import make_ctrnn
-from mbn.world.builtin import CROSSROAD_KINDS, crossroad
+from mbn.control.ctrnn import ctrnn_controller, initial_state, substeps_for
+from mbn.networks.ctrnn import make_ctrnn
 from mbn.world.engine import compile_mazes
-from mbn.world.generate import corridor_maze
-from mbn.world.maze import Maze
+from mbn.world.mazes.builtin import CROSSROAD_KINDS, crossroad
+from mbn.world.mazes.generate import corridor_maze
+from mbn.world.mazes.model import Maze
 from mbn.world.rollout import RolloutConfig, junction_arrays, rollout
 
 

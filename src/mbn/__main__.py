@@ -2,6 +2,6 @@
 
 import sys
 
-from mbn.cli import main
+from mbn.cli.main import main
 
 sys.exit(main())

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mbn.ctrnn import CTRNN, make_ctrnn
+from mbn.networks.ctrnn import CTRNN, make_ctrnn
 
 __all__ = ["DEFAULT_TAU", "WE_LF", "WE_RF", "W_LF", "W_RF", "published_lf", "published_rf"]
 
@@ -28,10 +28,12 @@ DEFAULT_TAU = 0.5
 
 
 def published_rf(tau: float = DEFAULT_TAU, dtype: object = None) -> CTRNN:
-    """The published right-follower as a :class:`~mbn.ctrnn.CTRNN` (no biases, unit gains)."""
+    """The published right-follower as a :class:`~mbn.networks.ctrnn.CTRNN` (no biases, unit
+    gains)."""
     return make_ctrnn(W_RF, WE_RF, tau, dtype=dtype, name="published RF")
 
 
 def published_lf(tau: float = DEFAULT_TAU, dtype: object = None) -> CTRNN:
-    """The published left-follower as a :class:`~mbn.ctrnn.CTRNN` (no biases, unit gains)."""
+    """The published left-follower as a :class:`~mbn.networks.ctrnn.CTRNN` (no biases, unit
+    gains)."""
     return make_ctrnn(W_LF, WE_LF, tau, dtype=dtype, name="published LF")

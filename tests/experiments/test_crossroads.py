@@ -19,7 +19,7 @@ from mbn.experiments.crossroads import (
     rule_arm,
 )
 from mbn.experiments.evolve import RF_CONNECTIONS, Genome, crossroad_fitness, generation, start
-from mbn.programmable import Connection
+from mbn.networks.programmable import Connection
 from mbn.world.rollout import EpisodeStats
 
 
@@ -190,8 +190,8 @@ def test_evolution_is_deterministic_and_never_gets_worse():
 def test_interpreter_programs_equal_the_builder():
     """The batched, traceable interpreter of a network equals build_interpreter's."""
     from mbn.experiments.evolve import interpreter_programs
-    from mbn.multiplier import load_default
-    from mbn.programmable import Programmable, build_interpreter
+    from mbn.networks.multiplier import load_default
+    from mbn.networks.programmable import Programmable, build_interpreter
 
     rng = np.random.default_rng(0)
     conns = (Connection("W", 1, 2), Connection("WE", 1, 0), Connection("WE", 1, 1))
@@ -216,8 +216,8 @@ def test_connection_search_fitness_equals_the_genome_fitness_for_every_triple():
     """One compiled function for every choice of connections gives exactly what
     crossroad_fitness of Genome.around gives."""
     from mbn.experiments.evolve import connection_search_fitness
+    from mbn.networks.programmable import Connection
     from mbn.paper import published_rf
-    from mbn.programmable import Connection
 
     base = published_rf()
     task = CrossroadTask(rule="left", variants=1, seconds=4.0)

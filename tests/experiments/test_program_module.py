@@ -6,12 +6,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mbn.ctrnn import firing_rate
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.program_module import MBNState, PMGenome, mbn_controller
-from mbn.multiplier import load_default
-from mbn.programmable import Connection, Programmable, build_interpreter
+from mbn.networks.ctrnn import firing_rate
+from mbn.networks.multiplier import load_default
+from mbn.networks.programmable import Connection, Programmable, build_interpreter
 from mbn.world.rollout import Observation
 
 
@@ -140,7 +140,7 @@ def test_fidelity_costs_a_shifted_program_more_than_the_programs_themselves():
     import jax
 
     from mbn.experiments.program_module import MemoryReward, pm_memory_fitness
-    from mbn.programmable import differing_connections
+    from mbn.networks.programmable import differing_connections
 
     genes = np.asarray(jax.random.uniform(jax.random.key(4), (12,), minval=-1, maxval=1))
     rf = Genome().network(jnp.asarray(genes))

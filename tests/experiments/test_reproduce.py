@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from mbn.cli import main
-from mbn.control import NETWORK_SUBSTEPS
-from mbn.experiments.controllers import load_controller
+from mbn.cli.main import main
+from mbn.control.ctrnn import NETWORK_SUBSTEPS
+from mbn.controllers.codec import load_controller
 from mbn.experiments.reproduce import CONTROLLERS, RUN_KIND, TEST_NAMES
 
 TEST_KEYS = {"trials", "successes", "success_rate"}

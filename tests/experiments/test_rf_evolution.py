@@ -7,12 +7,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mbn.control import NETWORK_SUBSTEPS, ctrnn_controller, initial_state
+from mbn.control.ctrnn import NETWORK_SUBSTEPS, ctrnn_controller, initial_state
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import Genome, crossroad_fitness, generation, start
 from mbn.experiments.trials import TrialSpec, run_trials, summary
-from mbn.world.builtin import builtin_maze
+from mbn.world.mazes.builtin import builtin_maze
 
 
 @pytest.mark.slow

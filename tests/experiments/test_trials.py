@@ -18,8 +18,8 @@ from mbn.experiments.trials import (
     summary,
     trial_starts,
 )
-from mbn.world.builtin import builtin_maze, crossroad
-from mbn.world.maze import Maze
+from mbn.world.mazes.builtin import builtin_maze, crossroad
+from mbn.world.mazes.model import Maze
 
 from .test_crossroads import stats
 

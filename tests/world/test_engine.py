@@ -15,10 +15,10 @@ from hypothesis import strategies as st
 
 from mbn.errors import MbnInputError
 from mbn.world import engine as E  # noqa: N812
-from mbn.world.builtin import crossroad, stage_arena
-from mbn.world.generate import corridor_maze
 from mbn.world.geometry import collides, rect_segments, sonar_ranges, sonar_rays
-from mbn.world.maze import Maze, Tile, merge_cells
+from mbn.world.mazes.builtin import crossroad, stage_arena
+from mbn.world.mazes.generate import corridor_maze
+from mbn.world.mazes.model import Maze, Tile, merge_cells
 
 
 def _mazes() -> dict[str, Maze]:

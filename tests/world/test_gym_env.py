@@ -26,7 +26,7 @@ from mbn.world.engine import (  # noqa: E402
 )
 from mbn.world.geometry import rect_segments, sonar_ranges, sonar_rays  # noqa: E402
 from mbn.world.gym_env import ENV_ID, PioneerMazeEnv, register  # noqa: E402
-from mbn.world.maze import Maze, Tile, merge_cells  # noqa: E402
+from mbn.world.mazes.model import Maze, Tile, merge_cells  # noqa: E402
 from mbn.world.robot import SONAR_POSES  # noqa: E402
 
 CELL = 1.2
@@ -208,7 +208,7 @@ def test_without_gymnasium_the_import_error_says_what_to_install(monkeypatch):
 
 def test_importing_mbn_does_not_import_gymnasium():
     code = (
-        "import sys, mbn, mbn.world, mbn.world.render, mbn.world.rollout;"
+        "import sys, mbn, mbn.world, mbn.viz.render, mbn.world.rollout;"
         " assert 'gymnasium' not in sys.modules, 'gymnasium imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -11,14 +11,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mbn.control import ctrnn_controller, initial_state
-from mbn.ctrnn import make_ctrnn
+from mbn.control.ctrnn import ctrnn_controller, initial_state
 from mbn.errors import MbnInputError
-from mbn.world.builtin import crossroad
+from mbn.networks.ctrnn import make_ctrnn
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.geometry import collides
 from mbn.world.junctions import junction_sequence
-from mbn.world.maze import Maze
+from mbn.world.mazes.builtin import crossroad
+from mbn.world.mazes.model import Maze
 from mbn.world.rollout import (
     EXIT_NAMES,
     RolloutConfig,
@@ -275,7 +275,7 @@ def test_no_step_ends_inside_a_wall(seed, scale):
 
 
 def test_episode_batch_is_every_controller_times_every_start():
-    from mbn.world.builtin import builtin_maze
+    from mbn.world.mazes.builtin import builtin_maze
     from mbn.world.rollout import episode_batch
 
     mazes = [crossroad("L"), builtin_maze("fig4")]

@@ -97,9 +97,9 @@ def test_kinematics_matches_stage_to_a_micrometre():
 
 def test_rollout_engine_sonar_matches_stage_at_fine_resolution(sonar_data):
     """The lattice engine the rollouts use, on the built-in arena, meets the same targets."""
-    from mbn.world.builtin import stage_arena
     from mbn.world.engine import cast, compile_mazes, maze_constants, window_words
     from mbn.world.geometry import sonar_rays
+    from mbn.world.mazes.builtin import stage_arena
 
     arena = stage_arena()
     np.testing.assert_array_equal(np.sort(arena.walls, 0), np.sort(STAGE_ARENA_WALLS, 0))

@@ -35,9 +35,9 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.world.builtin import CROSSROAD_KINDS, check_approaches, crossroad
 from mbn.world.engine import World, compile_mazes
-from mbn.world.maze import Maze
+from mbn.world.mazes.builtin import CROSSROAD_KINDS, check_approaches, crossroad
+from mbn.world.mazes.model import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
 from mbn.world.rollout import EpisodeStats, RolloutConfig, junction_arrays
 from mbn.world.sensors import SensorConfig
@@ -88,7 +88,7 @@ class CrossroadTask:
         tile: put a tile of this many colours in every crossroad's south arm (PM training).
         approaches: how the robot enters each crossroad's south arm: ``"south"`` (the paper's:
             it starts in the arm) and/or ``"west"``/``"east"`` (it starts in a corridor and
-            turns a corner into the arm, as in a maze; :func:`mbn.world.builtin.crossroad`).
+            turns a corner into the arm, as in a maze; :func:`mbn.world.mazes.builtin.crossroad`).
             Every approach gets the seven kinds.
     """
 

@@ -19,18 +19,18 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from mbn.control import (
+from mbn.control.ctrnn import (
     NETWORK_SUBSTEPS,
     CTRNNState,
     ProgrammedState,
     ctrnn_controller,
     interpreter_controller,
 )
-from mbn.ctrnn import CTRNN, make_ctrnn
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, tell
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness
-from mbn.programmable import Connection, Interpreter
+from mbn.networks.ctrnn import CTRNN, make_ctrnn
+from mbn.networks.programmable import Connection, Interpreter
 from mbn.world.rollout import EpisodeStats, rollout
 
 __all__ = [

@@ -24,13 +24,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from mbn.control import MotorMap
-from mbn.ctrnn import CTRNN
+from mbn.control.ctrnn import MotorMap
+from mbn.controllers.codec import MBNControllerState as MBNState
+from mbn.controllers.codec import make_mbn_controller
 from mbn.errors import MbnInputError
-from mbn.experiments.controllers import MBNControllerState as MBNState
-from mbn.experiments.controllers import make_mbn_controller
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays
 from mbn.experiments.evolve import _tile_fitness
+from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, rollout
 
@@ -92,7 +92,7 @@ def mbn_controller(
     motor: MotorMap | None = None,
 ) -> Callable[[MBNState, Any], tuple[MBNState, tuple[Array, Array]]]:
     """The MBN as a controller whose program is the firing rates of the PM's first ``programs``
-    neurons (:func:`mbn.experiments.controllers.make_mbn_controller`)."""
+    neurons (:func:`mbn.controllers.codec.make_mbn_controller`)."""
     return make_mbn_controller(
         program_neurons=range(programs),
         dt=dt,
@@ -193,15 +193,15 @@ class MemoryReward:
     and on ``rest_kinds`` a PM from rest in a crossroad without tiles is scored by the better of
     the two rules (it must drive as some wall follower). The episodes without a tile (memory and
     rest) are also run from each of ``approaches`` other than ``"south"``: the crossroad entered
-    round a corner (:func:`mbn.world.builtin.crossroad`), where a program that is nearly but
+    round a corner (:func:`mbn.world.mazes.builtin.crossroad`), where a program that is nearly but
     not quite a wall follower's gives itself away. Before an episode the PM alone is
     integrated through its camera sequence (standing for tiles seen earlier). The reward keeps the
     paper's product: ``(R + Z) (L + Z)`` with R (L) the summed branch fitness of the right (left)
     episodes and Z = ``rest_weight`` x the rest episodes' sum, each clipped at 0.
 
     ``fidelity`` > 0 makes each episode's score its branch fitness minus ``fidelity`` x the mean
-    motor mismatch (:func:`mbn.control.shadowed`) between the MBN and the network whose rule the
-    episode rewards (RF or LF, riding along on the same sensor readings; rest episodes take the
+    motor mismatch (:func:`mbn.control.ctrnn.shadowed`) between the MBN and the network whose rule
+    the episode rewards (RF or LF, riding along on the same sensor readings; rest episodes take the
     better of the two). The branch fitness alone cannot tell a program from a slightly shifted one
     that happens to score higher on the crossroads and stalls elsewhere; the mismatch is least for
     the program itself (``docs/experiments.md``). It needs the reference networks
@@ -219,7 +219,7 @@ class MemoryReward:
     fidelity: float = 0.0
 
     def __post_init__(self) -> None:
-        from mbn.world.builtin import check_approaches
+        from mbn.world.mazes.builtin import check_approaches
 
         check_approaches(self.approaches)
         if not self.fidelity >= 0:
@@ -249,7 +249,7 @@ class MemoryReward:
     def episodes(self) -> list[tuple[str, int | None, str, int, str]]:
         """``(crossroad kind, tile, sequence, label, approach)`` with label 0 right, 1 left,
         2 rest."""
-        from mbn.world.builtin import CROSSROAD_KINDS
+        from mbn.world.mazes.builtin import CROSSROAD_KINDS
 
         out: list[tuple[str, int | None, str, int, str]] = []
         for a in self.approaches:
@@ -279,7 +279,7 @@ def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 
     """Program-module states after each camera input sequence, from rest: ``(P, S, n)`` for a
     batch of ``P`` networks and ``S`` sequences (``inputs[s]``: ``(steps, 2)``, one row per robot
     step of ``dt`` seconds, integrated in ``substeps`` Euler steps as the MBN controller does)."""
-    from mbn.ctrnn import euler_step
+    from mbn.networks.ctrnn import euler_step
 
     p, n = pm.W.shape[0], pm.W.shape[-1]
     dtype = pm.W.dtype
@@ -316,15 +316,15 @@ def pm_memory_fitness(
     episode: the mark and jittered ones, seeded by ``seed``). ``references``: the right- and the
     left-follower the interpreter's programs stand for (needed when ``reward.fidelity`` > 0; they
     run with ``im_substeps`` too)."""
-    from mbn.control import CTRNNState, ShadowedState, shadowed
+    from mbn.control.ctrnn import CTRNNState, ShadowedState, shadowed
     from mbn.experiments.crossroads import (
         _ARM_VECTORS,
         episode_fitness,
         jittered_starts,
         rule_arm,
     )
-    from mbn.world.builtin import crossroad
     from mbn.world.engine import compile_mazes
+    from mbn.world.mazes.builtin import crossroad
     from mbn.world.rollout import RolloutConfig, junction_arrays
 
     reward = reward or MemoryReward()

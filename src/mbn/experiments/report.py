@@ -106,8 +106,8 @@ def _short(conn: str) -> str:
 
 def _trajectories(repro: Any, stages: dict[str, Any], out: Path) -> list[tuple[str, str]]:
     from mbn.experiments.reproduce import TESTED
-    from mbn.world.mazefile import load_maze
-    from mbn.world.render import plot_episodes
+    from mbn.viz.render import plot_episodes
+    from mbn.world.mazes.load import load_maze
 
     trajs = repro.test_trajectories()
     maze = load_maze(repro.settings.test_maze)
@@ -139,9 +139,9 @@ def _trajectories(repro: Any, stages: dict[str, Any], out: Path) -> list[tuple[s
 
 def _mbn_recording(repro: Any) -> tuple[Any, Any, Any, int]:
     """The MBN from the test maze's start marks, recorded every step with its state."""
-    from mbn.experiments.controllers import make_controller, read_controller_spec
+    from mbn.controllers.codec import make_controller, read_controller_spec
     from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups
-    from mbn.world.mazefile import load_maze
+    from mbn.world.mazes.load import load_maze
 
     spec = read_controller_spec(repro.out / "controllers" / "mbn.json")
     loaded = make_controller(spec, None, where="mbn.json")
@@ -167,7 +167,7 @@ def _mbn_recording(repro: Any) -> tuple[Any, Any, Any, int]:
 
 
 def _mbn_traces(spec: Any, traj: Any, b: int, path: Path) -> None:
-    from mbn.ctrnn import firing_rate
+    from mbn.networks.ctrnn import firing_rate
 
     state = traj.controller
     pick = lambda tree: jax.tree.map(lambda a: np.asarray(a[b]), tree)  # noqa: E731
@@ -215,7 +215,7 @@ def _mbn_traces(spec: Any, traj: Any, b: int, path: Path) -> None:
 
 
 def _mbn_gif(spec: Any, maze: Any, traj: Any, b: int, path: Path) -> None:
-    from mbn.world.render import animate_episode
+    from mbn.viz.render import animate_episode
 
     animate_episode(
         maze,
@@ -482,7 +482,7 @@ def _html(secs: list[_Section], out: Path) -> str:
 def write_report(repro: Any, results: dict[str, Any]) -> None:
     """Figures, ``report.md`` and ``report.html`` of a finished run."""
     from mbn.experiments.reproduce import STAGES
-    from mbn.plots import plot_multiplier_error
+    from mbn.viz.multiplier import plot_multiplier_error
 
     out = repro.out
     stages = {name: repro.stage(name) for name in STAGES}

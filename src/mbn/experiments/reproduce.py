@@ -450,7 +450,7 @@ class Reproduction:
         return results
 
     def _multiplier(self) -> dict[str, Any]:
-        from mbn.multiplier import (
+        from mbn.networks.multiplier import (
             evaluate,
             load_default,
             recipe,
@@ -485,7 +485,7 @@ class Reproduction:
         }
 
     def _multiplier_model(self) -> Any:
-        from mbn.multiplier import load_multiplier
+        from mbn.networks.multiplier import load_multiplier
 
         return load_multiplier(self.out / "controllers" / "multiplier.json")
 
@@ -536,7 +536,7 @@ class Reproduction:
         }
 
     def _save_ctrnn(self, name: str, net: Any, behavior: str, metadata: dict[str, Any]) -> None:
-        from mbn.experiments.controllers import CTRNNControllerSpec, save_controller
+        from mbn.controllers.codec import CTRNNControllerSpec, save_controller
 
         save_controller(
             self.out / "controllers" / f"{name}.json",
@@ -633,7 +633,7 @@ class Reproduction:
 
     def _net(self, name: str) -> Any:
         """The CTRNN of ``controllers/NAME.json`` (``rf`` or ``lf``)."""
-        from mbn.experiments.controllers import read_controller_spec
+        from mbn.controllers.codec import read_controller_spec
 
         return read_controller_spec(self.out / "controllers" / f"{name}.json").net  # type: ignore[union-attr]
 
@@ -645,7 +645,7 @@ class Reproduction:
 
     def _lf_search(self) -> dict[str, Any]:
         from mbn.experiments.evolve import connection_search_fitness, robust_fitness
-        from mbn.programmable import Connection
+        from mbn.networks.programmable import Connection
 
         s = self.settings
         rf = self._rf_net()
@@ -699,7 +699,7 @@ class Reproduction:
 
     def _lf(self) -> dict[str, Any]:
         from mbn.experiments.evolve import Genome
-        from mbn.programmable import Connection
+        from mbn.networks.programmable import Connection
 
         s = self.settings
         search = self.stage("lf_search")
@@ -722,11 +722,11 @@ class Reproduction:
         return data
 
     def _im(self) -> dict[str, Any]:
-        from mbn.experiments.controllers import (
+        from mbn.controllers.codec import (
             InterpreterControllerSpec,
             save_controller,
         )
-        from mbn.programmable import build_interpreter, differing_connections
+        from mbn.networks.programmable import build_interpreter, differing_connections
 
         rf, lf = self._rf_net(), self._lf_net()
         programmable = differing_connections(rf, lf, margin=0.0)
@@ -754,12 +754,12 @@ class Reproduction:
         }
 
     def _im_spec(self) -> Any:
-        from mbn.experiments.controllers import read_controller_spec
+        from mbn.controllers.codec import read_controller_spec
 
         return read_controller_spec(self.out / "controllers" / "im.json")
 
     def _pm(self) -> dict[str, Any]:
-        from mbn.experiments.controllers import MBNControllerSpec, save_controller
+        from mbn.controllers.codec import MBNControllerSpec, save_controller
         from mbn.experiments.evolve import robust_fitness
         from mbn.experiments.program_module import (
             MemoryReward,
@@ -827,14 +827,14 @@ class Reproduction:
     # -- tests --------------------------------------------------------------------------------
 
     def _tests(self) -> dict[str, Any]:
-        from mbn.experiments.controllers import (
+        from mbn.controllers.codec import (
             CTRNNControllerSpec,
             make_controller,
             read_controller_spec,
         )
         from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups, summary
         from mbn.paper import published_lf, published_rf
-        from mbn.world.mazefile import load_maze
+        from mbn.world.mazes.load import load_maze
 
         s = self.settings
         mazes = [load_maze(s.test_maze), load_maze(s.heldout_maze)]
@@ -1001,7 +1001,7 @@ def _tau(net: Any) -> float:
 
 def _paper_name(conn: str) -> str:
     """``W[1,2]`` (0-based) -> ``W_23`` (the paper's 1-based notation)."""
-    from mbn.programmable import Connection
+    from mbn.networks.programmable import Connection
 
     c = Connection.parse(conn)
     return f"{c.kind}_{c.i + 1}{c.j + 1}"

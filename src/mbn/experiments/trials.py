@@ -28,7 +28,7 @@ from jax import Array
 
 from mbn.errors import MbnInputError
 from mbn.world.engine import CameraConfig, compile_mazes
-from mbn.world.maze import Maze
+from mbn.world.mazes.model import Maze
 from mbn.world.rollout import EpisodeStats, RolloutConfig, RolloutResult, junction_arrays, rollout
 from mbn.world.sensors import SensorConfig
 

@@ -28,7 +28,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.world.maze import Maze
+from mbn.world.mazes.model import Maze
 from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
 
 __all__ = [

@@ -31,7 +31,7 @@ body-wall collision and blob-finding camera (:mod:`mbn.world.engine`) under one 
   ``reset(options={"start": ...})`` picks another start (index or pose) for that episode.
 * **Rendering**: ``render_mode="rgb_array"`` returns an ``(H, W, 3)`` uint8 frame of the maze with
   the robot, its trail since the reset, its sonar rays and the camera's field of view
-  (:class:`mbn.world.render.EpisodeView`).
+  (:class:`mbn.viz.render.EpisodeView`).
 
 Gymnasium is an optional dependency (``pip install 'mbn[gym]'``); importing :mod:`mbn` or
 :mod:`mbn.world` does not import it. ``gymnasium.make("mbn/PioneerMaze-v0")`` needs this module
@@ -73,7 +73,7 @@ from mbn.world.engine import (
     window_words,
 )
 from mbn.world.geometry import sonar_rays
-from mbn.world.maze import Maze
+from mbn.world.mazes.model import Maze
 from mbn.world.robot import (
     MAX_ANGULAR_SPEED,
     MAX_LINEAR_SPEED,
@@ -164,7 +164,7 @@ def _load(maze: Maze | str) -> Maze:
     if isinstance(maze, Maze):
         return maze
     if isinstance(maze, str):
-        from mbn.world.mazefile import load_maze
+        from mbn.world.mazes.load import load_maze
 
         return load_maze(maze)
     raise MbnInputError(f"maze must be a Maze or a maze spec (str), got {type(maze).__name__}")
@@ -175,8 +175,8 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     reward).
 
     Args:
-        maze: a :class:`~mbn.world.maze.Maze`, or a spec for
-            :func:`mbn.world.mazefile.load_maze` (a built-in name or a file).
+        maze: a :class:`~mbn.world.mazes.model.Maze`, or a spec for
+            :func:`mbn.world.mazes.load.load_maze` (a built-in name or a file).
         start: index into ``maze.starts``, or a pose ``(x, y, theta)`` (radians).
         dt: the step (seconds).
         max_steps: steps before the episode is truncated.
@@ -395,7 +395,7 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if self.render_mode != "rgb_array":
             return None
         if self._view is None:
-            from mbn.world.render import EpisodeView
+            from mbn.viz.render import EpisodeView
 
             self._view = EpisodeView(
                 self.maze,

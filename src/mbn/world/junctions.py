@@ -34,7 +34,7 @@ from typing import Literal
 import numpy as np
 
 from mbn.errors import MbnInputError
-from mbn.world.maze import Maze
+from mbn.world.mazes.model import Maze
 
 __all__ = [
     "EXITS",

@@ -1,0 +1,282 @@
+"""The experiment commands of ``mbn``: ``evaluate`` (the paper's test protocol on a controller)
+and ``reproduce`` (the whole experiment and its report)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mbn.cli.args import positive_float, positive_int, seed
+from mbn.errors import MbnInputError
+
+__all__ = ["EXPERIMENT_COMMANDS", "EXPERIMENT_EPILOG", "add_experiment_commands"]
+
+EXPERIMENT_EPILOG = """\
+  mbn reproduce --out runs/full                the paper's whole experiment and its report
+  mbn reproduce --quick --out runs/quick       a smoke run of every stage (under 2 minutes)
+  mbn evaluate --controller rf.json --maze fig4 --behavior right --repeats 3 --json
+"""
+
+_EVALUATE_EPILOG = """\
+controller: a controller file (docs/controllers.md): kind mbn.controller.ctrnn, \
+mbn.controller.interpreter or mbn.controller.mbn
+maze: a built-in name (see `mbn mazes`) or a .maze, .toml or Player/Stage .world file with start
+marks (and tiles for --behavior tiles)
+
+examples:
+  mbn evaluate --controller rf.json --maze fig4 --behavior right
+  mbn evaluate --controller im.json --maze fig4 --behavior left --repeats 5 --json
+  mbn evaluate --controller mbn.json --maze fig4 --behavior tiles --initial right --json
+
+--json prints one object: {"trials", "successes", "success_rate", "junctions",
+"correct_junctions", "mean_stall_fraction"}
+"""
+
+
+def add_experiment_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add the experiment commands to the ``mbn`` sub-parsers (``parser_class`` is the class
+    the sub-parsers use; kept for symmetry with :func:`mbn.cli.world.add_world_commands`)."""
+    from mbn.experiments.trials import BEHAVIORS
+
+    ev = sub.add_parser(
+        "evaluate",
+        help="test a controller file in a maze (the paper's protocol)",
+        description="Run a controller from every start mark of a maze, --repeats times each (the "
+        "first from the mark exactly, the others jittered: lateral +-0.15 m, along the corridor "
+        "+-0.3 m, heading +-10 degrees). A trial succeeds when the robot's first --junctions "
+        "junction passes each take the exit of the rule in force (right, left, or for 'tiles' "
+        "the rule of the last tile driven over: one colour right, two colours left) within "
+        "--seconds, stalled in at most 2 % of its steps. Prints one line per start mark and a "
+        "total, or with --json one object.",
+        epilog=_EVALUATE_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ev.add_argument("--controller", type=Path, required=True, help="controller JSON file")
+    ev.add_argument("--maze", required=True, help="built-in name or maze file")
+    ev.add_argument(
+        "--behavior",
+        choices=BEHAVIORS,
+        required=True,
+        help="the rule a trial is judged by; 'tiles' needs an mbn controller and a maze with tiles",
+    )
+    ev.add_argument(
+        "--initial",
+        choices=("right", "left", "none"),
+        default="right",
+        help="rule before the first tile, for --behavior tiles (default right); none: judge "
+        "only the junctions after the first tile",
+    )
+    ev.add_argument(
+        "--program",
+        choices=("right", "left"),
+        default=None,
+        help="program of an interpreter file (default: the one named by --behavior); for an mbn "
+        "file, run its interpreter alone with this stored program",
+    )
+    ev.add_argument(
+        "--repeats",
+        type=positive_int,
+        default=1,
+        help="trials per start mark (default 1)",
+    )
+    ev.add_argument(
+        "--junctions",
+        type=positive_int,
+        default=3,
+        help="consecutive junctions judged (default 3, the paper's)",
+    )
+    ev.add_argument(
+        "--seconds",
+        type=positive_float,
+        default=60.0,
+        help="time limit of a trial in seconds (default 60)",
+    )
+    ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
+    ev.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_reproduce(sub)
+
+
+_REPRODUCE_EPILOG = """\
+stages: multiplier, rf, lf_search, lf, im, pm, tests, then results.json and the report.
+Every DE generation is checkpointed in DIR/checkpoints: after an interruption (Ctrl-C, kill -9,
+a power cut) `mbn reproduce --out DIR --resume` continues where the run stopped and ends with the
+same results.json as an uninterrupted run.
+
+outputs in DIR: results.json, report.md, report.html (self-contained), controllers/ (rf.json,
+lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figures/,
+timings.json, stages/, checkpoints/, run.json
+
+examples:
+  mbn reproduce                                full run into runs/reproduce (about 12 minutes)
+  mbn reproduce --quick --out /tmp/q           smoke run
+  mbn reproduce --out runs/s2 --seed 2         another seed
+  mbn reproduce --out runs/s2 --seed 2 --resume    continue it after an interruption
+"""
+
+
+def _add_reproduce(sub: Any) -> None:
+    rep = sub.add_parser(
+        "reproduce",
+        help="the paper's whole experiment: evolve, build, test, report",
+        description="Reproduce Montone, Donnarumma & Prevete (2011) end to end: the multiplier, "
+        "the right- and left-follower evolved by DE on the crossroads, the interpreter built "
+        "from them, the program module evolved with it, the paper's tests (plus jittered starts, "
+        "a held-out maze and the published weights), and a report with a claims table.",
+        epilog=_REPRODUCE_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    rep.add_argument(
+        "--out",
+        type=Path,
+        default=Path("runs/reproduce"),
+        help="output folder (default runs/reproduce); refused if it holds another run, unless "
+        "--resume or --force",
+    )
+    rep.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
+    rep.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke run: every stage and output with tiny budgets (not the paper's figures)",
+    )
+    rep.add_argument(
+        "--retrain",
+        action="store_true",
+        help="train the multiplier again instead of using the shipped one (adds minutes)",
+    )
+    rep.add_argument(
+        "--resume", action="store_true", help="continue the run in --out where it stopped"
+    )
+    rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
+    rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    import sys
+
+    from mbn.experiments.reproduce import ReproduceSettings, Reproduction
+
+    make = ReproduceSettings.quick_run if args.quick else ReproduceSettings.full
+    run = Reproduction(
+        out=args.out,
+        seed=args.seed,
+        settings=make(retrain_multiplier=args.retrain),
+        progress=not args.quiet and sys.stderr.isatty(),
+        log=(lambda _m: None) if args.quiet else print,
+    )
+    run.prepare(resume=args.resume, force=args.force)
+    results = run.run()
+    if not args.quiet:
+        held = sum(c["pass"] for c in results["claims"])
+        print(f"{held} of {len(results['claims'])} claims hold; report: {args.out / 'report.html'}")
+    return 0
+
+
+def _program_for(args: argparse.Namespace, kind: str) -> str | None:
+    """The program to run for this kind of file and these flags (or a one-line error)."""
+    from mbn.controllers.codec import KIND_CTRNN, KIND_INTERPRETER
+
+    path = args.controller
+    if kind == KIND_CTRNN:
+        if args.behavior == "tiles":
+            raise MbnInputError(
+                f"--behavior tiles needs an mbn controller (program module + interpreter); "
+                f"{path} is a plain CTRNN controller ({kind})"
+            )
+        if args.program is not None:
+            raise MbnInputError(
+                f"--program is for interpreter and mbn controllers; {path} is a plain CTRNN "
+                f"controller ({kind})"
+            )
+        return None
+    if kind == KIND_INTERPRETER:
+        if args.behavior == "tiles":
+            raise MbnInputError(
+                f"--behavior tiles needs an mbn controller (program module + interpreter); "
+                f"{path} is an interpreter controller ({kind}): use --behavior right or left"
+            )
+        return str(args.program or args.behavior)
+    if args.program is not None and args.behavior == "tiles":
+        raise MbnInputError(
+            "--program fixes the interpreter's program; --behavior tiles needs the program "
+            "module to choose it (drop --program)"
+        )
+    program: str | None = args.program
+    return program
+
+
+_HEADINGS = ("E", "NE", "N", "NW", "W", "SW", "S", "SE")
+
+
+def _heading(theta: float) -> str:
+    return _HEADINGS[round(theta / (math.pi / 4)) % 8]
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from mbn.controllers.codec import make_controller, read_controller_spec
+    from mbn.experiments.trials import TrialSpec, run_trials, summary
+    from mbn.world.mazes.load import load_maze
+
+    spec = TrialSpec(
+        behavior=args.behavior,
+        initial=args.initial,
+        repeats=args.repeats,
+        junctions=args.junctions,
+        seconds=args.seconds,
+        seed=args.seed,
+    )
+    maze = load_maze(args.maze)
+    spec.check_maze(maze)
+    controller_spec = read_controller_spec(args.controller)
+    loaded = make_controller(
+        controller_spec,
+        _program_for(args, controller_spec.kind),
+        where=str(args.controller),
+    )
+    verdict, _, _ = run_trials(
+        maze,
+        spec,
+        loaded.controller,
+        loaded.initial_state,
+        dt=loaded.dt,
+        sensors=loaded.sensors,
+        camera=loaded.camera,
+    )
+    result = summary(verdict)
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    what = loaded.kind + (f", program {loaded.program}" if loaded.program else "")
+    print(
+        f"{args.controller} ({what}) in maze {maze.name!r}: behavior {args.behavior}"
+        + (f" (initial {args.initial})" if args.behavior == "tiles" else "")
+        + f", {len(maze.starts)} start marks x {args.repeats}, {args.junctions} junctions, "
+        f"{args.seconds:g} s"
+    )
+    success = np.asarray(verdict["success"]).reshape(len(maze.starts), args.repeats)
+    correct = np.asarray(verdict["correct"]).reshape(len(maze.starts), args.repeats)
+    judged = np.asarray(verdict["judged"]).reshape(len(maze.starts), args.repeats)
+    width = len(str(len(maze.starts)))
+    for m, (x, y, theta) in enumerate(np.asarray(maze.starts)):
+        print(
+            f"  start {m + 1:>{width}} at ({x:.2f}, {y:.2f}) facing {_heading(float(theta))}: "
+            f"{int(success[m].sum())}/{args.repeats} successes, "
+            f"{int(correct[m].sum())}/{int(judged[m].sum())} correct junctions"
+        )
+    print(
+        f"  total: {result['successes']}/{result['trials']} successes "
+        f"({result['success_rate']:.1%}), {result['correct_junctions']}/{result['junctions']} "
+        f"correct junctions, mean stall fraction {result['mean_stall_fraction']:.4f}"
+    )
+    return 0
+
+
+EXPERIMENT_COMMANDS: dict[tuple[str, str], Callable[[argparse.Namespace], int]] = {
+    ("evaluate", ""): _cmd_evaluate,
+    ("reproduce", ""): _cmd_reproduce,
+}

@@ -1,0 +1,214 @@
+"""The robot-world commands of ``mbn``: ``mazes``, ``show-maze``, ``sonar`` and ``drive``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mbn.cli.args import numbers, positive_float
+from mbn.errors import MbnInputError
+
+__all__ = ["WORLD_COMMANDS", "add_world_commands"]
+
+WORLD_EPILOG = """\
+  mbn mazes                                   the built-in mazes
+  mbn show-maze fig4 --out fig4.png           draw a maze: walls, tiles, junctions, starts
+  mbn sonar --maze stage_arena --poses poses.csv --out ranges.csv
+  mbn drive --start 0,0,0 --cmd 0.3,0.5 --seconds 5 --out drive.csv
+"""
+
+
+def _triple(text: str) -> tuple[float, float, float]:
+    return numbers(text, 3)  # type: ignore[return-value]
+
+
+def _pair(text: str) -> tuple[float, float]:
+    return numbers(text, 2)  # type: ignore[return-value]
+
+
+def add_world_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add the world commands to the ``mbn`` sub-parsers."""
+    raw = argparse.RawDescriptionHelpFormatter
+    mazes = sub.add_parser(
+        "mazes",
+        help="list the built-in mazes",
+        description="List the built-in mazes (names usable wherever a maze is asked for).",
+        formatter_class=raw,
+    )
+    mazes.add_argument("--json", action="store_true", help="print one JSON object")
+
+    show = sub.add_parser(
+        "show-maze",
+        help="draw a maze as a PNG",
+        description="Draw a maze: walls, tiles (one- and two-colour), decision cells of grid "
+        "mazes, and start poses.",
+        epilog="maze: a built-in name (see `mbn mazes`) or a .maze, .toml or Player/Stage .world "
+        "file\nexample:\n  mbn show-maze fig4 --out fig4.png",
+        formatter_class=raw,
+    )
+    show.add_argument("maze", help="built-in name or maze file")
+    show.add_argument("--out", type=Path, required=True, help="output PNG")
+
+    sonar = sub.add_parser(
+        "sonar",
+        help="sonar readings at given poses",
+        description="Read the 16 sonars of the Pioneer 3DX at each pose of a CSV (columns "
+        "x,y,theta: metres, radians) and write x,y,theta,s00..s15 (metres, Stage's transducer "
+        "order; a miss reads 5.0).",
+        epilog="example:\n  mbn sonar --maze stage_arena --poses poses.csv --out ranges.csv",
+        formatter_class=raw,
+    )
+    sonar.add_argument("--maze", required=True, help="built-in name or maze file")
+    sonar.add_argument("--poses", type=Path, required=True, help="input CSV: x,y,theta")
+    sonar.add_argument("--out", type=Path, required=True, help="output CSV")
+
+    drive = sub.add_parser(
+        "drive",
+        help="drive with a constant command",
+        description="Drive the robot with a constant command (v m/s, w rad/s) and write the "
+        "pose after every step: step,t,x,y,theta,v,w,stall (v, w as applied after the P3DX "
+        "limits; a colliding move is undone and marked stall = 1). Without --maze the world is "
+        "empty.",
+        epilog="example:\n  mbn drive --start 0,0,0 --cmd 0.3,0.5 --dt 0.1 --seconds 5 "
+        "--out drive.csv",
+        formatter_class=raw,
+    )
+    drive.add_argument("--start", type=_triple, required=True, metavar="X,Y,THETA")
+    drive.add_argument("--cmd", type=_pair, required=True, metavar="V,W")
+    drive.add_argument("--dt", type=positive_float, default=0.1, help="step (s, default 0.1)")
+    drive.add_argument("--seconds", type=positive_float, required=True, help="duration (s)")
+    drive.add_argument("--out", type=Path, required=True, help="output CSV")
+    drive.add_argument("--maze", default=None, help="built-in name or maze file (default none)")
+
+
+def _cmd_mazes(args: argparse.Namespace) -> int:
+    from mbn.world.mazes.builtin import describe_builtins
+
+    items = describe_builtins()
+    if args.json:
+        print(json.dumps({name: text for name, text in items}))
+        return 0
+    width = max(len(name) for name, _ in items)
+    for name, text in items:
+        print(f"{name:<{width}}  {text}")
+    return 0
+
+
+def _cmd_show_maze(args: argparse.Namespace) -> int:
+    from mbn.viz.render import save_maze_png
+    from mbn.world.mazes.load import load_maze
+
+    maze = load_maze(args.maze)
+    save_maze_png(maze, args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_sonar(args: argparse.Namespace) -> int:
+    import jax
+    import jax.numpy as jnp
+
+    from mbn.io import read_csv_columns, write_csv_atomic
+    from mbn.world.engine import cast, compile_mazes, maze_constants, window_words
+    from mbn.world.geometry import sonar_rays
+    from mbn.world.mazes.load import load_maze
+
+    maze = load_maze(args.maze)
+    cols = read_csv_columns(args.poses, ["x", "y", "theta"])
+    poses = np.stack([cols["x"], cols["y"], cols["theta"]], -1)
+    if len(poses) == 0:
+        raise MbnInputError(f"{args.poses}: no poses")
+    origins, _ = sonar_rays(poses)
+    for row, sensor_origins in enumerate(np.asarray(origins)):
+        if not all(maze.is_free(float(x), float(y)) for x, y in sensor_origins):
+            raise MbnInputError(
+                f"{args.poses}:{row + 2}: pose {tuple(float(v) for v in poses[row])} puts a sonar "
+                f"inside a wall of {maze.name!r}"
+            )
+    world = compile_mazes([maze])
+
+    @jax.jit
+    def read(p: jax.Array) -> jax.Array:
+        mc = maze_constants(world, jnp.zeros(p.shape[0], jnp.int32))
+        words, ci, cj = window_words(world, mc, p[:, 0], p[:, 1])
+        o, a = sonar_rays(p)
+        return cast(world, mc, words, ci, cj, o[..., 0], o[..., 1], a)
+
+    ranges = np.asarray(read(jnp.asarray(poses, jnp.float64)))
+    header = ["x", "y", "theta"] + [f"s{i:02d}" for i in range(16)]
+    write_csv_atomic(args.out, header, np.concatenate([poses, ranges], -1))
+    print(f"wrote {len(poses)} rows to {args.out}")
+    return 0
+
+
+def _cmd_drive(args: argparse.Namespace) -> int:
+    import jax
+    import jax.numpy as jnp
+
+    from mbn.io import atomic_open
+    from mbn.world.engine import compile_mazes
+    from mbn.world.geometry import collides
+    from mbn.world.mazes.load import load_maze
+    from mbn.world.mazes.model import Maze
+    from mbn.world.rollout import RolloutConfig, rollout
+
+    steps = round(args.seconds / args.dt)
+    if steps < 1 or abs(steps * args.dt - args.seconds) > 1e-9 * max(1.0, args.seconds):
+        raise MbnInputError(
+            f"--seconds {args.seconds} is not a whole number of --dt {args.dt} steps"
+        )
+    if steps > 1_000_000:
+        raise MbnInputError(f"{steps} steps is too many (at most 1000000)")
+    start = np.array(args.start, dtype=np.float64)
+    if args.maze is None:
+        x, y = start[0], start[1]
+        far = 10.0 + args.seconds * 0.5 * 2
+        maze = Maze(
+            "empty",
+            walls=np.array([[x + far, x + far + 1.0, y + far, y + far + 1.0]]),
+            bounds=(x - far, x + far + 1.0, y - far, y + far + 1.0),
+            outside_is_wall=False,
+        )
+    else:
+        maze = load_maze(args.maze)
+        if bool(np.asarray(collides(jnp.asarray(start[None]), maze.solid_rects()))[0]):
+            raise MbnInputError(f"--start {args.start}: the robot's body overlaps a wall")
+    world = compile_mazes([maze])
+    v_cmd, w_cmd = args.cmd
+
+    def constant(state: Any, obs: Any) -> tuple[Any, tuple[Any, Any]]:
+        return state, (jnp.asarray(v_cmd), jnp.asarray(w_cmd))
+
+    config = RolloutConfig(steps=steps + 1, dt=args.dt, record_every=1)
+    out = jax.jit(
+        lambda p: rollout(world, constant, jnp.zeros(1), p, jnp.zeros(1, jnp.int32), config)
+    )(jnp.asarray(start[None]))
+    tr = out.trajectory
+    assert tr is not None
+    pose = np.asarray(tr.pose[0])  # sample k: the pose after k moves
+    stalled = np.asarray(tr.stalled[0]).astype(int)
+    v = np.concatenate([[0.0], np.asarray(tr.v[0])[:-1]])  # the move that led to sample k
+    w = np.concatenate([[0.0], np.asarray(tr.w[0])[:-1]])
+    with atomic_open(args.out) as handle:
+        handle.write("step,t,x,y,theta,v,w,stall\n")
+        for k in range(steps + 1):
+            x, y, th = (repr(float(c)) for c in pose[k])
+            handle.write(
+                f"{k},{k * args.dt!r},{x},{y},{th},{float(v[k])!r},{float(w[k])!r},"
+                f"{int(stalled[k])}\n"
+            )
+    print(f"wrote {steps + 1} rows to {args.out} ({int(stalled.sum())} stalled moves)")
+    return 0
+
+
+WORLD_COMMANDS: dict[tuple[str, str], Callable[[argparse.Namespace], int]] = {
+    ("mazes", ""): _cmd_mazes,
+    ("show-maze", ""): _cmd_show_maze,
+    ("sonar", ""): _cmd_sonar,
+    ("drive", ""): _cmd_drive,
+}

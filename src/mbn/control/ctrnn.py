@@ -1,0 +1,186 @@
+"""Robot controllers built from CTRNNs, in the form the rollout expects.
+
+A controller is a pure function ``(state, observation) -> (state, (v, w))`` for one robot. For a
+CTRNN the state holds the network's parameters and its potentials, so a batch of genomes is a
+batch of states. The paper's motor mapping (section 3.1): the third neuron sets the linear speed
+and the second the angular speed; ``mbn`` uses ``v = v_max * sigma(y3)`` and
+``w = w_max * (2 sigma(y2) - 1)`` (positive turns left), with v_max = 0.5 m/s (the P3DX limit) and
+w_max = 1 rad/s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import jax.numpy as jnp
+from jax import Array
+
+from mbn.errors import MbnInputError
+from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate, rk4_step
+
+__all__ = [
+    "NETWORK_SUBSTEPS",
+    "CTRNNState",
+    "MotorMap",
+    "ProgrammedState",
+    "ShadowedState",
+    "ctrnn_controller",
+    "interpreter_controller",
+    "shadowed",
+    "substeps_for",
+]
+
+#: Network steps per 0.1 s robot step for every network of the experiment: h = 5 ms, so
+#: h / tau = 0.01 for the followers (tau = 0.5 s) and h / tau_m = 0.1 for the multipliers at
+#: tau / 10 (the step they were trained with). The followers run at the step of the interpreter
+#: that emulates them, so that the interpreter with exact products retraces them step for step:
+#: an evolved network can depend on its integration step (docs/reproduce.md), and one step for
+#: all leaves the multipliers' errors as the only difference between a network and its
+#: emulation.
+NETWORK_SUBSTEPS = 20
+
+
+@dataclass(frozen=True)
+class MotorMap:
+    """How neuron outputs become ``(v, w)``: 0-based neuron indices and scales."""
+
+    speed_neuron: int = 2
+    turn_neuron: int = 1
+    v_max: float = 0.5
+    w_max: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.speed_neuron < 0 or self.turn_neuron < 0:
+            raise MbnInputError("motor neurons must be indices >= 0")
+        if not (self.v_max > 0 and self.w_max > 0):
+            raise MbnInputError(f"v_max and w_max must be > 0, got {self.v_max}, {self.w_max}")
+
+
+class CTRNNState(NamedTuple):
+    """A CTRNN controller's state: the network (weights, tau, ...) and its potentials ``y``."""
+
+    net: CTRNN
+    y: Array
+
+
+def substeps_for(dt: float, tau: float, max_ratio: float = 0.05) -> int:
+    """Sub-steps per robot step ``dt`` that keep ``h / tau <= max_ratio``."""
+    if not (dt > 0 and tau > 0 and max_ratio > 0):
+        raise MbnInputError(f"need dt, tau, max_ratio > 0, got {dt}, {tau}, {max_ratio}")
+    return max(1, math.ceil(dt / (tau * max_ratio) - 1e-9))
+
+
+def ctrnn_controller(
+    *,
+    dt: float = 0.1,
+    substeps: int = 4,
+    motor: MotorMap | None = None,
+    method: str = "euler",
+    inputs: Callable[[Any], Array] | None = None,
+) -> Callable[[CTRNNState, Any], tuple[CTRNNState, tuple[Array, Array]]]:
+    """A controller that integrates a CTRNN for ``dt`` seconds in ``substeps`` steps with the
+    observation's inputs held, then reads the motor neurons.
+
+    Args:
+        dt: the robot step (seconds).
+        substeps: network steps per robot step (see :func:`substeps_for`).
+        motor: the motor mapping (default :class:`MotorMap`).
+        method: "euler" or "rk4".
+        inputs: observation -> network inputs; default the paper's I1..I3 (``obs.inputs``).
+    """
+    if substeps < 1:
+        raise MbnInputError(f"substeps must be >= 1, got {substeps}")
+    if method not in ("euler", "rk4"):
+        raise MbnInputError(f"method must be euler or rk4, got {method!r}")
+    motor = motor or MotorMap()
+    h = dt / substeps
+    stepper = euler_step if method == "euler" else rk4_step
+    read = inputs or (lambda obs: obs.inputs)
+
+    def control(state: CTRNNState, obs: Any) -> tuple[CTRNNState, tuple[Array, Array]]:
+        u = read(obs)
+        y = state.y
+        for _ in range(substeps):
+            y = stepper(state.net, y, u, h)
+        rate = firing_rate(state.net, y)
+        v = motor.v_max * rate[..., motor.speed_neuron]
+        w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)
+        return CTRNNState(state.net, y), (v, w)
+
+    return control
+
+
+class ProgrammedState(NamedTuple):
+    """An interpreter controller's state: the fixed-weight network, its potentials, and the
+    program fed to its program inputs (``(K,)`` in [0, 1])."""
+
+    net: CTRNN
+    y: Array
+    program: Array
+
+
+def interpreter_controller(
+    *,
+    dt: float = 0.1,
+    substeps: int = NETWORK_SUBSTEPS,
+    motor: MotorMap | None = None,
+    method: str = "euler",
+) -> Callable[[ProgrammedState, Any], tuple[ProgrammedState, tuple[Array, Array]]]:
+    """A controller for a programmable interpreter (:mod:`mbn.networks.programmable`): its
+    inputs are the paper's I1..I3 followed by the state's program; the motor neurons are the
+    original network's (the interpreter puts them first). The multipliers run at tau/10, so the
+    default 20 sub-steps
+    of 5 ms keep h/tau_m = 0.1 for tau = 0.5 s."""
+    inner = ctrnn_controller(dt=dt, substeps=substeps, motor=motor, method=method)
+
+    def control(state: ProgrammedState, obs: Any) -> tuple[ProgrammedState, tuple[Array, Array]]:
+        u = jnp.concatenate([obs.inputs, state.program.astype(obs.inputs.dtype)], axis=-1)
+        inner_state, vw = inner(CTRNNState(state.net, state.y), obs._replace(inputs=u))
+        return ProgrammedState(state.net, inner_state.y, state.program), vw
+
+    return control
+
+
+class ShadowedState(NamedTuple):
+    """A controller's state with reference networks riding along (:func:`shadowed`): the inner
+    controller's state, the references' (network ``(R, ...)`` and potentials ``(R, n)``), and the
+    motor mismatch with each reference summed over the steps so far (``(R,)``)."""
+
+    inner: Any
+    references: CTRNNState
+    mismatch: Array
+
+
+def shadowed(
+    controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]],
+    *,
+    dt: float = 0.1,
+    substeps: int = NETWORK_SUBSTEPS,
+    motor: MotorMap | None = None,
+) -> Callable[[ShadowedState, Any], tuple[ShadowedState, tuple[Array, Array]]]:
+    """``controller`` drives the robot while reference CTRNNs read the same observations (their
+    I1..I3) without driving; each step adds, for each reference, how far apart the two motor
+    commands are: ``|v - v_ref| / v_max + |w - w_ref| / (2 w_max)`` (0 when they agree, at most 2).
+    Divided by the number of steps, the sum is the mean motor mismatch: how closely the controller
+    behaves as each reference would in its place."""
+    motor = motor or MotorMap()
+    reference = ctrnn_controller(dt=dt, substeps=substeps, motor=motor)
+
+    def control(state: ShadowedState, obs: Any) -> tuple[ShadowedState, tuple[Array, Array]]:
+        inner, (v, w) = controller(state.inner, obs)
+        refs, (vr, wr) = reference(state.references, obs)
+        d = jnp.abs(v - vr) / motor.v_max + jnp.abs(w - wr) / (2.0 * motor.w_max)
+        return ShadowedState(inner, refs, state.mismatch + d), (v, w)
+
+    return control
+
+
+def initial_state(net: CTRNN) -> CTRNNState:
+    """Potentials at rest (0) for a network (batched or not)."""
+    return CTRNNState(net, jnp.zeros(net.tau.shape, net.tau.dtype))
+
+
+__all__ += ["initial_state"]

@@ -1,0 +1,89 @@
+"""Pictures (matplotlib, Agg backend). Every function writes one PNG file atomically."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mbn.io import atomic_open
+from mbn.networks.multiplier import Multiplier, dense_grid, multiply
+
+__all__ = ["plot_multiplier_error"]
+
+
+def _figure(*args: Any, **kwargs: Any) -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    return Figure(*args, **kwargs)
+
+
+def _save(fig: Any, path: str | Path) -> None:
+    with atomic_open(path, "wb") as handle:
+        fig.savefig(handle, format="png", dpi=120, bbox_inches="tight")
+
+
+def plot_multiplier_error(
+    mul: Multiplier,
+    path: str | Path,
+    *,
+    metrics: dict[str, Any] | None = None,
+    validation: np.ndarray | None = None,
+    grid_points: int = 101,
+) -> None:
+    """Heat maps of the absolute and relative error of ``mul`` over [0, 1]^2.
+
+    Left: ``|out - x1 x2|``; right: ``|out - x1 x2| / (x1 x2)`` on a log colour scale with the
+    5 % contour. Optional validation pairs are drawn as dots (white: within 5 %, red: not).
+    """
+    from matplotlib.colors import LogNorm
+
+    grid = np.asarray(dense_grid(grid_points))
+    out = np.asarray(multiply(mul, grid)).reshape(grid_points, grid_points)
+    x = grid[:, 0].reshape(grid_points, grid_points)
+    y = grid[:, 1].reshape(grid_points, grid_points)
+    target = x * y
+    abs_err = np.abs(out - target)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel_err = np.where(target > 0, abs_err / np.where(target > 0, target, 1), np.nan)
+
+    fig = _figure(figsize=(11, 4.6))
+    ax_abs, ax_rel = fig.subplots(1, 2, gridspec_kw={"wspace": 0.35})
+    extent = (0, 1, 0, 1)
+    im = ax_abs.imshow(abs_err.T, origin="lower", extent=extent, cmap="viridis")
+    fig.colorbar(im, ax=ax_abs, label="|output - x1·x2|")
+    ax_abs.set_title(f"absolute error (max {abs_err.max():.3f})")
+    im = ax_rel.imshow(
+        np.clip(rel_err.T, 1e-4, 10),
+        origin="lower",
+        extent=extent,
+        cmap="magma",
+        norm=LogNorm(1e-4, 10),
+    )
+    fig.colorbar(im, ax=ax_rel, label="|output - x1·x2| / (x1·x2)")
+    ax_rel.contour(
+        x, y, np.nan_to_num(rel_err, nan=10), levels=[0.05], colors="cyan", linewidths=1.2
+    )
+    ax_rel.set_title("relative error (cyan: 5 % contour)")
+    if validation is not None:
+        v_out = np.asarray(multiply(mul, validation))
+        v_t = validation[:, 0] * validation[:, 1]
+        ok = np.abs(v_out - v_t) <= 0.05 * v_t
+        for ax in (ax_abs, ax_rel):
+            ax.scatter(*validation[ok].T, s=9, c="white", edgecolors="black", linewidths=0.4)
+            ax.scatter(*validation[~ok].T, s=12, c="red", edgecolors="black", linewidths=0.4)
+    for ax in (ax_abs, ax_rel):
+        ax.set_xlabel("x1")
+        ax.set_ylabel("x2")
+    title = f"{mul.num_neurons}-neuron multiplier"
+    if metrics:
+        title += (
+            f": {metrics['fraction_within_5pct']:.0%} of validation pairs within 5 %, "
+            f"fixed point {'ok' if metrics['fixed_point']['passed'] else 'FAILED'}"
+        )
+    fig.suptitle(title)
+    _save(fig, path)

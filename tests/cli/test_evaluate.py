@@ -1,0 +1,183 @@
+"""``mbn evaluate``: the summary of a controller file's trials, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mbn.cli.main import main
+from mbn.controllers.codec import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    save_controller,
+)
+from mbn.networks.ctrnn import make_ctrnn
+from mbn.networks.multiplier import load_default, save_multiplier
+from mbn.networks.programmable import build_interpreter, differing_connections
+from mbn.paper import published_lf, published_rf
+
+KEYS = {
+    "trials",
+    "successes",
+    "success_rate",
+    "junctions",
+    "correct_junctions",
+    "mean_stall_fraction",
+}
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """A controller that drives straight ahead (speed neuron biased on, turn neuron neutral), an
+    interpreter file and an MBN file."""
+    folder = tmp_path_factory.mktemp("controllers")
+    straight = make_ctrnn(np.zeros((3, 3)), np.zeros((3, 3)), 0.5, bias=[0.0, 0.0, 3.0])
+    save_controller(folder / "straight.json", CTRNNControllerSpec(straight, behavior="right"))
+    rf, lf = published_rf(), published_lf()
+    interp = build_interpreter(rf, differing_connections(rf, lf), load_default())
+    programs = {
+        "right": np.asarray(interp.program_of(rf)).tolist(),
+        "left": np.asarray(interp.program_of(lf)).tolist(),
+    }
+    im = InterpreterControllerSpec(interp, programs)
+    save_controller(folder / "im.json", im)
+    pm = make_ctrnn(np.zeros((3, 3)), np.zeros((3, 2)), 0.5)
+    save_controller(folder / "mbn.json", MBNControllerSpec(im, pm, (0, 1, 2)))
+    save_multiplier(folder / "mul.json", load_default())
+    return folder
+
+
+def run(capsys, *args):
+    status = main(["evaluate", *map(str, args)])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def test_json_summary_of_a_ctrnn_controller(files, capsys):
+    status, out, err = run(
+        capsys,
+        "--controller",
+        files / "straight.json",
+        "--maze",
+        "fig4",
+        "--behavior",
+        "right",
+        "--seconds",
+        "10",
+        "--repeats",
+        "2",
+        "--json",
+    )
+    assert status == 0, err
+    result = json.loads(out)
+    assert set(result) == KEYS
+    assert result["trials"] == 10 * 2
+    assert 0.0 <= result["success_rate"] <= 1.0
+    assert result["success_rate"] == result["successes"] / result["trials"]
+    # driving straight, robots cross junctions (and take the wrong exit at some)
+    assert 0 < result["junctions"] <= 3 * result["trials"]
+    assert 0 <= result["correct_junctions"] <= result["junctions"]
+    assert 0.0 <= result["mean_stall_fraction"] <= 1.0
+
+
+def test_text_summary_of_an_mbn_on_tiles(files, capsys):
+    status, out, err = run(
+        capsys,
+        "--controller",
+        files / "mbn.json",
+        "--maze",
+        "fig4",
+        "--behavior",
+        "tiles",
+        "--initial",
+        "left",
+        "--seconds",
+        "2",
+    )
+    assert status == 0, err
+    lines = out.strip().splitlines()
+    assert "mbn.controller.mbn" in lines[0] and "behavior tiles (initial left)" in lines[0]
+    starts = [line for line in lines if line.strip().startswith("start")]
+    assert len(starts) == 10 and all("/1 successes" in line for line in starts)
+    assert lines[-1].strip().startswith("total: ") and "/10 successes" in lines[-1]
+
+
+def _one_line_error(status, out, err, message):
+    assert status == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert message in lines[0], err
+
+
+BASE = ("--maze", "fig4", "--behavior", "right", "--seconds", "1")
+
+
+def test_wrong_kind_and_multiplier_files(files, capsys, tmp_path):
+    wrong = tmp_path / "wrong.json"
+    wrong.write_text(json.dumps({"kind": "mbn.controller.brain", "format_version": 1}))
+    result = run(capsys, "--controller", wrong, *BASE)
+    _one_line_error(*result, "not a controller file (kind 'mbn.controller.brain'")
+    result = run(capsys, "--controller", files / "mul.json", *BASE)
+    _one_line_error(*result, "is a multiplier, not a controller")
+    result = run(capsys, "--controller", tmp_path / "none.json", *BASE)
+    _one_line_error(*result, "none.json: cannot read")
+
+
+def test_mazes_the_trials_cannot_use(files, capsys, tmp_path):
+    bare = tmp_path / "bare.maze"
+    bare.write_text("#######\n#.....#\n#######\n")
+    straight = files / "straight.json"
+    result = run(capsys, "--controller", straight, "--maze", bare, "--behavior", "right")
+    _one_line_error(*result, "maze 'bare' has no start marks")
+    result = run(capsys, "--controller", straight, "--maze", "cross_LSR", "--behavior", "tiles")
+    _one_line_error(*result, "behavior 'tiles' needs tiles, and maze 'cross_LSR' has none")
+    result = run(capsys, "--controller", straight, "--maze", "nowhere", "--behavior", "right")
+    _one_line_error(*result, "unknown maze 'nowhere'")
+
+
+def test_controllers_that_do_not_fit_the_behavior(files, capsys):
+    tiles = ("--maze", "fig4", "--behavior", "tiles")
+    result = run(capsys, "--controller", files / "straight.json", *tiles)
+    _one_line_error(*result, "--behavior tiles needs an mbn controller")
+    result = run(capsys, "--controller", files / "im.json", *tiles)
+    _one_line_error(*result, "is an interpreter controller")
+    result = run(capsys, "--controller", files / "mbn.json", *tiles, "--program", "right")
+    _one_line_error(*result, "--program fixes the interpreter's program")
+    result = run(capsys, "--controller", files / "straight.json", *BASE, "--program", "left")
+    _one_line_error(*result, "--program is for interpreter and mbn controllers")
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "message"),
+    [
+        ("--repeats", "0", "argument --repeats: must be >= 1, got 0"),
+        ("--repeats", "two", "argument --repeats: 'two' is not an integer"),
+        ("--seconds", "-1", "argument --seconds: must be a finite number > 0"),
+        ("--seed", "-3", "argument --seed: must be in [0, 2**32)"),
+        ("--behavior", "up", "argument --behavior: invalid choice: 'up'"),
+    ],
+)
+def test_bad_flags_exit_with_status_2(files, capsys, flag, value, message):
+    args = ["--controller", files / "straight.json", "--maze", "fig4", "--behavior", "right"]
+    with pytest.raises(SystemExit) as exc:
+        run(capsys, *args, flag, value)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and message in err, err
+
+
+def test_too_many_junctions_is_one_line(files, capsys):
+    result = run(capsys, "--controller", files / "straight.json", *BASE, "--junctions", "40")
+    _one_line_error(*result, "junctions must be an integer in 1..32")
+
+
+def test_evaluation_leaves_the_files_alone(files, capsys):
+    before = {p.name: p.read_bytes() for p in files.iterdir()}
+    with pytest.raises(SystemExit):
+        run(capsys, "--controller", files / "im.json", *BASE, "--program", "up")
+    run(capsys, "--controller", files / "mul.json", *BASE)
+    assert {p.name: p.read_bytes() for p in files.iterdir()} == before

@@ -1,0 +1,423 @@
+"""Controller files: round trips of the three kinds, validation, and the MBN controller."""
+
+from __future__ import annotations
+
+import copy
+import json
+import re
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mbn.control.ctrnn import MotorMap
+from mbn.controllers.codec import (
+    KIND_CTRNN,
+    KIND_INTERPRETER,
+    KIND_MBN,
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    controller_to_dict,
+    load_controller,
+    make_controller,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.networks.ctrnn import make_ctrnn
+from mbn.networks.multiplier import load_default, multiplier_to_dict
+from mbn.networks.programmable import build_interpreter, differing_connections
+from mbn.world.rollout import Observation
+from mbn.world.sensors import PAPER_SONARS, SensorConfig
+
+K = 3  # programmable connections of the test interpreter
+
+
+def _nets():
+    rng = np.random.default_rng(0)
+    W = rng.uniform(-5, 5, (3, 3))
+    WE = rng.uniform(-5, 5, (3, 3))
+    a = make_ctrnn(W, WE, 0.5, bias=rng.uniform(-1, 1, 3))
+    W2, WE2 = W.copy(), WE.copy()
+    W2[1, 2], WE2[1, 0], WE2[2, 1] = -W[1, 2], WE[1, 0] + 3, WE[2, 1] - 4
+    b = make_ctrnn(W2, WE2, 0.5, bias=np.asarray(a.bias))
+    return a, b
+
+
+@pytest.fixture(scope="module")
+def ctrnn_spec():
+    net, _ = _nets()
+    sensors = SensorConfig(sonars=(*PAPER_SONARS, 11), normalization="distance", far=3.0)
+    return CTRNNControllerSpec(
+        net,
+        sensors=sensors,
+        motor=MotorMap(speed_neuron=0, turn_neuron=2, v_max=0.4, w_max=0.8),
+        dt=0.1,
+        substeps=5,
+        method="rk4",
+        behavior="right",
+        metadata={"seed": 3, "note": "test"},
+    )
+
+
+@pytest.fixture(scope="module")
+def interpreter_spec():
+    a, b = _nets()
+    interp = build_interpreter(a, differing_connections(a, b), load_default())
+    assert interp.num_programs == K
+    programs = {
+        "right": np.asarray(interp.program_of(a)).tolist(),
+        "left": np.asarray(interp.program_of(b)).tolist(),
+    }
+    return InterpreterControllerSpec(interp, programs, metadata={"source": "test"})
+
+
+def _pm_without_memory(programs, dt=0.1, pm_substeps=4):
+    """A program module whose program after one robot step is exactly ``sigmoid(WE cam)``: no
+    recurrence and tau equal to the Euler step, so each step sets ``y`` to its drive."""
+    right = np.asarray(programs["right"])
+    left = np.asarray(programs["left"])
+    logit = lambda p: np.log(p / (1 - p))  # noqa: E731
+    WE = np.stack([logit(right), logit(left)], -1)
+    return make_ctrnn(np.zeros((K, K)), WE, dt / pm_substeps)
+
+
+@pytest.fixture(scope="module")
+def mbn_spec(interpreter_spec):
+    pm = _pm_without_memory(interpreter_spec.programs)
+    return MBNControllerSpec(interpreter_spec, pm, (0, 1, 2), pm_substeps=4, metadata={"k": [1]})
+
+
+def _obs(n, camera=0, seed=1):
+    rng = np.random.default_rng(seed)
+    return Observation(
+        ranges=jnp.asarray(rng.uniform(0.2, 3, (n, 11))),
+        S=jnp.asarray(rng.uniform(0, 1, (n, 11))),
+        inputs=jnp.asarray(rng.uniform(0, 1, (n, 3))),
+        camera=jnp.full((n,), camera, jnp.int32),
+        blobs=jnp.zeros((n,), jnp.int32),
+        tile=jnp.zeros((n,), jnp.int32),
+        stalled=jnp.zeros((n,), bool),
+        t=jnp.zeros((n,)),
+    )
+
+
+_STEPS: dict = {}  # one compiled step per controller function
+_INTERPRETERS: dict = {}  # the test interpreter's controllers, by program (compiled once)
+
+
+def _drive(loaded, cameras, n=2):
+    """(v, w) of ``n`` robots over steps with the given camera readings (fixed sonar inputs)."""
+    if loaded.controller not in _STEPS:
+        _STEPS[loaded.controller] = jax.jit(jax.vmap(loaded.controller))
+    step = _STEPS[loaded.controller]
+    state = loaded.initial_state(n)
+    out = []
+    for c in cameras:
+        state, (v, w) = step(state, _obs(n, camera=c))
+        out.append((np.asarray(v), np.asarray(w)))
+    return state, np.array(out)
+
+
+# --------------------------------------------------------------------------------------------
+# Round trips
+# --------------------------------------------------------------------------------------------
+
+
+def test_ctrnn_round_trip_drives_identically(tmp_path, ctrnn_spec):
+    path = tmp_path / "rf.json"
+    save_controller(path, ctrnn_spec)
+    data = json.loads(path.read_text())
+    assert data["kind"] == KIND_CTRNN and data["format_version"] == 1 and "mbn_version" in data
+    assert data["network"]["tau"] == [0.5, 0.5, 0.5]
+    assert data["sensors"]["sonars"] == [*PAPER_SONARS, 11]
+    loaded = load_controller(path)
+    assert loaded.kind == KIND_CTRNN and loaded.behavior == "right" and not loaded.needs_camera
+    assert loaded.programs == {} and loaded.program is None
+    assert loaded.sensors == ctrnn_spec.sensors and loaded.dt == 0.1
+    assert loaded.spec.metadata == {"seed": 3, "note": "test"}
+    _, ours = _drive(make_controller(ctrnn_spec), [0, 0, 0])
+    _, theirs = _drive(loaded, [0, 0, 0])
+    np.testing.assert_array_equal(ours, theirs)
+    assert np.all(ours[:, 0] >= 0) and np.all(ours[:, 0] <= 0.4)  # v = v_max sigma(.)
+    # the file is stable: saving what was loaded writes the same JSON
+    again = tmp_path / "again.json"
+    save_controller(again, loaded.spec)
+    assert json.loads(again.read_text()) == data
+
+
+def test_interpreter_round_trip_drives_identically_with_each_program(tmp_path, interpreter_spec):
+    path = tmp_path / "im.json"
+    save_controller(path, interpreter_spec)
+    data = json.loads(path.read_text())
+    assert data["kind"] == KIND_INTERPRETER
+    assert data["interpreter"]["connections"] == [
+        str(c) for c in interpreter_spec.interpreter.connections
+    ]
+    assert set(data["programs"]) == {"right", "left"}
+    outputs = {}
+    for name in ("right", "left"):
+        loaded = load_controller(path, program=name)
+        assert loaded.kind == KIND_INTERPRETER and loaded.program == name
+        assert loaded.programs == interpreter_spec.programs
+        ours_c = _INTERPRETERS.setdefault(name, make_controller(interpreter_spec, name))
+        _, ours = _drive(ours_c, [0, 0])
+        _, theirs = _drive(loaded, [0, 0])
+        np.testing.assert_array_equal(ours, theirs)
+        outputs[name] = theirs
+    assert not np.allclose(outputs["right"], outputs["left"])
+
+
+def test_mbn_round_trip_drives_identically(tmp_path, mbn_spec):
+    path = tmp_path / "mbn.json"
+    save_controller(path, mbn_spec)
+    data = json.loads(path.read_text())
+    assert data["kind"] == KIND_MBN
+    assert data["program_module"]["program_neurons"] == [0, 1, 2]
+    assert data["program_module"]["substeps"] == 4
+    assert data["program_module"]["camera"] == {"fov_deg": 60.0, "range": 3.0}
+    loaded = load_controller(path)
+    assert loaded.kind == KIND_MBN and loaded.needs_camera and loaded.program is None
+    assert loaded.camera == mbn_spec.camera
+    cameras = [0, 1, 1, 0, 2, 2]
+    _, ours = _drive(make_controller(mbn_spec), cameras)
+    _, theirs = _drive(loaded, cameras)
+    np.testing.assert_array_equal(ours, theirs)
+    # with a program name the interpreter runs alone with that stored program, camera off
+    alone = load_controller(path, program="left")
+    assert alone.kind == KIND_MBN and alone.program == "left" and not alone.needs_camera
+    _, a = _drive(alone, [0, 0])
+    _, b = _drive(make_controller(mbn_spec.interpreter_spec, "left"), [0, 0])
+    np.testing.assert_array_equal(a, b)
+
+
+# --------------------------------------------------------------------------------------------
+# The MBN controller
+# --------------------------------------------------------------------------------------------
+
+
+def test_mbn_sets_the_program_the_camera_selects(mbn_spec, interpreter_spec):
+    """A program module without memory: camera 1 gives the right program, camera 2 the left;
+    the MBN then drives exactly as the interpreter with that program."""
+    mbn = make_controller(mbn_spec)
+    for camera, name in ((1, "right"), (2, "left")):
+        state, vw = _drive(mbn, [camera] * 3)
+        rates = jax.nn.sigmoid(state.pm_y)
+        np.testing.assert_allclose(rates[0], interpreter_spec.programs[name], atol=1e-12)
+        _, fixed = _drive(
+            _INTERPRETERS.setdefault(name, make_controller(interpreter_spec, name)), [0] * 3
+        )
+        np.testing.assert_allclose(vw, fixed, atol=1e-9)
+    # nothing in view: the PM's inputs are 0, so the program is sigmoid(0) = 0.5
+    state, _ = _drive(mbn, [0])
+    np.testing.assert_allclose(jax.nn.sigmoid(state.pm_y), 0.5, atol=1e-12)
+    # at the start every potential is 0
+    start = mbn.initial_state(4)
+    assert start.pm_y.shape == (4, K) and not np.any(start.pm_y)
+    assert start.im_y.shape == (4, interpreter_spec.interpreter.num_neurons)
+    assert not np.any(start.im_y)
+
+
+def test_a_latching_program_module_remembers_the_last_tile(interpreter_spec):
+    """Self-excited neurons with a bias of minus half the self-weight are bistable: the program
+    of the last tile seen stays after the tile leaves the view, until the other kind is seen."""
+    s = np.array([1.0, -1.0, 1.0])  # the pattern a one-colour tile switches on
+    pm = make_ctrnn(
+        np.diag([20.0, 20.0, 20.0]), np.stack([40 * s, -40 * s], -1), 0.2, bias=np.full(K, -10.0)
+    )
+    mbn = make_controller(MBNControllerSpec(interpreter_spec, pm, (2, 0, 1), pm_substeps=4))
+    one = (s > 0).astype(float)
+    pattern = lambda state: np.asarray(jax.nn.sigmoid(state.pm_y - 10.0))[0]  # noqa: E731
+    state, _ = _drive(mbn, [1] * 10 + [0] * 30)
+    np.testing.assert_allclose(pattern(state), one, atol=1e-3)
+    state, _ = _drive(mbn, [1] * 10 + [0] * 10 + [2] * 10 + [0] * 30)
+    np.testing.assert_allclose(pattern(state), 1 - one, atol=1e-3)
+
+
+# --------------------------------------------------------------------------------------------
+# Validation
+# --------------------------------------------------------------------------------------------
+
+
+def _mutated(data, change):
+    data = copy.deepcopy(data)
+    change(data)
+    return data
+
+
+def _set(*keys_and_value):
+    *keys, value = keys_and_value
+
+    def change(data):
+        target = data
+        for k in keys[:-1]:
+            target = target[k]
+        if value is _DELETE:
+            del target[keys[-1]]
+        else:
+            target[keys[-1]] = value
+
+    return change
+
+
+_DELETE = object()
+
+CTRNN_CASES = [
+    (_set("kind", _DELETE), r"not a controller file \(kind None, expected one of mbn.controller"),
+    (_set("kind", "x"), r"not a controller file \(kind 'x', expected one of mbn.controller.ctrnn"),
+    (_set("format_version", 2), r"format_version 2 is not supported"),
+    (_set("format_version", _DELETE), r"missing field 'format_version'"),
+    (_set("network", _DELETE), r"missing field 'network'"),
+    (_set("network", "W", [[1.0, 2.0, 3.0], [1.0, 2.0, 3.0]]), r"network.W: must be square"),
+    (_set("network", "WE", [[0.0, 0.0, 0.0]] * 2), r"network.WE: expected shape"),
+    (_set("network", "WE", [[0.0] * 4] * 3), r"3 inputs I1..I3, but WE has 4 columns"),
+    (_set("network", "tau", [0.5, -1.0, 0.5]), r"network.tau: time constants must be > 0"),
+    (_set("sensors", "sonars", [*PAPER_SONARS, 16]), r"sensors: sonars must be Stage indices 0"),
+    (_set("sensors", "sonars", [0, 1, 2]), r"must include the paper's 10 sonars"),
+    (_set("sensors", "sonars", "all"), r"sensors.sonars: expected a list of integers"),
+    (_set("motor", "speed_neuron", 3), r"motor.speed_neuron 3 is not one of the 3 neurons"),
+    (_set("motor", "turn_neuron", _DELETE), r"motor: missing field 'turn_neuron'"),
+    (_set("substeps", 0), r"substeps must be an integer >= 1"),
+    (_set("dt", "fast"), r"dt: expected a finite number"),
+    (_set("method", "leapfrog"), r"method must be euler or rk4"),
+    (_set("behavior", "up"), r"behavior must be right, left or null"),
+    (_set("weights", []), r"unknown field\(s\) 'weights'"),
+    (_set("metadata", [1, 2]), r"metadata must be an object"),
+]
+
+
+@pytest.mark.parametrize(("change", "message"), CTRNN_CASES)
+def test_bad_ctrnn_files_give_one_line_naming_the_file(tmp_path, ctrnn_spec, change, message):
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(_mutated(controller_to_dict(ctrnn_spec), change)))
+    with pytest.raises(MbnInputError) as exc:
+        load_controller(path)
+    text = str(exc.value)
+    assert text.startswith(f"{path}: ") and "\n" not in text
+    assert re.search(message, text), text
+
+
+INTERPRETER_CASES = [
+    (_set("programs", "right", [0.5, 0.5]), r"programs.right: expected 3 values"),
+    (_set("programs", "left", [0.5, 1.5, 0.5]), r"programs.left: values must be in \[0, 1\]"),
+    (_set("programs", {}), r"an interpreter file needs at least one program"),
+    (_set("interpreter", "connections", 0, "V[1,2]"), r"interpreter.connections: .*'V\[1,2\]'"),
+    (_set("interpreter", "connections", 0, "W[1,7]"), r"W\[1,7\] is out of range"),
+    (_set("interpreter", "num_original", 4), r"make 13 neurons, but W is 12x12"),
+    (_set("interpreter", "mul_output", 3), r"mul_output 3 is not a neuron"),
+    (_set("interpreter", "lower", [0.0]), r"interpreter.lower: expected 3 values"),
+    (_set("interpreter", "lower", [100.0, 100.0, 100.0]), r"lower 100 must be < upper"),
+    (_set("interpreter", "net", "WE", _DELETE), r"interpreter.net: missing field 'WE'"),
+    (_set("motor", "turn_neuron", 5), r"turn_neuron 5 is not one of the 3 neurons of the interp"),
+    (_set("sensors", "sonars", [*PAPER_SONARS, -1]), r"sonars must be Stage indices"),
+]
+
+
+@pytest.mark.parametrize(("change", "message"), INTERPRETER_CASES)
+def test_bad_interpreter_files(tmp_path, interpreter_spec, change, message):
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(_mutated(controller_to_dict(interpreter_spec), change)))
+    with pytest.raises(MbnInputError) as exc:
+        load_controller(path, program="right")
+    text = str(exc.value)
+    assert text.startswith(f"{path}: ") and "\n" not in text
+    assert re.search(message, text), text
+
+
+MBN_CASES = [
+    (_set("program_module", "program_neurons", [0, 1]), r"the interpreter has 3 programmable"),
+    (_set("program_module", "program_neurons", [0, 1, 3]), r"indices must be in 0..2"),
+    (_set("program_module", "program_neurons", [0, 1, 1]), r"a neuron is listed twice"),
+    (_set("program_module", "network", "WE", [[1.0] * 3] * 3), r"2 camera inputs"),
+    (_set("program_module", "substeps", 0), r"program_module.substeps must be an integer >= 1"),
+    (_set("program_module", _DELETE), r"missing field 'program_module'"),
+    (_set("program_module", "camera", "range", -1.0), r"camera range must be in \(0, "),
+    (_set("program_module", "camera", "zoom", 2.0), r"unknown field\(s\) 'zoom'"),
+]
+
+
+def test_mbn_camera_is_kept_and_optional(tmp_path, mbn_spec):
+    """The camera the program module was trained with travels in the file; older files without
+    one get the default camera."""
+    import dataclasses
+
+    from mbn.world.engine import CameraConfig
+
+    narrow = dataclasses.replace(mbn_spec, camera=CameraConfig(fov_deg=40.0, range=1.5))
+    path = tmp_path / "mbn.json"
+    save_controller(path, narrow)
+    assert load_controller(path).camera == CameraConfig(fov_deg=40.0, range=1.5)
+    data = json.loads(path.read_text())
+    del data["program_module"]["camera"]
+    path.write_text(json.dumps(data))
+    assert load_controller(path).camera == CameraConfig()
+
+
+@pytest.mark.parametrize(("change", "message"), MBN_CASES)
+def test_bad_mbn_files(tmp_path, mbn_spec, change, message):
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(_mutated(controller_to_dict(mbn_spec), change)))
+    with pytest.raises(MbnInputError) as exc:
+        load_controller(path)
+    text = str(exc.value)
+    assert text.startswith(f"{path}: ") and "\n" not in text
+    assert re.search(message, text), text
+
+
+def test_other_files_are_refused_clearly(tmp_path):
+    mul = tmp_path / "mul.json"
+    mul.write_text(json.dumps(multiplier_to_dict(load_default())))
+    with pytest.raises(MbnInputError, match=r"mul.json: is a multiplier, not a controller"):
+        load_controller(mul)
+    listing = tmp_path / "list.json"
+    listing.write_text("[1, 2]")
+    with pytest.raises(MbnInputError, match=r"list.json: not a controller file \(a JSON list"):
+        load_controller(listing)
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"kind": "mbn.controller.ctrnn",\n "network": {')
+    with pytest.raises(MbnInputError, match=r"broken.json:2: invalid JSON"):
+        load_controller(broken)
+    with pytest.raises(MbnInputError, match=r"missing.json: cannot read"):
+        load_controller(tmp_path / "missing.json")
+
+
+def test_choosing_programs(tmp_path, ctrnn_spec, interpreter_spec):
+    with pytest.raises(MbnInputError, match="a plain CTRNN controller has no programs"):
+        make_controller(ctrnn_spec, "right")
+    with pytest.raises(MbnInputError, match=r"choose a program .*\(right, left\)"):
+        make_controller(interpreter_spec)
+    with pytest.raises(MbnInputError, match=r"no program 'up' \(the file has: right, left\)"):
+        make_controller(interpreter_spec, "up")
+    single = InterpreterControllerSpec(
+        interpreter_spec.interpreter, {"right": interpreter_spec.programs["right"]}
+    )
+    assert make_controller(single).program == "right"
+
+
+def test_specs_validate_when_built(interpreter_spec):
+    net, _ = _nets()
+    with pytest.raises(MbnInputError, match=r"motor\.speed_neuron 7"):
+        CTRNNControllerSpec(net, motor=MotorMap(speed_neuron=7))
+    with pytest.raises(MbnInputError, match="expected one network"):
+        CTRNNControllerSpec(make_ctrnn(np.zeros((2, 3, 3)), np.zeros((2, 3, 3)), 1.0))
+    with pytest.raises(MbnInputError, match=r"programs.right: values must be in \[0, 1\]"):
+        InterpreterControllerSpec(interpreter_spec.interpreter, {"right": [0.1, -0.2, 0.3]})
+    with pytest.raises(MbnInputError, match="2 camera inputs"):
+        MBNControllerSpec(interpreter_spec, net, (0, 1, 2))
+
+
+def test_a_failed_save_writes_nothing(tmp_path, ctrnn_spec, interpreter_spec):
+    path = tmp_path / "c.json"
+    path.write_text("precious\n")
+    net = ctrnn_spec.net
+    with pytest.raises(MbnInputError, match="cannot be written as JSON"):
+        save_controller(path, CTRNNControllerSpec(net, metadata={"when": object()}))
+    with pytest.raises(MbnInputError, match="at least one program"):
+        save_controller(path, InterpreterControllerSpec(interpreter_spec.interpreter, {}))
+    with pytest.raises(MbnInputError, match="not a controller spec"):
+        save_controller(path, net)  # type: ignore[arg-type]
+    with pytest.raises(MbnInputError, match="does not exist"):
+        save_controller(tmp_path / "no" / "c.json", ctrnn_spec)
+    assert path.read_text() == "precious\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json"]
