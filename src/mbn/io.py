@@ -1,4 +1,11 @@
-"""File helpers: atomic writes, JSON and CSV reading with errors that name the file and line."""
+"""File helpers: atomic writes, JSON and CSV reading with errors that name the file and line, and
+the one set of schema checks every reader of ``mbn`` uses (controller, multiplier and network
+files, run manifests, settings files).
+
+The schema checks take the value read and ``where`` (the file, and the path of the field inside
+it, e.g. ``"rf.json: motor.v_max"``) and raise :class:`~mbn.errors.MbnInputError` with one line
+that starts with ``where``.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +15,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -16,7 +23,20 @@ import numpy as np
 
 from mbn.errors import MbnInputError
 
-__all__ = ["atomic_open", "read_csv_columns", "read_json", "write_csv_atomic", "write_json_atomic"]
+__all__ = [
+    "atomic_open",
+    "check_fields",
+    "expect_int",
+    "expect_int_list",
+    "expect_number",
+    "expect_number_list",
+    "expect_object",
+    "expect_str",
+    "read_csv_columns",
+    "read_json",
+    "write_csv_atomic",
+    "write_json_atomic",
+]
 
 
 def _umask() -> int:
@@ -132,3 +152,70 @@ def write_csv_atomic(path: str | Path, header: Sequence[str], rows: np.ndarray) 
         handle.write(",".join(header) + "\n")
         for row in rows:
             handle.write(",".join(repr(float(v)) for v in row) + "\n")
+
+
+# ---------------------------------------------------------------------------------------------
+# Schema checks
+# ---------------------------------------------------------------------------------------------
+
+
+def expect_object(value: Any, where: str) -> dict[str, Any]:
+    """``value`` if it is a JSON/TOML object (a dict), else one line naming ``where``."""
+    if not isinstance(value, dict):
+        raise MbnInputError(f"{where}: expected an object, got {type(value).__name__}")
+    return value
+
+
+def check_fields(
+    data: Mapping[str, Any], where: str, required: Sequence[str], optional: Sequence[str] = ()
+) -> None:
+    """Refuse missing required keys and unknown keys of an object (one line naming them)."""
+    missing = [k for k in required if k not in data]
+    if missing:
+        plural = "s" if len(missing) > 1 else ""
+        raise MbnInputError(f"{where}: missing field{plural} {', '.join(map(repr, missing))}")
+    unknown = sorted(set(data) - set(required) - set(optional))
+    if unknown:
+        raise MbnInputError(
+            f"{where}: unknown field(s) {', '.join(map(repr, unknown))} (expected "
+            f"{', '.join(list(required) + list(optional))})"
+        )
+
+
+def expect_int(value: Any, where: str) -> int:
+    """``value`` if it is an integer (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise MbnInputError(f"{where}: expected an integer, got {value!r}")
+    return value
+
+
+def expect_number(value: Any, where: str) -> float:
+    """``value`` as a float if it is a finite number (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise MbnInputError(f"{where}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def expect_str(value: Any, where: str, choices: Sequence[str] | None = None) -> str:
+    """``value`` if it is a string (one of ``choices`` when given)."""
+    if not isinstance(value, str):
+        raise MbnInputError(f"{where}: expected a string, got {value!r}")
+    if choices is not None and value not in choices:
+        raise MbnInputError(f"{where}: expected one of {', '.join(choices)}, got {value!r}")
+    return value
+
+
+def expect_int_list(value: Any, where: str) -> list[int]:
+    """``value`` if it is a list of integers."""
+    if not isinstance(value, list) or not all(
+        isinstance(v, int) and not isinstance(v, bool) for v in value
+    ):
+        raise MbnInputError(f"{where}: expected a list of integers, got {value!r}")
+    return value
+
+
+def expect_number_list(value: Any, where: str) -> list[float]:
+    """``value`` as a list of floats if it is a list of finite numbers."""
+    if not isinstance(value, list):
+        raise MbnInputError(f"{where}: expected a list of numbers, got {value!r}")
+    return [expect_number(v, where) for v in value]

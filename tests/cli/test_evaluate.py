@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mbn.cli.main import main
-from mbn.controllers.codec import (
+from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mbn.control.ctrnn import MotorMap
-from mbn.controllers.codec import (
+from mbn.controllers import (
     KIND_CTRNN,
     KIND_INTERPRETER,
     KIND_MBN,

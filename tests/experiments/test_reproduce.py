@@ -16,7 +16,7 @@ import pytest
 
 from mbn.cli.main import main
 from mbn.control.ctrnn import NETWORK_SUBSTEPS
-from mbn.controllers.codec import load_controller
+from mbn.controllers import load_controller
 from mbn.experiments.reproduce import CONTROLLERS, RUN_KIND, TEST_NAMES
 
 TEST_KEYS = {"trials", "successes", "success_rate"}

@@ -12,7 +12,6 @@ from mbn.networks.ctrnn import make_ctrnn
 from mbn.networks.multiplier import (
     FIXED_POINT_TOL,
     Multiplier,
-    TrainConfig,
     dense_grid,
     evaluate,
     fixed_point_check,
@@ -22,10 +21,10 @@ from mbn.networks.multiplier import (
     multiply,
     save_multiplier,
     shipped_metrics,
-    train,
     training_pairs,
     validation_pairs,
 )
+from mbn.networks.multiplier_train import TrainConfig, train
 
 
 def shipped_validation(num_neurons):
@@ -146,11 +145,11 @@ def test_count_fine_tuning_brings_more_of_the_grid_within_5_percent():
 
 
 def test_smooth_max_lies_within_temperature_log_n_below_the_max():
-    from mbn.networks.multiplier import _smooth_max
+    from mbn.networks.multiplier_train import smooth_max
 
     v = jnp.asarray([[0.1, 0.5, 0.2, 0.5], [0.0, 0.0, 0.0, 0.3]])
     t = 0.01
-    sm = np.asarray(_smooth_max(v, t))
+    sm = np.asarray(smooth_max(v, t))
     top = np.asarray(v.max(-1))
     assert np.all(sm <= top + 1e-7)
     assert np.all(sm >= top - t * np.log(4) - 1e-7)
@@ -181,15 +180,15 @@ def test_training_is_deterministic():
 
 @pytest.mark.parametrize("method", ["rk4", "euler"])
 def test_bptt_gradient_matches_finite_differences(method):
-    from mbn.networks.multiplier import _init_params, _make_loss
+    from mbn.networks.multiplier_train import init_params, make_loss
 
     cfg = TrainConfig(dtype="float64", method=method)
-    batched_loss = _make_loss(cfg, training_pairs(4, jnp.float64))
+    batched_loss = make_loss(cfg, training_pairs(4, jnp.float64))
 
     def loss(p):
         return batched_loss(jax.tree.map(lambda a: a[None], p))[0]
 
-    params = _init_params(jax.random.key(1), cfg, jnp.float64)
+    params = init_params(jax.random.key(1), cfg, jnp.float64)
     params = jax.tree.map(lambda a: a * 0.3, params)
     grad = jax.grad(loss)(params)
     eps = 1e-6
@@ -202,7 +201,7 @@ def test_bptt_gradient_matches_finite_differences(method):
 
 def test_hand_written_adjoint_matches_autodiff():
     """The Euler training path's custom VJP equals jax.grad through the plain lax.scan."""
-    from mbn.networks.multiplier import _euler_from_rest, _rest_trajectory
+    from mbn.networks.multiplier_train import euler_from_rest, rest_trajectory
 
     keys = jax.random.split(jax.random.key(7), 4)
     restarts, n = 3, 4
@@ -215,8 +214,8 @@ def test_hand_written_adjoint_matches_autodiff():
     def via(f):
         return lambda *p: jnp.sum(jnp.sin(f(*p, pairs, 0.1, 60)) * weights)
 
-    custom = jax.grad(via(_euler_from_rest), argnums=(0, 1, 2))(W, WE, bias)
-    plain = jax.grad(via(lambda *a: _rest_trajectory(*a)[0]), argnums=(0, 1, 2))(W, WE, bias)
+    custom = jax.grad(via(euler_from_rest), argnums=(0, 1, 2))(W, WE, bias)
+    plain = jax.grad(via(lambda *a: rest_trajectory(*a)[0]), argnums=(0, 1, 2))(W, WE, bias)
     for got, want in zip(custom, plain, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-12)
 

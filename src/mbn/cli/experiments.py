@@ -179,7 +179,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 def _program_for(args: argparse.Namespace, kind: str) -> str | None:
     """The program to run for this kind of file and these flags (or a one-line error)."""
-    from mbn.controllers.codec import KIND_CTRNN, KIND_INTERPRETER
+    from mbn.controllers import KIND_CTRNN, KIND_INTERPRETER
 
     path = args.controller
     if kind == KIND_CTRNN:
@@ -218,7 +218,7 @@ def _heading(theta: float) -> str:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from mbn.controllers.codec import make_controller, read_controller_spec
+    from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.trials import TrialSpec, run_trials, summary
     from mbn.world.mazes.load import load_maze
 

@@ -224,7 +224,8 @@ def _cmd_mul_train(args: argparse.Namespace) -> int:
 
     import jax
 
-    from mbn.networks.multiplier import recipe, save_multiplier, train_stages
+    from mbn.networks.multiplier import save_multiplier
+    from mbn.networks.multiplier_train import recipe, train_stages
 
     stages = list(recipe(args.neurons))
     if args.restarts is not None:

@@ -1,1 +1,42 @@
-"""controllers."""
+"""Controller files and controllers ready to run (``docs/controllers.md``).
+
+* :mod:`mbn.controllers.spec` — what a file holds (three kinds), validated objects;
+* :mod:`mbn.controllers.codec` — the JSON form: the only code that knows the file format;
+* :mod:`mbn.controllers.load` — a spec made ready to run (:class:`LoadedController`).
+"""
+
+from mbn.controllers.codec import (
+    controller_from_dict,
+    controller_to_dict,
+    read_controller_spec,
+    save_controller,
+)
+from mbn.controllers.load import LoadedController, load_controller, make_controller
+from mbn.controllers.spec import (
+    KIND_CTRNN,
+    KIND_INTERPRETER,
+    KIND_MBN,
+    KINDS,
+    ControllerSpec,
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+)
+
+__all__ = [
+    "KINDS",
+    "KIND_CTRNN",
+    "KIND_INTERPRETER",
+    "KIND_MBN",
+    "CTRNNControllerSpec",
+    "ControllerSpec",
+    "InterpreterControllerSpec",
+    "LoadedController",
+    "MBNControllerSpec",
+    "controller_from_dict",
+    "controller_to_dict",
+    "load_controller",
+    "make_controller",
+    "read_controller_spec",
+    "save_controller",
+]

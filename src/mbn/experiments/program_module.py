@@ -25,8 +25,8 @@ import numpy as np
 from jax import Array
 
 from mbn.control.ctrnn import MotorMap
-from mbn.controllers.codec import MBNControllerState as MBNState
-from mbn.controllers.codec import make_mbn_controller
+from mbn.control.mbn import MBNControllerState as MBNState
+from mbn.control.mbn import make_mbn_controller
 from mbn.errors import MbnInputError
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays
 from mbn.experiments.evolve import _tile_fitness
@@ -92,7 +92,7 @@ def mbn_controller(
     motor: MotorMap | None = None,
 ) -> Callable[[MBNState, Any], tuple[MBNState, tuple[Array, Array]]]:
     """The MBN as a controller whose program is the firing rates of the PM's first ``programs``
-    neurons (:func:`mbn.controllers.codec.make_mbn_controller`)."""
+    neurons (:func:`mbn.control.mbn.make_mbn_controller`)."""
     return make_mbn_controller(
         program_neurons=range(programs),
         dt=dt,

@@ -139,7 +139,7 @@ def _trajectories(repro: Any, stages: dict[str, Any], out: Path) -> list[tuple[s
 
 def _mbn_recording(repro: Any) -> tuple[Any, Any, Any, int]:
     """The MBN from the test maze's start marks, recorded every step with its state."""
-    from mbn.controllers.codec import make_controller, read_controller_spec
+    from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups
     from mbn.world.mazes.load import load_maze
 

@@ -453,12 +453,11 @@ class Reproduction:
         from mbn.networks.multiplier import (
             evaluate,
             load_default,
-            recipe,
             save_multiplier,
             shipped_metrics,
-            train_stages,
             validation_pairs,
         )
+        from mbn.networks.multiplier_train import recipe, train_stages
 
         n = self.settings.multiplier_neurons
         key = self.stage_key("multiplier")
@@ -536,7 +535,7 @@ class Reproduction:
         }
 
     def _save_ctrnn(self, name: str, net: Any, behavior: str, metadata: dict[str, Any]) -> None:
-        from mbn.controllers.codec import CTRNNControllerSpec, save_controller
+        from mbn.controllers import CTRNNControllerSpec, save_controller
 
         save_controller(
             self.out / "controllers" / f"{name}.json",
@@ -633,7 +632,7 @@ class Reproduction:
 
     def _net(self, name: str) -> Any:
         """The CTRNN of ``controllers/NAME.json`` (``rf`` or ``lf``)."""
-        from mbn.controllers.codec import read_controller_spec
+        from mbn.controllers import read_controller_spec
 
         return read_controller_spec(self.out / "controllers" / f"{name}.json").net  # type: ignore[union-attr]
 
@@ -722,7 +721,7 @@ class Reproduction:
         return data
 
     def _im(self) -> dict[str, Any]:
-        from mbn.controllers.codec import (
+        from mbn.controllers import (
             InterpreterControllerSpec,
             save_controller,
         )
@@ -754,12 +753,12 @@ class Reproduction:
         }
 
     def _im_spec(self) -> Any:
-        from mbn.controllers.codec import read_controller_spec
+        from mbn.controllers import read_controller_spec
 
         return read_controller_spec(self.out / "controllers" / "im.json")
 
     def _pm(self) -> dict[str, Any]:
-        from mbn.controllers.codec import MBNControllerSpec, save_controller
+        from mbn.controllers import MBNControllerSpec, save_controller
         from mbn.experiments.evolve import robust_fitness
         from mbn.experiments.program_module import (
             MemoryReward,
@@ -827,7 +826,7 @@ class Reproduction:
     # -- tests --------------------------------------------------------------------------------
 
     def _tests(self) -> dict[str, Any]:
-        from mbn.controllers.codec import (
+        from mbn.controllers import (
             CTRNNControllerSpec,
             make_controller,
             read_controller_spec,

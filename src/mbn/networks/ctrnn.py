@@ -33,6 +33,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError, UnstableStepError, UnstableStepWarning
+from mbn.io import check_fields, expect_object
 
 Method = Literal["euler", "rk4"]
 METHODS: tuple[Method, ...] = ("euler", "rk4")
@@ -102,9 +103,7 @@ class CTRNN:
     @classmethod
     def from_dict(cls, data: dict, *, where: str = "network", dtype: object = None) -> CTRNN:
         """Inverse of :meth:`to_dict`, validated; ``where`` names the source in error messages."""
-        missing = [k for k in ("W", "WE", "tau") if k not in data]
-        if missing:
-            raise MbnInputError(f"{where}: missing field(s) {', '.join(missing)}")
+        check_fields(expect_object(data, where), where, ["W", "WE", "tau"], ["bias", "gain"])
         return make_ctrnn(
             data["W"],
             data["WE"],

@@ -1,0 +1,304 @@
+"""Settings a researcher can write down: frozen dataclasses whose fields carry their unit, valid
+range and source, read from TOML and written back as TOML.
+
+A settings class is a frozen dataclass that derives from :class:`Settings`; each field is
+declared with :func:`setting`::
+
+    @dataclass(frozen=True)
+    class RFSettings(Settings):
+        generations: int = setting(300, low=1, source="docs/reproduce.md", doc="DE generations")
+
+Construction validates every field (type, range, choices) and raises
+:class:`~mbn.errors.MbnInputError` with one line naming the field. :func:`read_toml` reads a
+settings file into plain data, remembering the line of every key, and :func:`from_mapping` builds
+a settings object from one table of it (unknown keys and bad values: one line naming the file,
+line and key). :func:`to_toml` writes sections back, with the unit, range and source of each
+field as a comment. The schema checks are those of :mod:`mbn.io`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import tomllib
+import types
+import typing
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+from mbn.errors import MbnInputError
+
+__all__ = [
+    "Settings",
+    "TomlDocument",
+    "from_mapping",
+    "read_toml",
+    "setting",
+    "settings_to_dict",
+    "to_toml",
+]
+
+S = TypeVar("S", bound="Settings")
+
+
+def setting(
+    default: Any,
+    *,
+    doc: str,
+    unit: str = "",
+    low: float | None = None,
+    high: float | None = None,
+    choices: Sequence[str] | None = None,
+    source: str = "",
+) -> Any:
+    """A settings field: its default, what it is (``doc``), its ``unit``, the closed range
+    ``[low, high]`` of valid values (for numbers, and for every item of a tuple of numbers), the
+    valid ``choices`` (for strings, and for every item of a tuple of strings), and ``source``:
+    the paper section or ``docs/`` page the default comes from."""
+    meta = {
+        "doc": doc,
+        "unit": unit,
+        "low": low,
+        "high": high,
+        "choices": tuple(choices) if choices is not None else None,
+        "source": source,
+    }
+    if isinstance(default, (list, dict, set)):
+        raise TypeError("settings defaults must be immutable (use a tuple)")
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _describe(hint: Any) -> str:
+    origin = typing.get_origin(hint)
+    if origin is tuple:
+        return f"a list of {_describe(typing.get_args(hint)[0])}s"
+    if origin in (types.UnionType, typing.Union):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        return _describe(args[0])
+    return {bool: "boolean", int: "integer", float: "number", str: "string"}.get(hint, str(hint))
+
+
+def _check_scalar(value: Any, hint: Any, meta: Mapping[str, Any], where: str) -> Any:
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise MbnInputError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise MbnInputError(f"{where}: expected an integer, got {value!r}")
+    elif hint is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise MbnInputError(f"{where}: expected a number, got {value!r}")
+        if not math.isfinite(value):
+            raise MbnInputError(f"{where}: expected a finite number, got {value!r}")
+        value = float(value)
+    elif hint is str:
+        if not isinstance(value, str):
+            raise MbnInputError(f"{where}: expected a string, got {value!r}")
+        choices = meta.get("choices")
+        if choices is not None and value not in choices:
+            raise MbnInputError(f"{where}: expected one of {', '.join(choices)}, got {value!r}")
+        return value
+    low, high = meta.get("low"), meta.get("high")
+    if low is not None and value < low:
+        raise MbnInputError(f"{where}: must be >= {low:g}, got {value!r}")
+    if high is not None and value > high:
+        raise MbnInputError(f"{where}: must be <= {high:g}, got {value!r}")
+    return value
+
+
+def _check_value(value: Any, hint: Any, meta: Mapping[str, Any], where: str) -> Any:
+    """``value`` converted to the field's type (a list becomes a tuple), or one line."""
+    origin = typing.get_origin(hint)
+    if origin in (types.UnionType, typing.Union):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if value is None:
+            return None
+        return _check_value(value, args[0], meta, where)
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise MbnInputError(f"{where}: expected {_describe(hint)}, got {value!r}")
+        item = typing.get_args(hint)[0]
+        return tuple(_check_scalar(v, item, meta, f"{where}[{k}]") for k, v in enumerate(value))
+    return _check_scalar(value, hint, meta, where)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Base of settings classes: every field is checked on construction (:func:`setting`)."""
+
+    #: The name of the section (TOML table) these settings are read from.
+    section: typing.ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        hints = _hints(type(self))
+        for f in dataclasses.fields(self):
+            where = f"{self.section}.{f.name}" if self.section else f.name
+            value = _check_value(getattr(self, f.name), hints[f.name], f.metadata, where)
+            object.__setattr__(self, f.name, value)
+
+    def replace(self: S, **changes: Any) -> S:
+        """A copy with some fields changed (validated)."""
+        return dataclasses.replace(self, **changes)
+
+
+def settings_to_dict(settings: Settings) -> dict[str, Any]:
+    """Plain data (tuples as lists) of a settings object, for JSON and TOML."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        out[f.name] = list(value) if isinstance(value, tuple) else value
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# TOML
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TomlDocument:
+    """A settings file read by :func:`read_toml`: its tables and the line of every key.
+
+    Attributes:
+        path: the file.
+        data: the parsed TOML (tables of the top level).
+        lines: ``(table, key) -> line`` (1-based) of every key, and ``(table, "") -> line`` of
+            every table header.
+    """
+
+    path: Path
+    data: dict[str, Any]
+    lines: dict[tuple[str, str], int]
+
+    def where(self, table: str, key: str = "") -> str:
+        """``FILE:LINE: table.key`` (or without the line where it is not known)."""
+        line = self.lines.get((table, key)) or self.lines.get((table, ""))
+        name = f"{table}.{key}" if key else f"[{table}]"
+        return f"{self.path}:{line}: {name}" if line else f"{self.path}: {name}"
+
+
+_TABLE = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-]+)\s*\]\s*(#.*)?$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_\-]+)\s*=")
+
+
+def read_toml(path: str | Path) -> TomlDocument:
+    """Read a settings file (TOML). Errors: one line naming the file (and the line)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise MbnInputError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise MbnInputError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        line = getattr(exc, "lineno", None)
+        message = getattr(exc, "msg", str(exc))
+        at = f":{line}" if line else ""
+        raise MbnInputError(f"{path}{at}: invalid TOML ({message})") from None
+    except RecursionError:
+        raise MbnInputError(f"{path}: invalid TOML (nested too deeply)") from None
+    lines: dict[tuple[str, str], int] = {}
+    table = ""
+    for number, line in enumerate(text.splitlines(), start=1):
+        m = _TABLE.match(line)
+        if m:
+            table = m.group(1)
+            lines.setdefault((table, ""), number)
+            continue
+        m = _KEY.match(line)
+        if m:
+            lines.setdefault((table, m.group(1)), number)
+    return TomlDocument(path=path, data=data, lines=lines)
+
+
+def from_mapping(
+    cls: type[S],
+    data: Any,
+    *,
+    base: S | None = None,
+    where: Any = None,
+) -> S:
+    """Settings ``cls`` from a table ``data`` (a subset of its fields), over ``base`` (default:
+    ``cls()``). ``where(key)`` names a key in errors (default ``section.key``)."""
+    name = cls.section
+
+    def at(key: str) -> str:
+        return where(key) if where is not None else (f"{name}.{key}" if key else f"[{name}]")
+
+    if not isinstance(data, dict):
+        raise MbnInputError(f"{at('')}: expected a table, got {data!r}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    for key in data:
+        if key not in fields:
+            raise MbnInputError(
+                f"{at(key)}: unknown setting (the settings of [{name}]: {', '.join(fields)})"
+            )
+    hints = _hints(cls)
+    changes = {
+        key: _check_value(value, hints[key], fields[key].metadata, at(key))
+        for key, value in data.items()
+    }
+    start = base if base is not None else cls()
+    try:
+        return dataclasses.replace(start, **changes)
+    except MbnInputError as exc:
+        raise MbnInputError(f"{at('')}: {exc}") from None
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"not a TOML value: {value!r}")
+
+
+def _comment(f: dataclasses.Field[Any]) -> str:
+    meta = f.metadata
+    parts = [meta.get("doc", "")]
+    if meta.get("unit"):
+        parts.append(meta["unit"])
+    low, high = meta.get("low"), meta.get("high")
+    if low is not None or high is not None:
+        lo = "-inf" if low is None else f"{low:g}"
+        hi = "inf" if high is None else f"{high:g}"
+        parts.append(f"range [{lo}, {hi}]")
+    if meta.get("choices"):
+        parts.append("one of " + ", ".join(meta["choices"]))
+    if meta.get("source"):
+        parts.append(f"source: {meta['source']}")
+    return "; ".join(p for p in parts if p)
+
+
+def to_toml(sections: Sequence[Settings], header: str = "") -> str:
+    """The sections as a TOML document, each field with its unit, range and source as a
+    comment (reads back with :func:`read_toml` into the same settings)."""
+    out = [f"# {line}" if line else "#" for line in header.splitlines()]
+    for s in sections:
+        if out:
+            out.append("")
+        doc = (type(s).__doc__ or "").strip().splitlines()
+        out.append(f"[{s.section}]" + (f"  # {doc[0]}" if doc else ""))
+        for f in dataclasses.fields(s):
+            value = getattr(s, f.name)
+            if value is None:
+                out.append(f"# {f.name} = (not set)  # {_comment(f)}")
+                continue
+            out.append(f"{f.name} = {_toml_value(value)}  # {_comment(f)}")
+    return "\n".join(out) + "\n"

@@ -1,0 +1,63 @@
+"""The Multiple Behavior Network's dynamics: the program module (PM) reads the camera and writes
+the program of the interpreter (IM), which drives the robot (paper section 3.2)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
+
+import jax.numpy as jnp
+from jax import Array
+
+from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap, ProgrammedState, interpreter_controller
+from mbn.errors import MbnInputError
+from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate
+
+__all__ = ["MBNControllerState", "make_mbn_controller"]
+
+
+class MBNControllerState(NamedTuple):
+    """The MBN's state for one robot: the program module (network and potentials) and the
+    interpreter (network and potentials)."""
+
+    pm: CTRNN
+    pm_y: Array
+    im: CTRNN
+    im_y: Array
+
+
+def make_mbn_controller(
+    *,
+    program_neurons: Sequence[int],
+    dt: float = 0.1,
+    substeps: int = NETWORK_SUBSTEPS,
+    pm_substeps: int = 4,
+    motor: MotorMap | None = None,
+    method: str = "euler",
+) -> Callable[[MBNControllerState, Any], tuple[MBNControllerState, tuple[Array, Array]]]:
+    """The MBN as a controller ``(state, obs) -> (state, (v, w))`` for one robot.
+
+    Each step the program module integrates the camera reading ``[camera == 1, camera == 2]``
+    for ``dt`` (``pm_substeps`` Euler steps); the firing rates of ``program_neurons`` are the
+    program; then the interpreter integrates I1..I3 and that program for ``dt`` as
+    :func:`mbn.control.ctrnn.interpreter_controller` does (``substeps`` steps of ``method``).
+    """
+    if pm_substeps < 1:
+        raise MbnInputError(f"pm_substeps must be >= 1, got {pm_substeps}")
+    index = jnp.asarray(tuple(program_neurons), jnp.int32)
+    h = dt / pm_substeps
+    interpret = interpreter_controller(dt=dt, substeps=substeps, motor=motor, method=method)
+
+    def control(
+        state: MBNControllerState, obs: Any
+    ) -> tuple[MBNControllerState, tuple[Array, Array]]:
+        dtype = state.pm_y.dtype
+        camera = jnp.stack([obs.camera == 1, obs.camera == 2], axis=-1).astype(dtype)
+        y = state.pm_y
+        for _ in range(pm_substeps):
+            y = euler_step(state.pm, y, camera, h)
+        program = firing_rate(state.pm, y)[..., index]
+        im_state, vw = interpret(ProgrammedState(state.im, state.im_y, program), obs)
+        return MBNControllerState(state.pm, y, state.im, im_state.y), vw
+
+    return control

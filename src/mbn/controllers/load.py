@@ -1,0 +1,192 @@
+"""Controllers ready to run: :func:`make_controller` turns a spec (:mod:`mbn.controllers.spec`)
+into a :class:`LoadedController` for :func:`mbn.experiments.trials.run_trials`;
+:func:`load_controller` reads a file first (:mod:`mbn.controllers.codec`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from jax import Array
+
+from mbn.control.ctrnn import CTRNNState, ProgrammedState, ctrnn_controller, interpreter_controller
+from mbn.control.mbn import MBNControllerState, make_mbn_controller
+from mbn.controllers.codec import read_controller_spec
+from mbn.controllers.spec import (
+    KIND_CTRNN,
+    ControllerSpec,
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+)
+from mbn.errors import MbnInputError
+from mbn.world.engine import CameraConfig
+from mbn.world.sensors import SensorConfig
+
+__all__ = ["Controller", "LoadedController", "load_controller", "make_controller"]
+
+#: A controller for one robot: ``(state, observation) -> (state, (v, w))``.
+Controller = Callable[[Any, Any], tuple[Any, tuple[Array, Array]]]
+
+
+def _batched(tree: Any, n: int) -> Any:
+    return jax.tree.map(lambda a: jnp.broadcast_to(a, (n, *a.shape)), tree)
+
+
+@dataclass(frozen=True, eq=False)
+class LoadedController:
+    """A controller ready to run (:func:`mbn.experiments.trials.run_trials`).
+
+    Attributes:
+        kind: the file's kind (:data:`KINDS`).
+        controller: ``(state, obs) -> (state, (v, w))`` for one robot.
+        initial_state: ``n -> `` the batched initial state of ``n`` robots (potentials at 0).
+        sensors: the sonars to cast and their normalisation.
+        dt: the robot step (s).
+        needs_camera: whether the controller reads the camera (the whole MBN).
+        camera: the camera settings it reads (None when it reads none).
+        programs: the file's named programs (empty for a plain CTRNN).
+        program: the program in use (None for a plain CTRNN or the whole MBN).
+        behavior: the behaviour a plain CTRNN file declares (else None).
+        spec: the parsed file.
+    """
+
+    kind: str
+    controller: Controller
+    initial_state: Callable[[int], Any]
+    sensors: SensorConfig
+    dt: float
+    needs_camera: bool
+    camera: CameraConfig | None
+    programs: dict[str, tuple[float, ...]]
+    program: str | None
+    behavior: str | None
+    spec: ControllerSpec
+
+
+def _programs_of(spec: InterpreterControllerSpec) -> dict[str, tuple[float, ...]]:
+    return {name: tuple(float(v) for v in p) for name, p in spec.programs.items()}
+
+
+def _choose_program(
+    programs: Mapping[str, tuple[float, ...]], program: str | None, kind: str, where: str
+) -> str:
+    names = ", ".join(programs) or "none"
+    if program is None:
+        if len(programs) == 1:
+            return next(iter(programs))
+        raise MbnInputError(f"{where}: choose a program of this {kind} controller ({names})")
+    if program not in programs:
+        raise MbnInputError(f"{where}: no program {program!r} (the file has: {names})")
+    return program
+
+
+def _ctrnn_runner(spec: CTRNNControllerSpec) -> tuple[Controller, Callable[[int], Any]]:
+    net = spec.net
+    control = ctrnn_controller(
+        dt=spec.dt, substeps=spec.substeps, motor=spec.motor, method=spec.method
+    )
+
+    def initial(n: int) -> CTRNNState:
+        return CTRNNState(_batched(net, n), jnp.zeros((n, net.num_neurons), net.dtype))
+
+    return control, initial
+
+
+def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], Any]]:
+    im_spec = spec.interpreter_spec
+    im, pm = im_spec.interpreter.net, spec.program_module
+    control = make_mbn_controller(
+        program_neurons=spec.program_neurons,
+        dt=im_spec.dt,
+        substeps=im_spec.substeps,
+        pm_substeps=spec.pm_substeps,
+        motor=im_spec.motor,
+        method=im_spec.method,
+    )
+
+    def initial(n: int) -> MBNControllerState:
+        return MBNControllerState(
+            _batched(pm, n),
+            jnp.zeros((n, pm.num_neurons), pm.dtype),
+            _batched(im, n),
+            jnp.zeros((n, im.num_neurons), im.dtype),
+        )
+
+    return control, initial
+
+
+def _interpreter_runner(
+    im_spec: InterpreterControllerSpec, program: tuple[float, ...]
+) -> tuple[Controller, Callable[[int], Any]]:
+    net = im_spec.interpreter.net
+    values = jnp.asarray(program, net.dtype)
+    control = interpreter_controller(
+        dt=im_spec.dt, substeps=im_spec.substeps, motor=im_spec.motor, method=im_spec.method
+    )
+
+    def initial(n: int) -> ProgrammedState:
+        return ProgrammedState(
+            _batched(net, n),
+            jnp.zeros((n, net.num_neurons), net.dtype),
+            jnp.broadcast_to(values, (n, values.shape[0])),
+        )
+
+    return control, initial
+
+
+def make_controller(
+    spec: ControllerSpec, program: str | None = None, *, where: str = "controller"
+) -> LoadedController:
+    """A :class:`LoadedController` for a spec.
+
+    ``program``: for an interpreter, the name of the program to run (may be omitted when there
+    is only one); for an MBN, None runs the whole MBN (program module and camera) and a name runs
+    the interpreter alone with that stored program; for a plain CTRNN it must be None.
+    """
+    if not isinstance(spec, (CTRNNControllerSpec, InterpreterControllerSpec, MBNControllerSpec)):
+        raise MbnInputError(f"{where}: not a controller spec: {type(spec).__name__}")
+    programs: dict[str, tuple[float, ...]] = {}
+    chosen: str | None = None
+    camera: CameraConfig | None = None
+    run_spec: CTRNNControllerSpec | InterpreterControllerSpec
+    if isinstance(spec, CTRNNControllerSpec):
+        if program is not None:
+            raise MbnInputError(
+                f"{where}: a plain CTRNN controller has no programs (got program {program!r})"
+            )
+        kind, run_spec = KIND_CTRNN, spec
+        control, initial = _ctrnn_runner(spec)
+    else:
+        im_spec = spec if isinstance(spec, InterpreterControllerSpec) else spec.interpreter_spec
+        kind, run_spec = spec.kind, im_spec
+        programs = _programs_of(im_spec)
+        if isinstance(spec, MBNControllerSpec) and program is None:
+            control, initial = _mbn_runner(spec)
+            camera = spec.camera
+        else:
+            chosen = _choose_program(programs, program, kind, where)
+            control, initial = _interpreter_runner(im_spec, programs[chosen])
+    return LoadedController(
+        kind=kind,
+        controller=control,
+        initial_state=initial,
+        sensors=run_spec.sensors,
+        dt=run_spec.dt,
+        needs_camera=camera is not None,
+        camera=camera,
+        programs=programs,
+        program=chosen,
+        behavior=spec.behavior if isinstance(spec, CTRNNControllerSpec) else None,
+        spec=spec,
+    )
+
+
+def load_controller(path: str | Path, program: str | None = None) -> LoadedController:
+    """Read a controller file and make it ready to run (see :func:`make_controller` for
+    ``program``). Errors are one line naming the file."""
+    return make_controller(read_controller_spec(path), program, where=str(path))

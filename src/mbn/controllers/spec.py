@@ -1,0 +1,360 @@
+"""What a controller file holds, as Python objects validated on construction.
+
+Three kinds (``docs/controllers.md``):
+
+* :class:`CTRNNControllerSpec` (``"mbn.controller.ctrnn"``): a CTRNN fed the paper's inputs
+  I1..I3; optional ``behavior``.
+* :class:`InterpreterControllerSpec` (``"mbn.controller.interpreter"``): the fixed-weight
+  interpreter of :mod:`mbn.networks.programmable` and named ``programs``.
+* :class:`MBNControllerSpec` (``"mbn.controller.mbn"``): the Multiple Behavior Network: an
+  interpreter spec plus the program module, a CTRNN whose two inputs encode the camera and whose
+  ``program_neurons``' firing rates are the program.
+
+Each spec also carries the sensors (:class:`~mbn.world.sensors.SensorConfig`), the motor mapping
+(:class:`~mbn.control.ctrnn.MotorMap`), ``dt``, ``substeps``, ``method`` and free ``metadata``.
+The JSON form is :mod:`mbn.controllers.codec`; making a spec run is :mod:`mbn.controllers.load`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap
+from mbn.errors import MbnInputError
+from mbn.networks.ctrnn import CTRNN
+from mbn.networks.programmable import Connection, Interpreter
+from mbn.world.engine import CameraConfig
+from mbn.world.sensors import PAPER_SONARS, SensorConfig
+
+__all__ = [
+    "FORMAT_VERSION",
+    "KINDS",
+    "KIND_CTRNN",
+    "KIND_INTERPRETER",
+    "KIND_MBN",
+    "MULTIPLIER_KIND",
+    "NUM_INPUTS",
+    "PM_INPUTS",
+    "CTRNNControllerSpec",
+    "ControllerSpec",
+    "InterpreterControllerSpec",
+    "MBNControllerSpec",
+]
+
+KIND_CTRNN = "mbn.controller.ctrnn"
+KIND_INTERPRETER = "mbn.controller.interpreter"
+KIND_MBN = "mbn.controller.mbn"
+#: The controller kinds, in the order error messages list them.
+KINDS: tuple[str, ...] = (KIND_CTRNN, KIND_INTERPRETER, KIND_MBN)
+FORMAT_VERSION = 1
+#: Kind of a multiplier file (:mod:`mbn.networks.multiplier`), recognised to give a clear error.
+MULTIPLIER_KIND = "mbn.multiplier"
+#: Number of data inputs every controller reads: the paper's I1..I3 (eq. 3).
+NUM_INPUTS = 3
+#: Inputs of the program module: a one-colour tile in view, a two-colour tile in view.
+PM_INPUTS = 2
+
+# --------------------------------------------------------------------------------------------
+# Specs: what a file holds, as Python objects (validated on construction)
+# --------------------------------------------------------------------------------------------
+
+
+def _check_run_settings(dt: float, substeps: int, method: str) -> None:
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (0 < dt < math.inf):
+        raise MbnInputError(f"dt must be a finite number > 0, got {dt!r}")
+    if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
+        raise MbnInputError(f"substeps must be an integer >= 1, got {substeps!r}")
+    if method not in ("euler", "rk4"):
+        raise MbnInputError(f"method must be euler or rk4, got {method!r}")
+
+
+def _check_sensors(sensors: SensorConfig) -> None:
+    if not isinstance(sensors, SensorConfig):
+        raise MbnInputError(f"sensors must be a SensorConfig, got {type(sensors).__name__}")
+    missing = [s for s in PAPER_SONARS if s not in sensors.sonars]
+    if missing:
+        raise MbnInputError(
+            f"sensors.sonars must include the paper's 10 sonars {list(PAPER_SONARS)} (the "
+            f"controller reads I1..I3 of eq. 3); missing {missing}"
+        )
+
+
+def _check_motor(motor: MotorMap, neurons: int, what: str) -> None:
+    if not isinstance(motor, MotorMap):
+        raise MbnInputError(f"motor must be a MotorMap, got {type(motor).__name__}")
+    for name in ("speed_neuron", "turn_neuron"):
+        index = getattr(motor, name)
+        if not 0 <= index < neurons:
+            raise MbnInputError(
+                f"motor.{name} {index} is not one of the {neurons} neurons of {what} "
+                f"(0..{neurons - 1})"
+            )
+
+
+def _check_single(net: CTRNN, what: str) -> None:
+    if not isinstance(net, CTRNN):
+        raise MbnInputError(f"{what} must be a CTRNN, got {type(net).__name__}")
+    if net.W.ndim != 2:
+        raise MbnInputError(f"{what}: expected one network, got W of shape {tuple(net.W.shape)}")
+
+
+def _check_metadata(metadata: Mapping[str, Any]) -> None:
+    if not isinstance(metadata, Mapping) or not all(isinstance(k, str) for k in metadata):
+        raise MbnInputError("metadata must be an object with string keys")
+
+
+@dataclass(frozen=True, eq=False)
+class CTRNNControllerSpec:
+    """A plain CTRNN controller: the network reads I1..I3, its motor neurons drive the robot.
+
+    Attributes:
+        net: the network (unbatched, 3 inputs).
+        sensors: the sonars cast and their normalisation (must include the paper's 10).
+        motor: which neurons set ``v`` and ``w``.
+        dt: robot step (s).
+        substeps: network steps per robot step.
+        method: "euler" or "rk4".
+        behavior: what it was made for, "right" or "left" (or None).
+        metadata: free JSON-serialisable information (how it was made, scores, ...).
+        kind: the file kind (class constant).
+    """
+
+    kind: ClassVar[str] = KIND_CTRNN
+    net: CTRNN
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    motor: MotorMap = field(default_factory=MotorMap)
+    dt: float = 0.1
+    substeps: int = NETWORK_SUBSTEPS
+    method: str = "euler"
+    behavior: str | None = None
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _check_single(self.net, "network")
+        if self.net.num_inputs != NUM_INPUTS:
+            raise MbnInputError(
+                f"network: a controller reads the paper's {NUM_INPUTS} inputs I1..I3, but WE has "
+                f"{self.net.num_inputs} columns"
+            )
+        _check_sensors(self.sensors)
+        _check_motor(self.motor, self.net.num_neurons, "the network")
+        _check_run_settings(self.dt, self.substeps, self.method)
+        if self.behavior not in (None, "right", "left"):
+            raise MbnInputError(f"behavior must be right, left or null, got {self.behavior!r}")
+        _check_metadata(self.metadata)
+        object.__setattr__(self, "metadata", dict(self.metadata))
+
+
+def _check_interpreter(interp: Interpreter) -> None:
+    """Consistency of an :class:`Interpreter` (its layout, bounds and connections)."""
+    if not isinstance(interp, Interpreter):
+        raise MbnInputError(f"interpreter must be an Interpreter, got {type(interp).__name__}")
+    _check_single(interp.net, "interpreter.net")
+    k = len(interp.connections)
+    if k < 1:
+        raise MbnInputError("interpreter.connections: at least one programmable connection")
+    if len(set(interp.connections)) != k:
+        raise MbnInputError("interpreter.connections: a connection is listed twice")
+    for name, value, low in (
+        ("num_original", interp.num_original, 1),
+        ("num_data_inputs", interp.num_data_inputs, 0),
+        ("mul_size", interp.mul_size, 1),
+        ("mul_output", interp.mul_output, 0),
+    ):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise MbnInputError(f"interpreter.{name} must be an integer >= {low}, got {value!r}")
+    if interp.num_data_inputs != NUM_INPUTS:
+        raise MbnInputError(
+            f"interpreter.num_data_inputs: a controller reads the paper's {NUM_INPUTS} inputs "
+            f"I1..I3, got {interp.num_data_inputs}"
+        )
+    if interp.mul_output >= interp.mul_size:
+        raise MbnInputError(
+            f"interpreter.mul_output {interp.mul_output} is not a neuron of a "
+            f"{interp.mul_size}-neuron multiplier block"
+        )
+    neurons = interp.num_original + k * interp.mul_size
+    if interp.net.num_neurons != neurons:
+        raise MbnInputError(
+            f"interpreter.net: {interp.num_original} original neurons + {k} multipliers of "
+            f"{interp.mul_size} make {neurons} neurons, but W is "
+            f"{interp.net.num_neurons}x{interp.net.num_neurons}"
+        )
+    if interp.net.num_inputs != interp.num_data_inputs + k:
+        raise MbnInputError(
+            f"interpreter.net: {interp.num_data_inputs} data inputs + {k} program inputs make "
+            f"{interp.num_data_inputs + k} inputs, but WE has {interp.net.num_inputs} columns"
+        )
+    for conn in interp.connections:
+        if not isinstance(conn, Connection):
+            raise MbnInputError(f"interpreter.connections: {conn!r} is not a Connection")
+        limit = interp.num_original if conn.kind == "W" else interp.num_data_inputs
+        if conn.i >= interp.num_original or conn.j >= limit:
+            raise MbnInputError(
+                f"interpreter.connections: {conn} is out of range for {interp.num_original} "
+                f"original neurons and {interp.num_data_inputs} inputs"
+            )
+    lower = np.asarray(interp.lower, np.float64)
+    upper = np.asarray(interp.upper, np.float64)
+    for name, arr in (("lower", lower), ("upper", upper)):
+        if arr.shape != (k,):
+            raise MbnInputError(
+                f"interpreter.{name}: expected {k} values (one per connection), got shape "
+                f"{arr.shape}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise MbnInputError(f"interpreter.{name}: values must be finite")
+    if np.any(lower >= upper):
+        c = int(np.argmax(lower >= upper))
+        raise MbnInputError(
+            f"interpreter: bounds of {interp.connections[c]}: lower {lower[c]:g} must be < "
+            f"upper {upper[c]:g}"
+        )
+
+
+def _normalise_programs(
+    programs: Mapping[str, Sequence[float]], k: int
+) -> dict[str, tuple[float, ...]]:
+    if not isinstance(programs, Mapping):
+        raise MbnInputError(f"programs must be an object of name -> list, got {programs!r}")
+    out: dict[str, tuple[float, ...]] = {}
+    for name, values in programs.items():
+        if not isinstance(name, str) or not name:
+            raise MbnInputError(f"programs: a program name must be a non-empty string: {name!r}")
+        try:
+            arr = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise MbnInputError(f"programs.{name}: not a list of numbers") from None
+        if arr.shape != (k,):
+            raise MbnInputError(
+                f"programs.{name}: expected {k} values (one per programmable connection), got "
+                f"shape {arr.shape}"
+            )
+        bad = ~np.isfinite(arr) | (arr < 0) | (arr > 1)
+        if np.any(bad):
+            c = int(np.argmax(bad))
+            raise MbnInputError(
+                f"programs.{name}: values must be in [0, 1], got {arr[c]:g} at index {c}"
+            )
+        out[name] = tuple(float(v) for v in arr)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class InterpreterControllerSpec:
+    """The fixed-weight interpreter with named programs.
+
+    Attributes:
+        interpreter: the interpreter
+            (:func:`mbn.networks.programmable.build_interpreter`), 3 data inputs.
+        programs: name -> program (one value in [0, 1] per programmable connection), e.g.
+            ``{"right": [...], "left": [...]}``.
+        sensors, motor, dt, method, metadata: as in :class:`CTRNNControllerSpec`; the motor
+            neurons are original neurons (the interpreter puts them first).
+        substeps: interpreter steps per robot step (the multipliers run at tau/10: 20 steps of
+            5 ms for tau = 0.5 s).
+        kind: the file kind (class constant).
+    """
+
+    kind: ClassVar[str] = KIND_INTERPRETER
+    interpreter: Interpreter
+    programs: Mapping[str, Sequence[float]]
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    motor: MotorMap = field(default_factory=MotorMap)
+    dt: float = 0.1
+    substeps: int = NETWORK_SUBSTEPS
+    method: str = "euler"
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _check_interpreter(self.interpreter)
+        k = len(self.interpreter.connections)
+        object.__setattr__(self, "programs", _normalise_programs(self.programs, k))
+        _check_sensors(self.sensors)
+        _check_motor(
+            self.motor, self.interpreter.num_original, "the interpreter's original network"
+        )
+        _check_run_settings(self.dt, self.substeps, self.method)
+        _check_metadata(self.metadata)
+        object.__setattr__(self, "metadata", dict(self.metadata))
+
+
+@dataclass(frozen=True, eq=False)
+class MBNControllerSpec:
+    """The Multiple Behavior Network: a program module (PM) that sets the interpreter's program.
+
+    Attributes:
+        interpreter_spec: the interpreter (IM), with its sensors, motor, dt and sub-steps; its
+            ``programs`` are kept for reference (and to run the IM alone with one of them).
+        program_module: a CTRNN with 2 inputs ``[camera == 1, camera == 2]``.
+        program_neurons: PM neurons whose firing rates are the program, one per programmable
+            connection, in program order.
+        pm_substeps: Euler steps of the PM per robot step.
+        camera: the blob-finding camera the PM reads (field of view and range).
+        metadata: free JSON-serialisable information: the file's ``metadata`` (that of
+            ``interpreter_spec`` is not written).
+        kind: the file kind (class constant).
+    """
+
+    kind: ClassVar[str] = KIND_MBN
+    interpreter_spec: InterpreterControllerSpec
+    program_module: CTRNN
+    program_neurons: tuple[int, ...]
+    pm_substeps: int = 4
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.camera, CameraConfig):
+            raise MbnInputError(f"camera must be a CameraConfig, got {type(self.camera).__name__}")
+        if not isinstance(self.interpreter_spec, InterpreterControllerSpec):
+            raise MbnInputError(
+                "interpreter_spec must be an InterpreterControllerSpec, got "
+                f"{type(self.interpreter_spec).__name__}"
+            )
+        _check_single(self.program_module, "program_module.network")
+        pm = self.program_module
+        if pm.num_inputs != PM_INPUTS:
+            raise MbnInputError(
+                f"program_module.network: the program module reads {PM_INPUTS} camera inputs "
+                f"(one-colour, two-colour tile in view), but WE has {pm.num_inputs} columns"
+            )
+        neurons = tuple(self.program_neurons)
+        if not all(isinstance(i, int) and not isinstance(i, bool) for i in neurons):
+            raise MbnInputError(
+                f"program_module.program_neurons must be integers, got {list(neurons)}"
+            )
+        k = len(self.interpreter_spec.interpreter.connections)
+        if len(neurons) != k:
+            raise MbnInputError(
+                f"program_module.program_neurons: the interpreter has {k} programmable "
+                f"connections, got {len(neurons)} program neurons"
+            )
+        if any(not 0 <= i < pm.num_neurons for i in neurons):
+            raise MbnInputError(
+                f"program_module.program_neurons {list(neurons)}: indices must be in "
+                f"0..{pm.num_neurons - 1}"
+            )
+        if len(set(neurons)) != len(neurons):
+            raise MbnInputError(
+                f"program_module.program_neurons {list(neurons)}: a neuron is listed twice"
+            )
+        object.__setattr__(self, "program_neurons", neurons)
+        if (
+            isinstance(self.pm_substeps, bool)
+            or not isinstance(self.pm_substeps, int)
+            or self.pm_substeps < 1
+        ):
+            raise MbnInputError(
+                f"program_module.substeps must be an integer >= 1, got {self.pm_substeps!r}"
+            )
+        _check_metadata(self.metadata)
+        object.__setattr__(self, "metadata", dict(self.metadata))
+
+
+ControllerSpec = CTRNNControllerSpec | InterpreterControllerSpec | MBNControllerSpec
