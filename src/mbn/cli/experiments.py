@@ -1,5 +1,5 @@
 """The experiment commands of ``mbn``: ``evaluate`` (the paper's test protocol on a controller)
-and ``reproduce`` (the whole experiment and its report)."""
+(the paper's test protocol on a controller file)."""
 
 from __future__ import annotations
 
@@ -99,82 +99,6 @@ def add_experiment_commands(sub: Any, parser_class: type[argparse.ArgumentParser
     )
     ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
     ev.add_argument("--json", action="store_true", help="print one JSON object")
-    _add_reproduce(sub)
-
-
-_REPRODUCE_EPILOG = """\
-stages: multiplier, rf, lf_search, lf, im, pm, tests, then results.json and the report.
-Every DE generation is checkpointed in DIR/checkpoints: after an interruption (Ctrl-C, kill -9,
-a power cut) `mbn reproduce --out DIR --resume` continues where the run stopped and ends with the
-same results.json as an uninterrupted run.
-
-outputs in DIR: results.json, report.md, report.html (self-contained), controllers/ (rf.json,
-lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figures/,
-timings.json, stages/, checkpoints/, run.json
-
-examples:
-  mbn reproduce                                full run into runs/reproduce (about 12 minutes)
-  mbn reproduce --quick --out /tmp/q           smoke run
-  mbn reproduce --out runs/s2 --seed 2         another seed
-  mbn reproduce --out runs/s2 --seed 2 --resume    continue it after an interruption
-"""
-
-
-def _add_reproduce(sub: Any) -> None:
-    rep = sub.add_parser(
-        "reproduce",
-        help="the paper's whole experiment: evolve, build, test, report",
-        description="Reproduce Montone, Donnarumma & Prevete (2011) end to end: the multiplier, "
-        "the right- and left-follower evolved by DE on the crossroads, the interpreter built "
-        "from them, the program module evolved with it, the paper's tests (plus jittered starts, "
-        "a held-out maze and the published weights), and a report with a claims table.",
-        epilog=_REPRODUCE_EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    rep.add_argument(
-        "--out",
-        type=Path,
-        default=Path("runs/reproduce"),
-        help="output folder (default runs/reproduce); refused if it holds another run, unless "
-        "--resume or --force",
-    )
-    rep.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
-    rep.add_argument(
-        "--quick",
-        action="store_true",
-        help="smoke run: every stage and output with tiny budgets (not the paper's figures)",
-    )
-    rep.add_argument(
-        "--retrain",
-        action="store_true",
-        help="train the multiplier again instead of using the shipped one (adds minutes)",
-    )
-    rep.add_argument(
-        "--resume", action="store_true", help="continue the run in --out where it stopped"
-    )
-    rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
-    rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
-
-
-def _cmd_reproduce(args: argparse.Namespace) -> int:
-    import sys
-
-    from mbn.experiments.reproduce import ReproduceSettings, Reproduction
-
-    make = ReproduceSettings.quick_run if args.quick else ReproduceSettings.full
-    run = Reproduction(
-        out=args.out,
-        seed=args.seed,
-        settings=make(retrain_multiplier=args.retrain),
-        progress=not args.quiet and sys.stderr.isatty(),
-        log=(lambda _m: None) if args.quiet else print,
-    )
-    run.prepare(resume=args.resume, force=args.force)
-    results = run.run()
-    if not args.quiet:
-        held = sum(c["pass"] for c in results["claims"])
-        print(f"{held} of {len(results['claims'])} claims hold; report: {args.out / 'report.html'}")
-    return 0
 
 
 def _program_for(args: argparse.Namespace, kind: str) -> str | None:
@@ -278,5 +202,4 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 EXPERIMENT_COMMANDS: dict[tuple[str, str], Callable[[argparse.Namespace], int]] = {
     ("evaluate", ""): _cmd_evaluate,
-    ("reproduce", ""): _cmd_reproduce,
 }

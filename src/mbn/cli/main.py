@@ -19,6 +19,8 @@ from mbn import __version__
 from mbn.cli.args import positive_float, positive_int
 from mbn.cli.args import seed as seed_type
 from mbn.cli.experiments import EXPERIMENT_COMMANDS, EXPERIMENT_EPILOG, add_experiment_commands
+from mbn.cli.reproduce import EPILOG as REPRODUCE_EPILOG
+from mbn.cli.reproduce import add_commands as add_reproduce
 from mbn.cli.world import WORLD_COMMANDS, WORLD_EPILOG, add_world_commands
 from mbn.errors import MbnInputError
 
@@ -49,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mbn",
         description="Programmable fixed-weight CTRNNs and the Multiple Behavior Network "
         "(Montone, Donnarumma & Prevete, ICANNGA 2011).",
-        epilog=MAIN_EPILOG + WORLD_EPILOG + EXPERIMENT_EPILOG,
+        epilog=MAIN_EPILOG + WORLD_EPILOG + REPRODUCE_EPILOG + EXPERIMENT_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mbn {__version__}")
@@ -193,6 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_world_commands(sub, _Parser)
     add_experiment_commands(sub, _Parser)
+    add_reproduce(sub)
     return parser
 
 
@@ -400,6 +403,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command not in FLOAT32_COMMANDS:
         _enable_x64()
     try:
+        if hasattr(args, "func"):
+            return int(args.func(args))
         return COMMANDS[key](args)
     except MbnInputError as exc:
         print(f"mbn: error: {exc}", file=sys.stderr)

@@ -35,6 +35,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.experiments.starts import JITTER, jittered_starts
 from mbn.world.engine import World, compile_mazes
 from mbn.world.mazes.builtin import CROSSROAD_KINDS, check_approaches, crossroad
 from mbn.world.mazes.model import Maze
@@ -43,20 +44,30 @@ from mbn.world.rollout import EpisodeStats, RolloutConfig, junction_arrays
 from mbn.world.sensors import SensorConfig
 
 __all__ = [
+    "ARM_VECTORS",
+    "EPISODE_FITNESS_MAX",
+    "EPISODE_SECONDS",
     "FITNESSES",
+    "F_M_WEIGHT",
     "RULES",
     "CrossroadTask",
     "TaskArrays",
     "episode_fitness",
-    "jittered_starts",
     "paper_terms",
     "rule_arm",
 ]
 
 Rule = Literal["right", "left"]
 RULES: tuple[str, ...] = ("right", "left")
+#: Length of a training episode (s); the paper says "about 20 seconds" (section 3.1), 30 s give
+#: the robot time to reach the arm from a jittered start (docs/experiments.md).
+EPISODE_SECONDS = 30.0
+#: Weight of the paper's F_M in the branch fitness.
+F_M_WEIGHT = 0.1
+#: The largest branch fitness of one episode: full progress, no stall, F_M = 1.
+EPISODE_FITNESS_MAX = 1.0 + F_M_WEIGHT
 FITNESSES: tuple[str, ...] = ("branch", "paper")
-_ARM_VECTORS = {"L": (-1.0, 0.0), "S": (0.0, 1.0), "R": (1.0, 0.0)}
+ARM_VECTORS = {"L": (-1.0, 0.0), "S": (0.0, 1.0), "R": (1.0, 0.0)}
 
 
 def rule_arm(kind: str, rule: str) -> str:
@@ -95,9 +106,9 @@ class CrossroadTask:
     rule: str = "right"
     fitness: str = "branch"
     variants: int = 6
-    seconds: float = 30.0
+    seconds: float = EPISODE_SECONDS
     dt: float = 0.1
-    jitter: tuple[float, float, float] = (0.15, 0.3, 10.0)
+    jitter: tuple[float, float, float] = JITTER
     seed: int = 0
     sensors: SensorConfig = field(default_factory=SensorConfig)
     tile: int | None = None
@@ -133,7 +144,7 @@ class CrossroadTask:
         base = np.stack([m.starts[0] for m in mazes])
         poses = jittered_starts(base, self.variants, self.jitter, self.seed)
         maze_index = np.tile(np.arange(len(mazes)), self.variants)
-        target = np.array([_ARM_VECTORS[rule_arm(k, self.rule)] for _, k in pairs])
+        target = np.array([ARM_VECTORS[rule_arm(k, self.rule)] for _, k in pairs])
         centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])
         return TaskArrays(
             mazes=mazes,
@@ -146,28 +157,6 @@ class CrossroadTask:
             cell=float(mazes[0].cell or 1.2),
             arm_length=3 * float(mazes[0].cell or 1.2),
         )
-
-
-def jittered_starts(
-    base: np.ndarray, variants: int, jitter: tuple[float, float, float], seed: int
-) -> np.ndarray:
-    """``variants`` copies of the start poses ``base (S, 3)`` (axis-aligned headings), stacked
-    variant-major: the poses themselves, then ``variants - 1`` jittered copies, each pose moved
-    across its heading by up to ``jitter[0]`` m, along it by up to ``jitter[1]`` m and turned by
-    up to ``jitter[2]`` degrees (uniform; a NumPy generator seeded by ``seed``, at this edge)."""
-    rng = np.random.default_rng(seed)
-    ahead = np.stack([np.round(np.cos(base[:, 2])), np.round(np.sin(base[:, 2]))], -1)
-    right = np.stack([ahead[:, 1], -ahead[:, 0]], -1)
-    starts = [base]
-    lat, along, head = jitter
-    for _ in range(variants - 1):
-        j = np.zeros_like(base)
-        u = rng.uniform(-lat, lat, len(base))
-        v = rng.uniform(-along, along, len(base))
-        j[:, :2] = u[:, None] * right + v[:, None] * ahead
-        j[:, 2] = np.deg2rad(rng.uniform(-head, head, len(base)))
-        starts.append(base + j)
-    return np.concatenate(starts)
 
 
 @dataclass(frozen=True)
@@ -221,4 +210,4 @@ def episode_fitness(stats: EpisodeStats, arrays: TaskArrays, task: CrossroadTask
     if task.fitness == "paper":
         return terms["F_M"] + (terms["F_R"] if task.rule == "right" else terms["F_L"])
     stall = stats.stall_fraction
-    return branch_progress(stats, arrays) * (1.0 - stall) - stall + 0.1 * terms["F_M"]
+    return branch_progress(stats, arrays) * (1.0 - stall) - stall + F_M_WEIGHT * terms["F_M"]

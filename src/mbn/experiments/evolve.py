@@ -31,10 +31,10 @@ from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, t
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
+from mbn.paper import DEFAULT_TAU
 from mbn.world.rollout import EpisodeStats, rollout
 
 __all__ = [
-    "DEFAULT_TAU",
     "RF_CONNECTIONS",
     "Genome",
     "connection_search_fitness",
@@ -51,7 +51,6 @@ __all__ = [
 ]
 
 #: Shared time constant of the RF/LF neurons (the paper gives none; docs/experiments.md).
-DEFAULT_TAU = 0.5
 #: The RF genome: all recurrent weights, then WE[k, k] (neuron k receives input k).
 RF_CONNECTIONS: tuple[Connection, ...] = tuple(
     Connection("W", i, j) for i in range(3) for j in range(3)
@@ -168,7 +167,7 @@ def crossroad_fitness(
     """A jitted map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
     task's episodes)."""
     arrays = arrays or task.arrays()
-    tiled_fitness = _tile_fitness(arrays)
+    tiled_fitness = tile_fitness(arrays)
 
     @jax.jit
     def fitness(population: Array) -> Array:
@@ -239,7 +238,7 @@ def connection_search_fitness(
     :func:`crossroad_fitness` with ``Genome.around(base, connections)``), compiled once for all
     choices of the same number of connections: ``fitness(population, connections)``."""
     arrays = arrays or task.arrays()
-    tiled_fitness = _tile_fitness(arrays)
+    tiled_fitness = tile_fitness(arrays)
     tau = float(np.asarray(base.tau).reshape(-1)[0])
     base_W, base_WE = jnp.asarray(base.W), jnp.asarray(base.WE)
 
@@ -268,7 +267,7 @@ def connection_search_fitness(
     return fitness
 
 
-def _tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, CrossroadTask], Array]:
+def tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, CrossroadTask], Array]:
     def f(stats: EpisodeStats, task: CrossroadTask) -> Array:
         n = stats.final_pose.shape[0] // arrays.episodes
         tiled = TaskArrays(
@@ -399,7 +398,7 @@ def emulated_fitness(
     interpreter programmed with them. Evolution then finds networks that the fixed-weight
     interpreter, with its trained multipliers, really emulates."""
     arrays = arrays or task.arrays()
-    tiled = _tile_fitness(arrays)
+    tiled = tile_fitness(arrays)
 
     @jax.jit
     def fitness(population: Array) -> Array:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -28,9 +28,10 @@ from mbn.control.ctrnn import MotorMap
 from mbn.control.mbn import MBNControllerState as MBNState
 from mbn.control.mbn import make_mbn_controller
 from mbn.errors import MbnInputError
-from mbn.experiments.crossroads import CrossroadTask, TaskArrays
-from mbn.experiments.evolve import _tile_fitness
+from mbn.experiments.crossroads import EPISODE_FITNESS_MAX, CrossroadTask, TaskArrays
+from mbn.experiments.evolve import tile_fitness
 from mbn.networks.ctrnn import CTRNN
+from mbn.paper import DEFAULT_TAU
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, rollout
 
@@ -53,7 +54,7 @@ class PMGenome:
     biases (K), row-major; all neurons share ``tau`` (seconds)."""
 
     programs: int = 3
-    tau: float = 0.5
+    tau: float = DEFAULT_TAU
 
     def __post_init__(self) -> None:
         if self.programs < 1:
@@ -156,7 +157,7 @@ def pm_fitness(
     right = CrossroadTask(rule="right", tile=1, variants=variants, seed=seed)
     left = CrossroadTask(rule="left", tile=2, variants=variants, seed=seed)
     ar, al = right.arrays(), left.arrays()
-    fr, fl = _tile_fitness(ar), _tile_fitness(al)
+    fr, fl = tile_fitness(ar), tile_fitness(al)
     controller = mbn_controller(programs=genome.programs, dt=right.dt, im_substeps=im_substeps)
 
     @jax.jit
@@ -173,6 +174,29 @@ def pm_fitness(
 
 #: Camera inputs of the program module: a one-colour tile in view, a two-colour tile, nothing.
 _ONE, _TWO, _NONE = (1.0, 0.0), (0.0, 1.0), (0.0, 0.0)
+
+
+#: Labels of the memory reward's episodes: scored as a right-follower, a left-follower, or by the
+#: better of the two (rest).
+RIGHT, LEFT, REST = 0, 1, 2
+
+
+class MemoryEpisode(NamedTuple):
+    """One episode of the :class:`MemoryReward`.
+
+    Attributes:
+        kind: the crossroad kind (``"LS"``, ...).
+        tile: colours of the tile in its south arm (1 or 2), or None.
+        sequence: the camera sequence shown to the PM first (:meth:`MemoryReward.sequences`).
+        label: :data:`RIGHT`, :data:`LEFT` or :data:`REST`.
+        approach: how the robot enters the crossroad (``"south"``, ``"west"``, ``"east"``).
+    """
+
+    kind: str
+    tile: int | None
+    sequence: str
+    label: int
+    approach: str
 
 
 @dataclass(frozen=True)
@@ -246,26 +270,28 @@ class MemoryReward:
             ],
         }
 
-    def episodes(self) -> list[tuple[str, int | None, str, int, str]]:
-        """``(crossroad kind, tile, sequence, label, approach)`` with label 0 right, 1 left,
-        2 rest."""
+    def episodes(self) -> list[MemoryEpisode]:
+        """The reward's episodes (:class:`MemoryEpisode`)."""
         from mbn.world.mazes.builtin import CROSSROAD_KINDS
 
-        out: list[tuple[str, int | None, str, int, str]] = []
+        out: list[MemoryEpisode] = []
         for a in self.approaches:
             south = a == "south"
             for k in CROSSROAD_KINDS:
                 if k in self.kinds:
                     if south:  # a tile lies in the south arm
                         out += [
-                            (k, 1, "rest", 0, a),
-                            (k, 2, "rest", 1, a),
-                            (k, 1, "after_two", 0, a),
-                            (k, 2, "after_one", 1, a),
+                            MemoryEpisode(k, 1, "rest", RIGHT, a),
+                            MemoryEpisode(k, 2, "rest", LEFT, a),
+                            MemoryEpisode(k, 1, "after_two", RIGHT, a),
+                            MemoryEpisode(k, 2, "after_one", LEFT, a),
                         ]
-                    out += [(k, None, "memory_one", 0, a), (k, None, "memory_two", 1, a)]
+                    out += [
+                        MemoryEpisode(k, None, "memory_one", RIGHT, a),
+                        MemoryEpisode(k, None, "memory_two", LEFT, a),
+                    ]
                 if k in self.rest_kinds:
-                    out.append((k, None, "rest", 2, a))
+                    out.append(MemoryEpisode(k, None, "rest", REST, a))
         return out
 
 
@@ -317,12 +343,8 @@ def pm_memory_fitness(
     left-follower the interpreter's programs stand for (needed when ``reward.fidelity`` > 0; they
     run with ``im_substeps`` too)."""
     from mbn.control.ctrnn import CTRNNState, ShadowedState, shadowed
-    from mbn.experiments.crossroads import (
-        _ARM_VECTORS,
-        episode_fitness,
-        jittered_starts,
-        rule_arm,
-    )
+    from mbn.experiments.crossroads import ARM_VECTORS, episode_fitness, rule_arm
+    from mbn.experiments.starts import jittered_starts
     from mbn.world.engine import compile_mazes
     from mbn.world.mazes.builtin import crossroad
     from mbn.world.rollout import RolloutConfig, junction_arrays
@@ -338,19 +360,19 @@ def pm_memory_fitness(
         raise MbnInputError("the PM reward has no episodes (kinds and rest_kinds are empty)")
     task = CrossroadTask(seconds=seconds, variants=variants, seed=seed)
     dt = task.dt
-    mazes = [crossroad(k, tile=t, approach=a) for k, t, _, _, a in specs]
+    mazes = [crossroad(s.kind, tile=s.tile, approach=s.approach) for s in specs]
     base = np.stack([m.starts[0] for m in mazes])
     poses = jittered_starts(base, variants, task.jitter, seed)
     index = np.tile(np.arange(len(mazes)), variants)
     e = len(poses)
     centre = np.array([[m.bounds[1] / 2, m.bounds[3] / 2] for m in mazes])[index]
     target = {
-        rule: np.array([_ARM_VECTORS[rule_arm(k, rule)] for k, *_ in specs])[index]
+        rule: np.array([ARM_VECTORS[rule_arm(s.kind, rule)] for s in specs])[index]
         for rule in ("right", "left")
     }
-    label = jnp.asarray(np.array([s[3] for s in specs])[index])
+    label = jnp.asarray(np.array([s.label for s in specs])[index])
     names = sorted(reward.sequences())
-    which = np.array([names.index(s[2]) for s in specs])[index]
+    which = np.array([names.index(s.sequence) for s in specs])[index]
     inputs = [camera_inputs(reward.sequences()[n], dt) for n in names]
     world = compile_mazes(mazes)
     junctions = junction_arrays(mazes, world)
@@ -421,10 +443,11 @@ def pm_memory_fitness(
 
 
 def memory_reward_maximum(reward: MemoryReward, variants: int) -> float:
-    """The largest value of the :class:`MemoryReward` (every episode scoring its maximum, 1.1)."""
+    """The largest value of the :class:`MemoryReward` (every episode scoring its maximum,
+    :data:`~mbn.experiments.crossroads.EPISODE_FITNESS_MAX`)."""
     specs = reward.episodes()
-    per = 1.1 * variants
-    r = per * sum(1 for s in specs if s[3] == 0)
-    left = per * sum(1 for s in specs if s[3] == 1)
-    z = reward.rest_weight * per * sum(1 for s in specs if s[3] == 2)
+    per = EPISODE_FITNESS_MAX * variants
+    r = per * sum(1 for s in specs if s.label == RIGHT)
+    left = per * sum(1 for s in specs if s.label == LEFT)
+    z = reward.rest_weight * per * sum(1 for s in specs if s.label == REST)
     return (r + z) * (left + z)

@@ -27,6 +27,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.experiments.starts import JITTER, mark_starts
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.mazes.model import Maze
 from mbn.world.rollout import EpisodeStats, RolloutConfig, RolloutResult, junction_arrays, rollout
@@ -72,7 +73,7 @@ class TrialSpec:
     repeats: int = 1
     junctions: int = 3
     seconds: float = 60.0
-    jitter: tuple[float, float, float] = (0.15, 0.3, 10.0)
+    jitter: tuple[float, float, float] = JITTER
     seed: int = 0
     exact_first: bool = True
 
@@ -103,27 +104,9 @@ class TrialSpec:
 
 
 def trial_starts(maze: Maze, spec: TrialSpec) -> np.ndarray:
-    """Start poses ``(marks * repeats, 3)``: for each start mark, the mark itself and then
-    ``repeats - 1`` jittered copies (``repeats`` jittered copies when ``spec.exact_first`` is
-    False), mark-major order."""
-    rng = np.random.default_rng(spec.seed)
-    lat, along, head = spec.jitter
-    out = []
-    for x, y, th in maze.starts:
-        if spec.exact_first:
-            out.append((x, y, th))
-        for _ in range(spec.repeats - int(spec.exact_first)):
-            a = rng.uniform(-along, along)
-            b = rng.uniform(-lat, lat)
-            h = math.radians(rng.uniform(-head, head))
-            out.append(
-                (
-                    x + a * math.cos(th) - b * math.sin(th),
-                    y + a * math.sin(th) + b * math.cos(th),
-                    th + h,
-                )
-            )
-    return np.array(out, dtype=float)
+    """Start poses ``(marks * repeats, 3)`` of ``spec`` in ``maze``
+    (:func:`mbn.experiments.starts.mark_starts`)."""
+    return mark_starts(maze.starts, spec.repeats, spec.jitter, spec.seed, spec.exact_first)
 
 
 def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:

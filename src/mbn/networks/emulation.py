@@ -19,7 +19,13 @@ from jax import Array
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN, Method, check_dt, simulate
 from mbn.networks.multiplier import Multiplier
-from mbn.networks.programmable import build_interpreter, differing_connections, run, run_network
+from mbn.networks.programmable import (
+    DEFAULT_TAU_RATIO,
+    build_interpreter,
+    differing_connections,
+    run,
+    run_network,
+)
 from mbn.paper import DEFAULT_TAU, published_lf, published_rf
 
 __all__ = ["EmulationConfig", "emulation_check", "piecewise_constant_inputs", "published_check"]
@@ -73,7 +79,7 @@ class EmulationConfig:
     dt: float = 0.005
     method: Method = "rk4"
     outputs: tuple[int, ...] = (1, 2)
-    tau_ratio: float = 0.1
+    tau_ratio: float = DEFAULT_TAU_RATIO
     margin: float = 0.1
     start: str = "settled"
     settle: float = 5.0

@@ -50,6 +50,7 @@ from mbn.networks.ctrnn import (
 from mbn.networks.multiplier import Multiplier
 
 __all__ = [
+    "DEFAULT_TAU_RATIO",
     "Connection",
     "Interpreter",
     "Programmable",
@@ -62,6 +63,10 @@ __all__ = [
 ]
 
 Kind = Literal["W", "WE"]
+#: Multiplier time constant / receiving neuron's time constant (paper section 2: "an order of
+#: magnitude" smaller).
+DEFAULT_TAU_RATIO = 0.1
+
 _LABEL = re.compile(r"^\s*(WE|W)\s*\[\s*(\d+)\s*,\s*(\d+)\s*\]\s*$")
 
 
@@ -303,7 +308,7 @@ def build_interpreter(
     programmable: Sequence[Programmable],
     multiplier: Multiplier,
     *,
-    tau_ratio: float = 0.1,
+    tau_ratio: float = DEFAULT_TAU_RATIO,
     mul_tau: float | None = None,
 ) -> Interpreter:
     """Build the fixed-weight interpreter of ``net`` (paper section 2, Fig. 1, eq. 2).

@@ -10,7 +10,7 @@ import numpy as np
 from mbn.io import atomic_open
 from mbn.networks.multiplier import Multiplier, dense_grid, multiply
 
-__all__ = ["plot_multiplier_error"]
+__all__ = ["draw_multiplier_error", "plot_multiplier_error"]
 
 
 def _figure(*args: Any, **kwargs: Any) -> Any:
@@ -35,15 +35,43 @@ def plot_multiplier_error(
     validation: np.ndarray | None = None,
     grid_points: int = 101,
 ) -> None:
-    """Heat maps of the absolute and relative error of ``mul`` over [0, 1]^2.
+    """Heat maps of the absolute and relative error of ``mul`` over [0, 1]^2
+    (:func:`draw_multiplier_error` of its outputs on a ``grid_points`` x ``grid_points`` grid).
+    Optional validation pairs are drawn as dots (white: within 5 %, red: not)."""
+    grid = np.asarray(dense_grid(grid_points))
+    output = np.asarray(multiply(mul, grid))
+    v_out = None if validation is None else np.asarray(multiply(mul, validation))
+    draw_multiplier_error(
+        grid,
+        output,
+        path,
+        num_neurons=mul.num_neurons,
+        metrics=metrics,
+        validation=validation,
+        validation_output=v_out,
+    )
+
+
+def draw_multiplier_error(
+    grid: np.ndarray,
+    output: np.ndarray,
+    path: str | Path,
+    *,
+    num_neurons: int,
+    metrics: dict[str, Any] | None = None,
+    validation: np.ndarray | None = None,
+    validation_output: np.ndarray | None = None,
+) -> None:
+    """Heat maps of a multiplier's error from its ``output (G*G,)`` on a square ``grid (G*G, 2)``
+    (:func:`mbn.networks.multiplier.dense_grid`).
 
     Left: ``|out - x1 x2|``; right: ``|out - x1 x2| / (x1 x2)`` on a log colour scale with the
-    5 % contour. Optional validation pairs are drawn as dots (white: within 5 %, red: not).
+    5 % contour; validation pairs (with their outputs) as dots (white: within 5 %, red: not).
     """
     from matplotlib.colors import LogNorm
 
-    grid = np.asarray(dense_grid(grid_points))
-    out = np.asarray(multiply(mul, grid)).reshape(grid_points, grid_points)
+    grid_points = round(float(np.sqrt(len(grid))))
+    out = np.asarray(output).reshape(grid_points, grid_points)
     x = grid[:, 0].reshape(grid_points, grid_points)
     y = grid[:, 1].reshape(grid_points, grid_points)
     target = x * y
@@ -69,8 +97,8 @@ def plot_multiplier_error(
         x, y, np.nan_to_num(rel_err, nan=10), levels=[0.05], colors="cyan", linewidths=1.2
     )
     ax_rel.set_title("relative error (cyan: 5 % contour)")
-    if validation is not None:
-        v_out = np.asarray(multiply(mul, validation))
+    if validation is not None and validation_output is not None:
+        v_out = validation_output
         v_t = validation[:, 0] * validation[:, 1]
         ok = np.abs(v_out - v_t) <= 0.05 * v_t
         for ax in (ax_abs, ax_rel):
@@ -79,7 +107,7 @@ def plot_multiplier_error(
     for ax in (ax_abs, ax_rel):
         ax.set_xlabel("x1")
         ax.set_ylabel("x2")
-    title = f"{mul.num_neurons}-neuron multiplier"
+    title = f"{num_neurons}-neuron multiplier"
     if metrics:
         title += (
             f": {metrics['fraction_within_5pct']:.0%} of validation pairs within 5 %, "

@@ -17,29 +17,15 @@ import pytest
 from mbn.cli.main import main
 from mbn.control.ctrnn import NETWORK_SUBSTEPS
 from mbn.controllers import load_controller
-from mbn.experiments.reproduce import CONTROLLERS, RUN_KIND, TEST_NAMES
+from mbn.experiments.reproduce import RUN_KIND
+from mbn.experiments.reproduce.protocol import TEST_NAMES
+
+from .conftest import reproduce as _reproduce
+
+CONTROLLERS = ("rf", "lf", "im", "mbn", "multiplier")
 
 TEST_KEYS = {"trials", "successes", "success_rate"}
 CLAIM_KEYS = {"claim", "paper", "measured", "pass"}
-
-
-def _reproduce(*args: str, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "mbn", "reproduce", "--quiet", *args],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        **kw,
-    )
-
-
-@pytest.fixture(scope="module")
-def quick_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("quick") / "run"
-    t0 = time.perf_counter()
-    proc = _reproduce("--quick", "--out", str(out), "--seed", "3")
-    assert proc.returncode == 0, proc.stderr
-    return out, time.perf_counter() - t0
 
 
 def test_quick_run_writes_results_with_the_documented_schema(quick_run):
@@ -134,7 +120,7 @@ def test_quick_run_controllers_load_and_evaluate(quick_run):
             "--behavior",
             "right",
             "--seconds",
-            str(results["settings"]["test_seconds"]),
+            str(results["config"]["tests"]["seconds"]),
             "--json",
         ],
         capture_output=True,
@@ -231,7 +217,7 @@ def test_out_holding_another_run_is_refused(tmp_path, capsys):
 def test_resume_with_other_seed_is_refused(tmp_path, capsys):
     _fake_run(tmp_path / "r", seed=5)
     assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"), "--resume"]) == 2
-    _one_line_error(capsys, "run.json", "other seed")
+    _one_line_error(capsys, "run.json", "seed 5, not 0")
     assert (tmp_path / "r" / "results.json").read_text() == '{"keep": true}'
 
 

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["AGREEMENT_TARGET", "ROBUST_TARGET", "claims"]
+from mbn.experiments.reproduce.protocol import WHO
+
+__all__ = ["AGREEMENT_TARGET", "MULTIPLIER_MAX_ERROR", "ROBUST_TARGET", "claims"]
 
 #: Success rate required from jittered starts and on the held-out maze.
 ROBUST_TARGET = 0.95
@@ -18,16 +20,6 @@ ROBUST_TARGET = 0.95
 AGREEMENT_TARGET = 0.98
 #: Largest error of the multiplier on the 101 x 101 grid counted as "multiplies".
 MULTIPLIER_MAX_ERROR = 0.02
-
-_WHO = {
-    "rf": "RF",
-    "lf": "LF",
-    "im_rf": "IM with the RF program",
-    "im_lf": "IM with the LF program",
-    "mbn": "MBN (PM + IM)",
-    "published_rf": "published W_RF, WE_RF",
-    "published_lf": "published W_LF, WE_LF",
-}
 
 
 def _frac(t: dict[str, Any]) -> str:
@@ -38,8 +30,9 @@ def _all(t: dict[str, Any]) -> bool:
     return t["trials"] > 0 and t["successes"] == t["trials"]
 
 
-def claims(stages: dict[str, dict[str, Any]], settings: Any) -> list[dict[str, Any]]:
-    """The claims table from the stages' results (``stages[name]`` as written by the run)."""
+def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[str, Any]]:
+    """The claims table from the stages' results (``stages[name]`` as written by the run) and
+    the run's ``[tests]`` settings."""
     tests = stages["tests"]["tests"]
     agree = stages["tests"]["agreement"]
     mul = stages["multiplier"]
@@ -88,15 +81,15 @@ def claims(stages: dict[str, dict[str, Any]], settings: Any) -> list[dict[str, A
         add(
             claim,
             paper_all,
-            f"{_frac(t)} ({settings.test_maze}, paper protocol)",
+            f"{_frac(t)} ({tests_settings.maze}, paper protocol)",
             _all(t),
             "all trials succeed",
         )
     for suffix, what in (
-        ("_jitter", f"{settings.jitter_per_mark * 10} jittered starts"),
+        ("_jitter", f"{tests['rf_jitter']['trials']} jittered starts"),
         ("_heldout", "the held-out maze"),
     ):
-        parts = [f"{_WHO[n]} {tests[n + suffix]['success_rate']:.1%}" for n, _ in rows]
+        parts = [f"{WHO[n]} {tests[n + suffix]['success_rate']:.1%}" for n, _ in rows]
         ok = all(tests[n + suffix]["success_rate"] >= ROBUST_TARGET for n, _ in rows)
         add(
             f"The five behaviours hold from {what}",
@@ -119,7 +112,7 @@ def claims(stages: dict[str, dict[str, Any]], settings: Any) -> list[dict[str, A
     for name, rule in (("published_rf", "right"), ("published_lf", "left")):
         t = tests[name]
         add(
-            f"The published weights ({_WHO[name]}) are a {rule}-wall follower",
+            f"The published weights ({WHO[name]}) are a {rule}-wall follower",
             "the networks of the paper's tests (success in all trials)",
             f"{_frac(t)} (paper protocol), {tests[name + '_jitter']['success_rate']:.1%} "
             f"jittered, {tests[name + '_heldout']['success_rate']:.1%} held-out",

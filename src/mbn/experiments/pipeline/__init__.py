@@ -1,0 +1,24 @@
+"""The machinery every experiment of ``mbn`` runs on: a registry of stages, a run folder, a stage
+context (keys, settings, checkpointed DE, progress) and a runner that does resume/force, timings
+and ``results.json`` (``docs/architecture.md``).
+
+An experiment is a :class:`~mbn.experiments.pipeline.runner.Experiment`: a kind, a
+:class:`~mbn.experiments.pipeline.registry.Registry` of stages and the settings sections they
+share. Adding a stage is one module with a :class:`~mbn.experiments.pipeline.registry.Stage` and
+one line in its registry.
+"""
+
+from mbn.experiments.pipeline.context import StageContext
+from mbn.experiments.pipeline.registry import Registry, Stage
+from mbn.experiments.pipeline.rundir import RunDir
+from mbn.experiments.pipeline.runner import Experiment, RunConfig, run_experiment
+
+__all__ = [
+    "Experiment",
+    "Registry",
+    "RunConfig",
+    "RunDir",
+    "Stage",
+    "StageContext",
+    "run_experiment",
+]

@@ -1,0 +1,119 @@
+"""What a stage sees while it runs: its folder, settings, seeds and key, the outputs of the stages
+it needs, progress bars, and DE checkpointed after every generation."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import jax
+import numpy as np
+
+from mbn.evolution.de import DEConfig, DEState
+from mbn.experiments.pipeline.progress import Progress
+from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
+
+if TYPE_CHECKING:
+    from mbn.experiments.pipeline.registry import Stage
+    from mbn.experiments.pipeline.runner import RunConfig
+
+__all__ = ["DEResult", "StageContext", "generation_stats"]
+
+
+@dataclass(frozen=True)
+class DEResult:
+    """A finished DE run: the data a stage records (``data``: the best genome, its fitness, the
+    generations and the best and mean fitness of every generation) and the final state."""
+
+    data: dict[str, Any]
+    state: DEState
+
+
+def generation_stats(state: DEState) -> tuple[float, float]:
+    """Best fitness and mean finite fitness of a population."""
+    fit = np.asarray(state.fitness, dtype=float)
+    return float(state.best_fitness), float(np.mean(fit[np.isfinite(fit)]))
+
+
+@dataclass
+class StageContext:
+    """One stage's view of the run.
+
+    Attributes:
+        rundir: the run folder (the stage writes its files through it).
+        config: the run's whole effective config.
+        seed: the run's seed.
+        seeds: the seeds derived from it (recorded in ``results.json``).
+        run_key: the run's key (``jax.random.key(seed)``, made once by the runner).
+        stage: the stage running.
+        progress: progress bars (silent when disabled).
+    """
+
+    rundir: RunDir
+    config: RunConfig
+    seed: int
+    seeds: dict[str, int]
+    run_key: jax.Array
+    stage: Stage
+    progress: Progress
+
+    @property
+    def key(self) -> jax.Array:
+        """This stage's key: ``fold_in(run key, stage.key_id)``."""
+        return jax.random.fold_in(self.run_key, self.stage.key_id)
+
+    @property
+    def settings(self) -> Any:
+        """This stage's settings (its section of the config)."""
+        return self.config[self.stage.name]
+
+    def section(self, name: str) -> Any:
+        """A section of the config (shared settings, or another stage's)."""
+        return self.config[name]
+
+    def read(self, name: str) -> dict[str, Any]:
+        """The data of a stage this one needs."""
+        if name not in self.stage.needs:
+            raise RuntimeError(f"stage {self.stage.name} reads {name!r} but does not declare it")
+        return self.rundir.read_stage(name)
+
+    def evolve(
+        self,
+        name: str,
+        config: DEConfig,
+        fitness: Callable[[jax.Array], jax.Array],
+        key: jax.Array,
+        generations: int,
+        description: str,
+        population: np.ndarray | None = None,
+    ) -> DEResult:
+        """DE for ``generations`` generations, checkpointed after each one in
+        ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
+        at random unless ``population`` is given; generation ``g`` draws from
+        ``fold_in(key, g)``."""
+        from mbn.experiments.evolve import generation, start
+
+        if self.rundir.checkpoint_file(name).exists():
+            cp = self.rundir.load_checkpoint(name)
+            state, history = cp.state, list(cp.history)
+        else:
+            state = start(key, config, fitness, population)
+            history = [generation_stats(state)]
+            self.rundir.save_checkpoint(name, Checkpoint(state, history))
+        g0 = int(state.generation)
+        bar = self.progress.task(description, generations)
+        self.progress.update(bar, completed=g0, info=f"best {history[-1][0]:.2f}")
+        for g in range(g0 + 1, generations + 1):
+            state = generation(key, g, state, config, fitness)
+            history.append(generation_stats(state))
+            self.rundir.save_checkpoint(name, Checkpoint(state, history))
+            self.progress.update(bar, completed=g, info=f"best {history[-1][0]:.2f}")
+        h = np.asarray(history, dtype=float)
+        data = {
+            "best_genome": np.asarray(state.best_genome, dtype=float).tolist(),
+            "best_fitness": float(state.best_fitness),
+            "generations": generations,
+            "history": {"best": h[:, 0].tolist(), "mean": h[:, 1].tolist()},
+        }
+        return DEResult(data, state)

@@ -1,0 +1,197 @@
+"""A run folder: what a run writes and where, read back by later stages, the report and resumes.
+
+Layout (every file written atomically)::
+
+    run.json          what was asked: kind, mbn version, seed, the whole effective config
+    checkpoints/      DE state after every generation (NAME.npz), for resuming
+    stages/NAME.json  each finished stage's data
+    records/          arrays recorded for the report (trajectories, recordings), NPZ
+    controllers/      controller and multiplier files (docs/controllers.md)
+    figures/          the report's pictures
+    results.json      seeds, config, versions, per-stage metrics (and the experiment's extras)
+    timings.json      wall-clock seconds per stage (kept out of results.json)
+"""
+
+from __future__ import annotations
+
+import io
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEState
+from mbn.io import atomic_open, expect_object, read_json, write_json_atomic
+
+__all__ = ["SUBFOLDERS", "Checkpoint", "RunDir"]
+
+#: The folders of a run.
+SUBFOLDERS = ("checkpoints", "stages", "records", "controllers", "figures")
+#: The files of a run at its top level.
+FILES = ("results.json", "report.md", "report.html", "timings.json", "run.json")
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """A DE run after some generation: its state and the best and mean fitness of every
+    generation so far (``history[g] = (best, mean)``)."""
+
+    state: DEState
+    history: list[tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class RunDir:
+    """The folder of one run (see the module docstring for its layout)."""
+
+    root: Path
+
+    # -- places ----------------------------------------------------------------------------------
+
+    @property
+    def manifest(self) -> Path:
+        return self.root / "run.json"
+
+    @property
+    def results(self) -> Path:
+        return self.root / "results.json"
+
+    @property
+    def timings(self) -> Path:
+        return self.root / "timings.json"
+
+    def stage_file(self, name: str) -> Path:
+        return self.root / "stages" / f"{name}.json"
+
+    def checkpoint_file(self, name: str) -> Path:
+        return self.root / "checkpoints" / f"{name}.npz"
+
+    def controller_file(self, name: str) -> Path:
+        return self.root / "controllers" / f"{name}.json"
+
+    def record_file(self, name: str) -> Path:
+        return self.root / "records" / f"{name}.npz"
+
+    def figure_file(self, name: str) -> Path:
+        return self.root / "figures" / name
+
+    # -- the folder ------------------------------------------------------------------------------
+
+    def create(self) -> None:
+        """Create the folder and its sub-folders (existing ones are kept)."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        for sub in SUBFOLDERS:
+            (self.root / sub).mkdir(exist_ok=True)
+
+    def clear(self) -> None:
+        """Remove what a run writes (``--force``), leaving anything else in place."""
+        for name in SUBFOLDERS:
+            shutil.rmtree(self.root / name, ignore_errors=True)
+        for name in FILES:
+            (self.root / name).unlink(missing_ok=True)
+
+    def read_manifest(self) -> dict[str, Any]:
+        return expect_object(read_json(self.manifest), str(self.manifest))
+
+    # -- stages ----------------------------------------------------------------------------------
+
+    def stage_done(self, name: str) -> bool:
+        return self.stage_file(name).exists()
+
+    def read_stage(self, name: str) -> dict[str, Any]:
+        """The data of a finished stage (one line naming the file when it is missing)."""
+        path = self.stage_file(name)
+        if not path.exists():
+            raise MbnInputError(f"{path}: stage {name!r} has not run in this folder")
+        data = read_json(path)
+        if not isinstance(data, dict):
+            raise MbnInputError(f"{path}: not a stage result")
+        return data
+
+    def write_stage(self, name: str, data: dict[str, Any]) -> None:
+        write_json_atomic(self.stage_file(name), data)
+
+    def read_timings(self) -> dict[str, float]:
+        if not self.timings.exists():
+            return {}
+        data = read_json(self.timings)
+        stages = data.get("stages", {}) if isinstance(data, dict) else {}
+        return {str(k): float(v) for k, v in stages.items()}
+
+    def write_timings(self, timings: dict[str, float]) -> None:
+        write_json_atomic(
+            self.timings,
+            {"stages": timings, "total_seconds": round(sum(timings.values()), 2)},
+        )
+
+    # -- checkpoints -----------------------------------------------------------------------------
+
+    def save_checkpoint(self, name: str, checkpoint: Checkpoint) -> None:
+        state = checkpoint.state
+        with atomic_open(self.checkpoint_file(name), "wb") as handle:
+            np.savez(
+                handle,
+                population=np.asarray(state.population),
+                fitness=np.asarray(state.fitness),
+                best_genome=np.asarray(state.best_genome),
+                best_fitness=np.asarray(state.best_fitness),
+                generation=np.asarray(state.generation),
+                history=np.asarray(checkpoint.history, dtype=float),
+            )
+
+    def load_checkpoint(self, name: str) -> Checkpoint:
+        path = self.checkpoint_file(name)
+        try:
+            with np.load(path) as z:
+                state = DEState(
+                    population=jnp.asarray(z["population"]),
+                    fitness=jnp.asarray(z["fitness"]),
+                    best_genome=jnp.asarray(z["best_genome"]),
+                    best_fitness=jnp.asarray(z["best_fitness"]),
+                    generation=jnp.asarray(z["generation"]),
+                )
+                history = [(float(row[0]), float(row[1])) for row in z["history"]]
+        except (OSError, KeyError, ValueError) as exc:
+            raise MbnInputError(f"{path}: unreadable checkpoint ({exc})") from None
+        return Checkpoint(state, history)
+
+    # -- records ---------------------------------------------------------------------------------
+
+    def save_record(self, name: str, arrays: dict[str, Any]) -> None:
+        """Arrays for the report, ``records/NAME.npz`` (compressed)."""
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **{k: np.asarray(v) for k, v in arrays.items()})  # type: ignore[arg-type]
+        with atomic_open(self.record_file(name), "wb") as handle:
+            handle.write(buf.getvalue())
+
+    def load_record(self, name: str) -> dict[str, np.ndarray]:
+        path = self.record_file(name)
+        try:
+            with np.load(path) as z:
+                return {k: z[k] for k in z.files}
+        except (OSError, ValueError) as exc:
+            raise MbnInputError(f"{path}: unreadable record ({exc})") from None
+
+    def save_trajectories(
+        self, name: str, trajectories: dict[str, Any], fields: tuple[str, ...]
+    ) -> None:
+        """Several trajectories in one record: ``NAME.npz`` holds ``who.field`` arrays."""
+        arrays = {
+            f"{who}.{f}": np.asarray(getattr(traj, f))
+            for who, traj in trajectories.items()
+            for f in fields
+        }
+        self.save_record(name, arrays)
+
+    def load_trajectories(self, name: str) -> dict[str, SimpleNamespace]:
+        """The trajectories of :meth:`save_trajectories`, ``who -> namespace of fields``."""
+        out: dict[str, dict[str, np.ndarray]] = {}
+        for key, value in self.load_record(name).items():
+            who, f = key.split(".", 1)
+            out.setdefault(who, {})[f] = value
+        return {who: SimpleNamespace(**fields) for who, fields in out.items()}

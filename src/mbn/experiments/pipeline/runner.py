@@ -1,0 +1,410 @@
+"""The runner: an experiment's stages in order into a run folder, resumable, then ``results.json``
+and the report.
+
+Seeds: the run's seed becomes one JAX key here (``jax.random.key(seed)``); stage ``s`` draws from
+``fold_in(key, s.key_id)``; seeds of NumPy edges (jittered starts) are derived by the experiment
+and recorded in ``results.json``. A run's effective config (defaults, then the ``quick`` preset
+when asked, then a settings file) is written whole to ``run.json`` and ``results.json``;
+``--resume`` refuses a config that differs from the run's.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from mbn import __version__
+from mbn.config import Settings, TomlDocument, from_mapping, setting, settings_to_dict, to_toml
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline.context import StageContext
+from mbn.experiments.pipeline.progress import Progress
+from mbn.experiments.pipeline.registry import Registry, Stage
+from mbn.experiments.pipeline.rundir import RunDir
+from mbn.io import write_json_atomic
+from mbn.precision import PRECISIONS, ROBOT, scope
+
+__all__ = [
+    "Experiment",
+    "RunConfig",
+    "RunSettings",
+    "check_out_dir",
+    "collect_results",
+    "prepare",
+    "replace_section",
+    "run_experiment",
+    "run_stage",
+    "versions",
+]
+
+
+@dataclass(frozen=True)
+class RunSettings(Settings):
+    """How the run as a whole is made."""
+
+    section = "run"
+    quick: bool = setting(
+        False,
+        doc="a smoke run: the experiment's quick preset (tiny budgets) under the file's values",
+        source="docs/reproduce.md",
+    )
+    precision: str = setting(
+        ROBOT,
+        doc="floating-point precision of every stage",
+        choices=PRECISIONS,
+        source="docs/precision.md (the robot experiments are evolved and tested in float32)",
+    )
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A run's effective settings: one :class:`~mbn.config.Settings` per section, in order."""
+
+    sections: tuple[Settings, ...]
+
+    def __getitem__(self, name: str) -> Any:
+        for s in self.sections:
+            if s.section == name:
+                return s
+        raise KeyError(name)
+
+    @property
+    def quick(self) -> bool:
+        return bool(self["run"].quick)
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        return {s.section: settings_to_dict(s) for s in self.sections}
+
+    def to_toml(self, header: str = "") -> str:
+        return to_toml(self.sections, header)
+
+
+def versions() -> dict[str, str]:
+    """Versions of what the results depend on."""
+    import jaxlib
+    import matplotlib
+    import optax
+
+    return {
+        "mbn": __version__,
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "jaxlib": jaxlib.__version__,
+        "numpy": np.__version__,
+        "optax": optax.__version__,
+        "matplotlib": matplotlib.__version__,
+        "platform": jax.default_backend(),
+    }
+
+
+Results = Callable[[RunDir, dict[str, dict[str, Any]], RunConfig], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """An experiment: its stages and how a run of it is configured and summed up.
+
+    Attributes:
+        name: the experiment's name (``reproduce``).
+        kind: the ``kind`` of its ``run.json`` (``mbn.reproduce``).
+        registry: its stages, in order.
+        shared: settings classes shared by several stages (sections before the stages' own;
+            :class:`RunSettings` comes first in every experiment).
+        quick: the quick preset: ``section -> {setting: value}`` applied under the file's values.
+        seeds: the seeds derived from the run's seed (for NumPy edges), recorded in results.
+        results: extra entries of ``results.json`` from the stages' data (e.g. tests and claims).
+        report: writes the report from the run folder (and ``results.json``) alone.
+    """
+
+    name: str
+    kind: str
+    registry: Registry
+    shared: tuple[type[Settings], ...] = ()
+    quick: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    seeds: Callable[[int], dict[str, int]] = lambda seed: {"seed": seed}
+    results: Results | None = None
+    report: Callable[[RunDir], None] | None = None
+
+    def section_types(self) -> tuple[type[Settings], ...]:
+        stages = tuple(s.settings for s in self.registry if s.settings is not None)
+        return (RunSettings, *self.shared, *stages)
+
+    def config(self, *, quick: bool = False, document: TomlDocument | None = None) -> RunConfig:
+        """The effective config: defaults, then the quick preset (when ``quick`` or the file's
+        ``[run] quick = true``), then the file's values. Unknown tables and keys, and bad
+        values, are refused in one line naming the file, line and key."""
+        types = {cls.section: cls for cls in self.section_types()}
+        data = dict(document.data) if document is not None else {}
+        for table in data:
+            if table not in types:
+                where = document.where(table) if document is not None else f"[{table}]"
+                raise MbnInputError(
+                    f"{where}: unknown section (the sections of {self.name}: {', '.join(types)})"
+                )
+        run_table = data.get("run", {})
+        file_quick = isinstance(run_table, dict) and run_table.get("quick") is True
+        use_quick = quick or file_quick
+        sections = []
+        for name, cls in types.items():
+            current: Settings = cls()
+            if use_quick:
+                preset = dict(self.quick.get(name, {}))
+                if name == "run":
+                    preset["quick"] = True
+                if preset:
+                    current = from_mapping(cls, preset, base=current)
+            if name in data:
+                current = from_mapping(
+                    cls, data[name], base=current, where=_locator(document, name)
+                )
+            if isinstance(current, RunSettings) and use_quick and not current.quick:
+                current = current.replace(quick=True)
+            sections.append(current)
+        return RunConfig(tuple(sections))
+
+    def config_from_dict(self, data: Any, where: str) -> RunConfig:
+        """The config recorded in a ``run.json`` (a table per section)."""
+        if not isinstance(data, dict):
+            raise MbnInputError(f"{where}: config: expected an object, got {type(data).__name__}")
+        types = {cls.section: cls for cls in self.section_types()}
+        sections = []
+        for name, cls in types.items():
+            table = data.get(name, {})
+            sections.append(
+                from_mapping(cls, table, where=lambda key, t=name: f"{where}: config.{t}.{key}")
+            )
+        return RunConfig(tuple(sections))
+
+
+def _locator(document: TomlDocument | None, table: str) -> Callable[[str], str] | None:
+    """How errors name a key of ``table`` in ``document`` (file, line and key)."""
+    if document is None:
+        return None
+    return lambda key: document.where(table, key)
+
+
+def check_out_dir(out: Path, kind: str, *, resume: bool, force: bool) -> None:
+    """Refuse an output folder that holds something else (one clear line).
+
+    A folder holding another run (``run.json``) is used only with ``resume`` (continue it) or
+    ``force`` (start anew); a folder holding other files is never used; a file is refused.
+    """
+    if resume and force:
+        raise MbnInputError("--resume and --force exclude each other")
+    if out.exists() and not out.is_dir():
+        raise MbnInputError(f"--out {out}: is a file, not a folder")
+    if not out.exists():
+        if resume:
+            raise MbnInputError(f"--out {out}: nothing to resume (the folder does not exist)")
+        return
+    if not any(out.iterdir()):
+        if resume:
+            raise MbnInputError(f"--out {out}: nothing to resume (the folder is empty)")
+        return
+    rundir = RunDir(out)
+    if not rundir.manifest.exists():
+        raise MbnInputError(
+            f"--out {out}: the folder holds other files and no run (run.json); choose an empty "
+            "or new folder"
+        )
+    data = rundir.read_manifest()
+    if data.get("kind") != kind:
+        raise MbnInputError(f"{rundir.manifest}: not a {kind} run (kind {data.get('kind')!r})")
+    if not (resume or force):
+        raise MbnInputError(
+            f"--out {out} holds another run (seed {data.get('seed')}); pass --resume to continue "
+            "it or --force to start anew"
+        )
+
+
+def _first_difference(old: Any, new: Any, path: str = "") -> str:
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in [*old, *(k for k in new if k not in old)]:
+            if old.get(key) != new.get(key):
+                return _first_difference(
+                    old.get(key), new.get(key), f"{path}.{key}" if path else key
+                )
+    return f"{path or 'config'}: {json.dumps(old)} then, {json.dumps(new)} now"
+
+
+def _manifest(experiment: Experiment, seed: int, config: RunConfig) -> dict[str, Any]:
+    return {
+        "kind": experiment.kind,
+        "mbn_version": __version__,
+        "seed": seed,
+        "config": config.to_dict(),
+    }
+
+
+def prepare(
+    experiment: Experiment,
+    rundir: RunDir,
+    seed: int,
+    config: RunConfig,
+    *,
+    resume: bool,
+    force: bool,
+) -> None:
+    """Check the folder (:func:`check_out_dir`), then create it, or check that a run resumed was
+    started with the same seed and config."""
+    check_out_dir(rundir.root, experiment.kind, resume=resume, force=force)
+    if force:
+        rundir.clear()
+    rundir.create()
+    mine = _manifest(experiment, seed, config)
+    if resume and rundir.manifest.exists():
+        old = rundir.read_manifest()
+        if old.get("seed") != seed:
+            raise MbnInputError(
+                f"{rundir.manifest}: the run was started with seed {old.get('seed')}, not {seed}; "
+                "resume it with the same seed"
+            )
+        if old.get("config") != mine["config"]:
+            diff = _first_difference(old.get("config"), mine["config"])
+            raise MbnInputError(
+                f"{rundir.manifest}: the run was started with another config ({diff}); resume it "
+                "with the same options and settings file"
+            )
+    else:
+        write_json_atomic(rundir.manifest, mine)
+
+
+def _context(
+    experiment: Experiment,
+    rundir: RunDir,
+    seed: int,
+    config: RunConfig,
+    stage: Stage,
+    progress: Progress,
+) -> StageContext:
+    return StageContext(
+        rundir=rundir,
+        config=config,
+        seed=seed,
+        seeds=experiment.seeds(seed),
+        run_key=jax.random.key(seed),
+        stage=stage,
+        progress=progress,
+    )
+
+
+def run_stage(
+    experiment: Experiment,
+    rundir: RunDir,
+    name: str,
+    *,
+    seed: int,
+    config: RunConfig,
+    progress: Progress | None = None,
+) -> dict[str, Any]:
+    """Run one stage against a run folder whose ``needs`` are done; writes ``stages/NAME.json``
+    and returns the stage's data."""
+    stage = experiment.registry[name]
+    missing = [n for n in stage.needs if not rundir.stage_done(n)]
+    if missing:
+        raise MbnInputError(
+            f"{rundir.root}: stage {name} needs {', '.join(missing)}, which have not run there"
+        )
+    rundir.create()
+    with scope(config["run"].precision):
+        data = stage.run(_context(experiment, rundir, seed, config, stage, progress or Progress()))
+    rundir.write_stage(name, data)
+    return data
+
+
+def collect_results(
+    experiment: Experiment, rundir: RunDir, seed: int, config: RunConfig
+) -> dict[str, Any]:
+    """``results.json``: seeds, config, versions, per-stage metrics and the experiment's
+    extras."""
+    stages = {s.name: rundir.read_stage(s.name) for s in experiment.registry}
+    results: dict[str, Any] = {
+        "seed": seed,
+        "seeds": experiment.seeds(seed),
+        "quick": config.quick,
+        "config": config.to_dict(),
+        "versions": versions(),
+        "stages": {s.name: s.metrics(stages[s.name]) for s in experiment.registry},
+    }
+    if experiment.results is not None:
+        results.update(experiment.results(rundir, stages, config))
+    return results
+
+
+def run_experiment(
+    experiment: Experiment,
+    out: Path,
+    *,
+    seed: int,
+    config: RunConfig,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool = False,
+    log: Callable[[str], None] = print,
+    stages: Sequence[str] | None = None,
+) -> dict[str, Any]:
+    """Every stage not yet done (all, or those named in ``stages`` and what they need), then
+    ``results.json`` and the report; returns the results (or, for a partial run, the data of
+    the stages run)."""
+    rundir = RunDir(Path(out))
+    prepare(experiment, rundir, seed, config, resume=resume, force=force)
+    timings = rundir.read_timings()
+    wanted = list(experiment.registry.names if stages is None else stages)
+    for name in wanted:
+        if name not in experiment.registry:
+            raise MbnInputError(
+                f"no stage {name!r} (the stages: {', '.join(experiment.registry.names)})"
+            )
+    with Progress(progress) as bars, scope(config["run"].precision):
+        overall = bars.task(f"mbn {experiment.name}", len(experiment.registry) + 1)
+        ran: dict[str, Any] = {}
+        for k, stage in enumerate(experiment.registry):
+            bars.update(overall, completed=k, info=stage.name)
+            if stages is not None and not _wanted(experiment.registry, stage.name, wanted):
+                continue
+            if rundir.stage_done(stage.name):
+                log(f"stage {stage.name}: done before, kept")
+                continue
+            t0 = time.perf_counter()
+            data = stage.run(_context(experiment, rundir, seed, config, stage, bars))
+            rundir.write_stage(stage.name, data)
+            timings[stage.name] = round(time.perf_counter() - t0, 2)
+            rundir.write_timings(timings)
+            ran[stage.name] = data
+            log(f"stage {stage.name}: {stage.summary(data)}")
+        if stages is not None:
+            return ran
+        bars.update(overall, completed=len(experiment.registry), info="report")
+        t0 = time.perf_counter()
+        results = collect_results(experiment, rundir, seed, config)
+        write_json_atomic(rundir.results, results)
+        if experiment.report is not None:
+            experiment.report(rundir)
+            timings["report"] = round(time.perf_counter() - t0, 2)
+            rundir.write_timings(timings)
+        bars.update(overall, completed=len(experiment.registry) + 1, info="done")
+    return results
+
+
+def _wanted(registry: Registry, name: str, wanted: Sequence[str]) -> bool:
+    """Whether ``name`` is wanted or needed (transitively) by a wanted stage."""
+    todo, seen = list(wanted), set()
+    while todo:
+        n = todo.pop()
+        if n in seen:
+            continue
+        seen.add(n)
+        todo.extend(registry[n].needs)
+    return name in seen
+
+
+def replace_section(config: RunConfig, section: Settings) -> RunConfig:
+    """``config`` with one section replaced."""
+    return RunConfig(tuple(section if s.section == section.section else s for s in config.sections))

@@ -1,0 +1,77 @@
+"""``mbn reproduce``: the paper's whole experiment, stage by stage, checkpointed and resumable.
+
+Stages (paper section 3; ``docs/reproduce.md`` describes each and every deviation):
+
+1. ``multiplier``: the shipped multiplier (6 neurons by default) or one trained again.
+2. ``rf``: the right-follower, 12 genes evolved by DE/best/1/bin on the crossroads.
+3. ``lf_search``: which 3 connections of RF to re-evolve for the left-follower.
+4. ``lf``: those 3 connections re-evolved at length.
+5. ``im``: the interpreter of RF with the connections that differ between RF and LF programmable,
+   and the RF and LF programs.
+6. ``pm``: the program module, evolved with the interpreter fixed.
+7. ``tests``: the paper's protocol, jittered starts and the held-out maze, for RF, LF, the
+   interpreter with each program, the MBN and the published weights.
+
+Each stage is one module of :mod:`mbn.experiments.reproduce.stages`; :data:`STAGES` lists them
+in order (adding a stage: one module and one line here). The run folder, resume and
+``results.json`` are :mod:`mbn.experiments.pipeline`'s; the claims table and the report are
+built from the run folder.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.reproduce.claims import claims
+from mbn.experiments.reproduce.report import write_report
+from mbn.experiments.reproduce.settings import (
+    QUICK,
+    DESettings,
+    FollowerSettings,
+    derived_seeds,
+)
+from mbn.experiments.reproduce.stages.im import IMStage
+from mbn.experiments.reproduce.stages.lf import LFStage
+from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
+from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
+from mbn.experiments.reproduce.stages.pm import PMStage
+from mbn.experiments.reproduce.stages.rf import RFStage
+from mbn.experiments.reproduce.stages.tests import TestsStage
+
+__all__ = ["REPRODUCE", "RUN_KIND", "STAGES"]
+
+RUN_KIND = "mbn.reproduce"
+
+#: The stages of the paper's experiment, in the order they run.
+STAGES = Registry(
+    [
+        MultiplierStage(),
+        RFStage(),
+        LFSearchStage(),
+        LFStage(),
+        IMStage(),
+        PMStage(),
+        TestsStage(),
+    ]
+)
+
+
+def _results(
+    rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
+) -> dict[str, Any]:
+    """The tests and the claims table of ``results.json``."""
+    return {"tests": stages["tests"]["tests"], "claims": claims(stages, config["tests"])}
+
+
+#: The experiment ``mbn reproduce`` runs.
+REPRODUCE = Experiment(
+    name="reproduce",
+    kind=RUN_KIND,
+    registry=STAGES,
+    shared=(DESettings, FollowerSettings),
+    quick=QUICK,
+    seeds=derived_seeds,
+    results=_results,
+    report=write_report,
+)

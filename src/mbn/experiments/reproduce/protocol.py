@@ -1,0 +1,87 @@
+"""The tests of ``mbn reproduce``: which controllers are tested by which rule, and how each test
+is made (the paper's protocol, jittered starts, the held-out maze) as :class:`TrialSpec` objects,
+from which the ``protocol`` block of ``results.json`` is built."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mbn.experiments.trials import MAX_STALL_FRACTION, TrialSpec
+
+__all__ = ["SUFFIXES", "TESTED", "TEST_NAMES", "WHO", "protocol_block", "test_specs"]
+
+#: Controllers tested and the rule each is judged by.
+TESTED: tuple[tuple[str, str], ...] = (
+    ("rf", "right"),
+    ("lf", "left"),
+    ("im_rf", "right"),
+    ("im_lf", "left"),
+    ("mbn", "tiles"),
+    ("published_rf", "right"),
+    ("published_lf", "left"),
+)
+#: The three tests of each controller: the paper's protocol, jittered starts, the held-out maze.
+SUFFIXES: tuple[str, ...] = ("", "_jitter", "_heldout")
+TEST_NAMES: tuple[str, ...] = tuple(f"{name}{suffix}" for name, _ in TESTED for suffix in SUFFIXES)
+#: How the report and the claims name each controller.
+WHO = {
+    "rf": "RF",
+    "lf": "LF",
+    "im_rf": "IM with the RF program",
+    "im_lf": "IM with the LF program",
+    "mbn": "MBN (PM + IM)",
+    "published_rf": "published W_RF, WE_RF",
+    "published_lf": "published W_LF, WE_LF",
+}
+
+
+def test_specs(
+    behavior: str,
+    *,
+    seconds: float,
+    jitter_per_mark: int,
+    heldout_repeats: int,
+    test_seed: int,
+    heldout_seed: int,
+) -> dict[str, TrialSpec]:
+    """The three tests of a controller judged by ``behavior`` (suffix -> spec): the MBN starts
+    with no rule in force (junctions count from its first tile), the others by their rule."""
+    initial = "none" if behavior == "tiles" else "right"
+    return {
+        "": TrialSpec(behavior=behavior, initial=initial, seconds=seconds),
+        "_jitter": TrialSpec(
+            behavior=behavior,
+            initial=initial,
+            repeats=jitter_per_mark,
+            seconds=seconds,
+            exact_first=False,
+            seed=test_seed,
+        ),
+        "_heldout": TrialSpec(
+            behavior=behavior,
+            initial=initial,
+            repeats=heldout_repeats,
+            seconds=seconds,
+            seed=heldout_seed,
+        ),
+    }
+
+
+def _trials(spec: TrialSpec) -> str:
+    if spec.exact_first:
+        return f"each start mark, then {spec.repeats - 1} jittered"
+    return f"{spec.repeats} per start mark, all jittered"
+
+
+def protocol_block(plain: dict[str, TrialSpec], mbn: dict[str, TrialSpec]) -> dict[str, Any]:
+    """The ``protocol`` of ``results.json`` from the specs that ran (a plain network's and the
+    MBN's)."""
+    return {
+        "junctions": plain[""].junctions,
+        "max_stall_fraction": MAX_STALL_FRACTION,
+        "seconds": plain[""].seconds,
+        "mbn_seconds": mbn[""].seconds,
+        "jitter": list(plain["_jitter"].jitter),
+        "jitter_trials": _trials(plain["_jitter"]),
+        "heldout_trials": _trials(plain["_heldout"]),
+    }

@@ -1,0 +1,263 @@
+"""The report of ``mbn reproduce``: figures, ``report.md`` and a self-contained ``report.html``,
+rendered from the run folder and its ``results.json`` alone (it never simulates: the stages record
+what it draws, ``records/``).
+
+The figures go to ``figures/`` (PNG, and a GIF of the MBN); ``report.md`` links them,
+``report.html`` embeds them (base64), so it can be mailed or opened anywhere. Both are built from
+the same list of sections.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mbn.controllers import MBNControllerSpec, read_controller_spec
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.pipeline.rundir import RunDir
+from mbn.experiments.reproduce.protocol import TESTED
+from mbn.io import read_json
+from mbn.viz.multiplier import draw_multiplier_error
+from mbn.viz.runs import de_curves, mbn_animation, mbn_traces, test_trajectories
+from mbn.world.mazes.load import load_maze
+
+__all__ = ["TITLE", "write_report"]
+
+TITLE = "mbn reproduce: the Multiple Behavior Network, end to end"
+
+
+def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
+    """Draw every figure into ``figures/``; returns ``name -> (file, caption)`` (or a list)."""
+    stages = {name: rundir.read_stage(name) for name in results["stages"]}
+    images: dict[str, Any] = {}
+    mul = stages["multiplier"]
+    grid = rundir.load_record("multiplier_grid")
+    draw_multiplier_error(
+        grid["grid"],
+        grid["output"],
+        rundir.figure_file("multiplier_error.png"),
+        num_neurons=mul["neurons"],
+    )
+    images["multiplier"] = (
+        "figures/multiplier_error.png",
+        "The multiplier's absolute and relative error over [0, 1]^2",
+    )
+    de_curves(stages, rundir.figure_file("de_curves.png"))
+    images["de"] = ("figures/de_curves.png", "DE: best and mean fitness per generation")
+    tests = stages["tests"]
+    maze = load_maze(tests["mazes"]["test"])
+    trajectories = rundir.load_trajectories("test_trajectories")
+    images["trajectories"] = []
+    for name, rule in TESTED:
+        t = tests["tests"][name]
+        file = f"figures/trajectories_{name}.png"
+        test_trajectories(
+            maze,
+            trajectories[name],
+            tests["details"][name],
+            f"{name} (rule: {rule}) in {maze.name}: {t['successes']}/{t['trials']}",
+            rundir.root / file,
+        )
+        images["trajectories"].append(
+            (file, f"{name}: the paper's protocol, one panel per start mark")
+        )
+    spec = read_controller_spec(rundir.controller_file("mbn"))
+    if not isinstance(spec, MBNControllerSpec):
+        raise MbnInputError(f"{rundir.controller_file('mbn')}: not an MBN controller")
+    recording = rundir.load_record("mbn_recording")
+    im = spec.interpreter_spec
+    mbn_traces(
+        recording,
+        [str(c) for c in im.interpreter.connections],
+        im.programs,
+        rundir.figure_file("mbn_traces.png"),
+    )
+    images["traces"] = (
+        "figures/mbn_traces.png",
+        "Camera, program, interpreter neurons and motor commands around behaviour switches",
+    )
+    mbn_animation(
+        maze,
+        recording,
+        im.sensors.sonars,
+        spec.camera.fov_deg,
+        spec.camera.range,
+        rundir.figure_file("mbn.gif"),
+    )
+    images["gif"] = ("figures/mbn.gif", "The MBN robot switching behaviour at tiles")
+    return images
+
+
+def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -> list[Section]:
+    s = results["stages"]
+    tests = results["tests"]
+    secs = []
+    quick = " This is a **quick** smoke run: tiny budgets, the figures are not the paper's." * bool(
+        results["quick"]
+    )
+    v = results["versions"]
+    secs.append(
+        Section(
+            "Run",
+            [
+                f"Seed {results['seed']} (derived seeds: "
+                + ", ".join(f"{k} {val}" for k, val in results["seeds"].items() if k != "seed")
+                + f"). mbn {v['mbn']}, JAX {v['jax']}, Python {v['python']} on {v['platform']}."
+                + quick,
+                "Paper: Montone, Donnarumma & Prevete, *A robotic scenario for programmable "
+                "fixed-weight neural networks exhibiting multiple behaviors*, ICANNGA 2011. "
+                "Where this run departs from the paper, and why: `docs/reproduce.md`.",
+            ],
+        )
+    )
+    claims = results["claims"]
+    secs.append(
+        Section(
+            "Claims: the paper and this run",
+            [f"{sum(c['pass'] for c in claims)} of {len(claims)} claims hold."],
+            table=(
+                ["claim", "paper", "measured", "criterion", "holds"],
+                [
+                    [c["claim"], c["paper"], c["measured"], c["criterion"], _yes(c["pass"])]
+                    for c in claims
+                ],
+            ),
+            status=[c["pass"] for c in claims],
+        )
+    )
+    proto = s["tests"]["protocol"]
+    jit = proto["jitter"]
+    rows: list[list[str]] = []
+    status: list[bool | None] = []
+    for name, rule in TESTED:
+        for suffix in ("", "_jitter", "_heldout"):
+            t = tests[name + suffix]
+            rows.append(
+                [
+                    name + suffix,
+                    rule,
+                    f"{t['successes']}/{t['trials']}",
+                    f"{t['success_rate']:.1%}",
+                    f"{t['correct_junctions']}/{t['junctions']}",
+                    f"{t['mean_stall_fraction']:.2%}",
+                ]
+            )
+            status.append(None)
+    secs.append(
+        Section(
+            "Tests",
+            [
+                f"A trial succeeds when the robot takes the rule's exit at each of its first "
+                f"{proto['junctions']} junctions and is stalled at most "
+                f"{proto['max_stall_fraction']:.0%} of the time until it leaves the last one; "
+                f"{proto['seconds']:g} s per trial ({proto['mbn_seconds']:g} s for the MBN, whose "
+                "junctions count from the first tile it drives over). Paper protocol: the start "
+                f"marks of `{s['tests']['mazes']['test']}`; `_jitter`: "
+                f"{proto['jitter_trials']} (lateral +-{jit[0]:g} m, along +-{jit[1]:g} m, heading "
+                f"+-{jit[2]:g} deg); "
+                f"`_heldout`: maze `{s['tests']['mazes']['heldout']}`, not used in any "
+                f"training: {proto['heldout_trials']}.",
+                "Interpreter and network take the same branch at every junction in: "
+                + "; ".join(
+                    f"{k} {a['same_branches']}/{a['trials']} ({a['rate']:.1%})"
+                    for k, a in s["tests"]["agreement"].items()
+                )
+                + ".",
+            ],
+            table=(["test", "rule", "successes", "rate", "correct junctions", "stall"], rows),
+            status=status,
+        )
+    )
+    m = s["multiplier"]
+    secs.append(
+        Section(
+            "Multiplier",
+            [
+                f"{m['neurons']}-neuron multiplier, {m['source']}, embedded at tau/"
+                f"{1 / m['tau_ratio']:g}. "
+                f"Max |error| {m['metrics']['max_abs_error_grid']:.4f} and mean "
+                f"{m['metrics']['mean_abs_error_grid']:.4f} on a 101 x 101 grid of [0, 1]^2."
+            ],
+            images=[images["multiplier"]],
+        )
+    )
+    lf, im, pm, rf = s["lf"], s["im"], s["pm"], s["rf"]
+    secs.append(
+        Section(
+            "Evolution",
+            [
+                f"RF: {rf['generations']} generations, best fitness {rf['best_fitness']:.2f} "
+                f"(branch fitness over {rf['episodes']} crossroad episodes, averaged over the "
+                f"genome and {rf['noise']['copies']} copies perturbed by N(0, "
+                f"{rf['noise']['sigma']}²); the paper's terms of "
+                f"the best: F_M {rf['paper_F_M']:.2f}, F_R {rf['paper_F_R']:.2f}, F_L "
+                f"{rf['paper_F_L']:.2f}).",
+                f"LF: the 3 connections re-evolved are {', '.join(lf['connections'])} (paper "
+                f"notation {', '.join(lf['connections_paper_notation'])}; the paper changed "
+                f"W_23, WE_21, WE_22), chosen among {len(s['lf_search']['triples'])} triples; "
+                f"best fitness {lf['best_fitness']:.2f} (F_L {lf['paper_F_L']:.2f}).",
+                f"IM: programmable {', '.join(im['connections_paper_notation'])}, "
+                f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
+                f"LF program {_vec(im['programs']['left'])}.",
+                f"PM: {pm['generations']} generations, reward {pm['best_fitness']:.1f} of at most "
+                f"{pm['max_fitness']:.0f} ("
+                + (
+                    "the paper's two trials: right-rule score with one-colour tiles x left-rule "
+                    "score with two-colour tiles"
+                    if pm["reward"] == "paper"
+                    else "the paper's product, over its two trials plus switching, memory and "
+                    "rest episodes: docs/experiments.md"
+                )
+                + f"), camera range {pm['camera_range']:g} m.",
+            ],
+            images=[images["de"]],
+        )
+    )
+    secs.append(
+        Section(
+            "Trajectories",
+            [
+                "Each test's paper-protocol trials drawn on the maze (tiles: orange one-colour, "
+                "blue/magenta two-colour; shaded cells are junctions)."
+            ],
+            images=images["trajectories"],
+        )
+    )
+    secs.append(
+        Section(
+            "The MBN switching behaviour",
+            [
+                "One MBN episode recorded every step: what the camera sees, the program the PM "
+                "sends, the interpreter's neurons and the motor commands; and the same episode "
+                "as an animation."
+            ],
+            images=[images["traces"], images["gif"]],
+        )
+    )
+    timings = rundir.read_timings()
+    if timings:
+        secs.append(
+            Section(
+                "Time",
+                [
+                    "Wall-clock seconds per stage of this run (a resumed run counts only what "
+                    "it ran): " + ", ".join(f"{k} {val:g}" for k, val in timings.items()) + "."
+                ],
+            )
+        )
+    return secs
+
+
+def _yes(ok: bool) -> str:
+    return "yes" if ok else "no"
+
+
+def _vec(v: list[float]) -> str:
+    return "(" + ", ".join(f"{x:.3g}" for x in v) + ")"
+
+
+def write_report(rundir: RunDir) -> None:
+    """Figures, ``report.md`` and ``report.html`` of a finished run (from its folder alone)."""
+    results = read_json(rundir.results)
+    images = _figures(rundir, results)
+    write_document(rundir.root, "report", TITLE, _sections(rundir, results, images))

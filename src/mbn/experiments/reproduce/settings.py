@@ -1,0 +1,89 @@
+"""Settings of ``mbn reproduce`` shared by several stages, the quick preset and the derived seeds.
+
+Each stage's own settings live beside it (``stages/NAME.py``). Defaults are the paper's where it
+gives a value, else the documented deviation (``docs/reproduce.md``, "Deviations").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from mbn.config import Settings, setting
+from mbn.evolution.de import DEConfig
+from mbn.experiments.crossroads import EPISODE_SECONDS
+
+__all__ = ["QUICK", "DESettings", "FollowerSettings", "derived_seeds"]
+
+_DE = {f.name: f.default for f in dataclasses.fields(DEConfig)}
+
+
+@dataclass(frozen=True)
+class DESettings(Settings):
+    """Differential Evolution, DE/best/1/bin, for every evolved stage (RF, LF, PM)."""
+
+    section = "de"
+    popsize: int = setting(
+        _DE["popsize"], doc="population size", low=4, source="paper 3.1 (18 individuals)"
+    )
+    F: float = setting(
+        _DE["F"], doc="differential weight", low=0.0, high=2.0, source="paper 3.1 (step-size)"
+    )
+    CR: float = setting(
+        _DE["CR"], doc="crossover probability", low=0.0, high=1.0, source="paper 3.1"
+    )
+
+
+@dataclass(frozen=True)
+class FollowerSettings(Settings):
+    """The wall followers' evolution (RF, the LF search and LF) on the crossroads."""
+
+    section = "followers"
+    weight_bound: float = setting(
+        20.0,
+        doc="genes are kept in [-bound, bound]",
+        low=0.0,
+        source="docs/reproduce.md (the paper's weights of hundreds make the Euler step unstable)",
+    )
+    perturbation_sigma: float = setting(
+        0.3,
+        doc="standard deviation of the fixed weight perturbations the fitness averages over",
+        low=0.0,
+        source="docs/reproduce.md (robust evolution)",
+    )
+    perturbation_copies: int = setting(
+        3,
+        doc="perturbed copies of each genome scored beside it (0: none)",
+        low=0,
+        source="docs/reproduce.md (robust evolution)",
+    )
+    episode_seconds: float = setting(
+        EPISODE_SECONDS,
+        doc="length of a training episode",
+        unit="s",
+        low=0.1,
+        source="paper 3.1 ('about 20 seconds'); docs/experiments.md",
+    )
+
+
+#: The quick preset (``--quick``): a smoke run of every stage and output with tiny budgets.
+QUICK: dict[str, dict[str, Any]] = {
+    "followers": {"perturbation_copies": 1},
+    "rf": {"generations": 15, "variants": 1, "restarts": 2},
+    "lf_search": {"generations": 2, "variants": 1},
+    "lf": {"generations": 20, "variants": 1},
+    "pm": {"generations": 3, "variants": 1},
+    "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
+}
+
+
+def derived_seeds(seed: int) -> dict[str, int]:
+    """The seeds of the NumPy edges (jittered starts), derived from the run's seed."""
+    return {
+        "seed": seed,
+        "crossroad_jitter": seed,
+        "test_jitter": seed + 1,
+        "heldout_jitter": seed + 2,
+        "pm_crossroad_jitter": seed + 3,
+    }

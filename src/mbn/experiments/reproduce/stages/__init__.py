@@ -1,0 +1,2 @@
+"""The stages of ``mbn reproduce``, one module each; their order is
+:data:`mbn.experiments.reproduce.STAGES`."""

@@ -1,0 +1,52 @@
+"""Stage ``im``: the interpreter of RF with the connections that differ between RF and LF
+programmable (paper section 2, eq. 2), and the RF and LF programs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from mbn.controllers import InterpreterControllerSpec, save_controller
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.stages.common import MADE_BY, read_network
+from mbn.networks.multiplier import load_multiplier
+from mbn.networks.programmable import build_interpreter, differing_connections
+
+__all__ = ["IMStage"]
+
+
+class IMStage(Stage):
+    name = "im"
+    key_id = 5
+    needs = ("multiplier", "rf", "lf")
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        rf, lf = read_network(ctx, "rf"), read_network(ctx, "lf")
+        mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
+        programmable = differing_connections(rf, lf, margin=0.0)
+        interp = build_interpreter(rf, programmable, mul)
+        programs = {
+            "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
+            "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
+        }
+        save_controller(
+            ctx.rundir.controller_file("im"),
+            InterpreterControllerSpec(
+                interpreter=interp,
+                programs=programs,
+                metadata={"made_by": MADE_BY, "stage": "im", "seed": ctx.seed},
+            ),
+        )
+        return {
+            "connections": [str(c) for c in interp.connections],
+            "connections_paper_notation": [c.paper_name for c in interp.connections],
+            "lower": np.asarray(interp.lower, dtype=float).tolist(),
+            "upper": np.asarray(interp.upper, dtype=float).tolist(),
+            "programs": programs,
+            "neurons": int(interp.num_neurons),
+            "multiplier_neurons": ctx.read("multiplier")["neurons"],
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        return f"programmable {', '.join(data['connections'])}; {data['neurons']} neurons"

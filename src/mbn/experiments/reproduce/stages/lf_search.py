@@ -1,0 +1,130 @@
+"""Stage ``lf_search``: which 3 connections of RF to re-evolve for the left-follower. Every triple
+of the candidate connections (those into the turning neuron) is evolved briefly; the triple whose
+final population holds the best genome *under weight perturbations*, on crossroads entered round
+a corner too, is kept (paper 3.1 re-evolves 3 connections; it does not say which or how they were
+chosen: docs/reproduce.md)."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.errors import MbnInputError
+from mbn.experiments.evolve import connection_search_fitness, robust_fitness
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.stages.common import (
+    de_config,
+    read_network,
+    stage_perturbations,
+    task,
+)
+from mbn.networks.programmable import Connection
+
+__all__ = ["TURNING_CANDIDATES", "LFSearchSettings", "LFSearchStage", "search_checkpoint"]
+
+#: The connections into the turning neuron (neuron 2 in the paper's 1-based notation), 0-based.
+TURNING_CANDIDATES = ("W[1,0]", "W[1,1]", "W[1,2]", "WE[1,0]", "WE[1,1]", "WE[1,2]")
+
+
+@dataclass(frozen=True)
+class LFSearchSettings(Settings):
+    """The search for the 3 connections of RF that LF re-evolves."""
+
+    section = "lf_search"
+    candidates: tuple[str, ...] = setting(
+        TURNING_CANDIDATES,
+        doc="connections tried, 0-based ('W[i,j]', 'WE[i,k]'); every triple is evolved",
+        source="docs/reproduce.md (the connections into the turning neuron)",
+    )
+    generations: int = setting(100, doc="DE generations per triple", low=0)
+    variants: int = setting(2, doc="starts per crossroad while searching", low=1)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for c in self.candidates:
+            try:
+                Connection.parse(c)
+            except MbnInputError as exc:
+                raise MbnInputError(f"lf_search.candidates: {exc}") from None
+        if len(self.candidates) < 3:
+            raise MbnInputError("lf_search.candidates: need at least 3 connections")
+
+
+def search_checkpoint(index: int) -> str:
+    """The checkpoint name of triple ``index`` (LF starts from the chosen one's population)."""
+    return f"lf_search_{index:02d}"
+
+
+def _bind(
+    search: Callable[[jax.Array, tuple[Any, ...]], jax.Array], connections: tuple[Any, ...]
+) -> Callable[[jax.Array], jax.Array]:
+    """The fitness of a connection search for one choice of connections."""
+    return lambda population: search(population, connections)
+
+
+class LFSearchStage(Stage):
+    name = "lf_search"
+    key_id = 3
+    needs = ("rf",)
+    settings = LFSearchSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: LFSearchSettings = ctx.settings
+        followers = ctx.section("followers")
+        approaches = ctx.section("lf").approaches
+        rf = read_network(ctx, "rf")
+        search_task = task(ctx, "left", s.variants)
+        search = connection_search_fitness(rf, search_task)
+        cands = [Connection.parse(c) for c in s.candidates]
+        triples = list(itertools.combinations(cands, 3))
+        noise = stage_perturbations(ctx, 3)
+        # Choosing: the crossroads entered round a corner too, as in a maze.
+        choose = connection_search_fitness(rf, task(ctx, "left", s.variants, approaches))
+        rows = []
+        for t, trip in enumerate(triples):
+            de = ctx.evolve(
+                search_checkpoint(t),
+                de_config(ctx, 3, followers.weight_bound),
+                _bind(search, trip),
+                jax.random.fold_in(ctx.key, t),
+                s.generations,
+                f"LF search {t + 1}/{len(triples)}: {', '.join(map(str, trip))}",
+            )
+            # The final population scored with perturbed copies too: an LF that keeps its
+            # behaviour when its weights move is one the interpreter can emulate.
+            robust = np.asarray(robust_fitness(_bind(choose, trip), noise)(de.state.population))
+            i = int(np.argmax(robust))
+            rows.append(
+                {
+                    "connections": [str(c) for c in trip],
+                    "best_fitness": de.data["best_fitness"],
+                    "best_genome": de.data["best_genome"],
+                    "robust_fitness": float(robust[i]),
+                    "robust_genome": np.asarray(de.state.population[i], dtype=float).tolist(),
+                }
+            )
+        best = max(range(len(rows)), key=lambda i: (rows[i]["robust_fitness"], -i))
+        return {
+            "triples": rows,
+            "chosen": rows[best]["connections"],
+            "chosen_index": best,
+            "chosen_paper_notation": [
+                Connection.parse(c).paper_name for c in rows[best]["connections"]
+            ],
+            "generations": s.generations,
+            "episodes": search_task.variants * 7,
+            "noise": {
+                "copies": followers.perturbation_copies,
+                "sigma": followers.perturbation_sigma,
+            },
+            "choice_approaches": list(approaches),
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        return f"chose {', '.join(data['chosen'])}"

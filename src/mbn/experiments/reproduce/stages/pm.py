@@ -1,0 +1,161 @@
+"""Stage ``pm``: the program module, evolved with the interpreter fixed (paper 3.2; the reward:
+``docs/experiments.md``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    read_controller_spec,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.experiments.crossroads import EPISODE_FITNESS_MAX
+from mbn.experiments.evolve import robust_fitness
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.program_module import (
+    MemoryReward,
+    PMGenome,
+    memory_reward_maximum,
+    pm_fitness,
+    pm_memory_fitness,
+)
+from mbn.experiments.reproduce.stages.common import (
+    MADE_BY,
+    de_config,
+    read_network,
+    stage_perturbations,
+)
+from mbn.experiments.reproduce.stages.rf import evolution_summary
+from mbn.world.engine import CameraConfig
+from mbn.world.mazes.builtin import APPROACHES, check_approaches
+
+__all__ = ["PMSettings", "PMStage"]
+
+#: Crossroad kinds of the paper's PM reward (its two trials run on all seven).
+_PAPER_KINDS = 7
+
+
+@dataclass(frozen=True)
+class PMSettings(Settings):
+    """The program module (PM): a CTRNN from the camera's tile readings to the program."""
+
+    section = "pm"
+    generations: int = setting(250, doc="DE generations", low=0, source="docs/reproduce.md")
+    variants: int = setting(1, doc="starts per episode", low=1)
+    bound: float = setting(10.0, doc="genes are kept in [-bound, bound]", low=0.0)
+    init: float = setting(
+        10.0, doc="the first generation is drawn in [-init, init] (0 < init <= bound)", low=0.0
+    )
+    perturbation_sigma: float = setting(
+        1.0, doc="standard deviation of the PM's weight perturbations", low=0.0
+    )
+    perturbation_copies: int = setting(0, doc="perturbed copies per genome (0: none)", low=0)
+    approaches: tuple[str, ...] = setting(
+        ("south", "west", "east"),
+        doc="how the robot enters the crossroads of the memory and rest episodes",
+        choices=APPROACHES,
+        source="docs/experiments.md",
+    )
+    reward: str = setting(
+        "memory",
+        doc="the paper's product over its two trials, or with switching, memory and rest episodes",
+        choices=("paper", "memory"),
+        source="paper 3.2; docs/experiments.md (the memory reward)",
+    )
+    fidelity: float = setting(
+        2.0,
+        doc="weight of the motor mismatch with RF/LF in the memory reward",
+        low=0.0,
+        source="docs/experiments.md",
+    )
+    camera_range: float = setting(
+        0.8,
+        doc="how far the camera sees a tile",
+        unit="m",
+        low=0.01,
+        source="docs/experiments.md (the camera range)",
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 0 < self.init <= self.bound:
+            raise MbnInputError(f"pm.init must be in (0, pm.bound], got {self.init!r}")
+        try:
+            check_approaches(self.approaches)
+        except MbnInputError as exc:
+            raise MbnInputError(f"pm.{exc}") from None
+
+
+class PMStage(Stage):
+    name = "pm"
+    key_id = 6
+    needs = ("rf", "lf", "im")
+    settings = PMSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: PMSettings = ctx.settings
+        im_spec = read_controller_spec(ctx.rundir.controller_file("im"))
+        if not isinstance(im_spec, InterpreterControllerSpec):
+            raise MbnInputError(f"{ctx.rundir.controller_file('im')}: not an interpreter")
+        k = len(im_spec.interpreter.connections)
+        genome = PMGenome(programs=k)
+        camera = CameraConfig(range=s.camera_range)
+        common: dict[str, Any] = {
+            "variants": s.variants,
+            "seed": ctx.seeds["pm_crossroad_jitter"],
+            "im_substeps": im_spec.substeps,
+            "camera": camera,
+        }
+        if s.reward == "memory":
+            reward = MemoryReward(approaches=s.approaches, fidelity=s.fidelity)
+            references = (read_network(ctx, "rf"), read_network(ctx, "lf"))
+            fit = pm_memory_fitness(
+                genome, im_spec.interpreter.net, reward=reward, references=references, **common
+            )
+            maximum = memory_reward_maximum(reward, s.variants)
+        else:
+            fit = pm_fitness(genome, im_spec.interpreter.net, **common)
+            maximum = (_PAPER_KINDS * s.variants * EPISODE_FITNESS_MAX) ** 2
+        noise = stage_perturbations(ctx, genome.size, s.perturbation_copies, s.perturbation_sigma)
+        de = ctx.evolve(
+            "pm",
+            de_config(ctx, genome.size, s.bound, s.init),
+            jax.jit(robust_fitness(fit, noise)),
+            ctx.key,
+            s.generations,
+            "PM: DE generations",
+        )
+        pm = genome.network(jnp.asarray(de.data["best_genome"]))
+        save_controller(
+            ctx.rundir.controller_file("mbn"),
+            MBNControllerSpec(
+                interpreter_spec=im_spec,
+                program_module=pm,
+                program_neurons=tuple(range(k)),
+                camera=camera,
+                metadata={
+                    "made_by": MADE_BY,
+                    "stage": "pm",
+                    "seed": ctx.seed,
+                    "pm_fitness": de.data["best_fitness"],
+                },
+            ),
+        )
+        return {
+            **de.data,
+            "reward": s.reward,
+            "fidelity": s.fidelity if s.reward == "memory" else None,
+            "max_fitness": float(maximum),
+            "camera_range": s.camera_range,
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        return evolution_summary(data)

@@ -1,0 +1,55 @@
+"""Stage ``rf``: the right-follower, 12 genes evolved by DE/best/1/bin on the crossroads
+(paper 3.1)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from mbn.config import Settings, setting
+from mbn.experiments.evolve import Genome
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.stages.common import evolve_follower
+
+__all__ = ["RFSettings", "RFStage", "evolution_summary"]
+
+
+@dataclass(frozen=True)
+class RFSettings(Settings):
+    """The right-follower (RF): all 12 genes (W 3x3, WE on the diagonal) evolved."""
+
+    section = "rf"
+    generations: int = setting(300, doc="DE generations", low=0, source="docs/reproduce.md")
+    variants: int = setting(
+        4,
+        doc="starts per crossroad: the mark and variants - 1 jittered ones",
+        low=1,
+        source="docs/experiments.md (the paper: one start per crossroad)",
+    )
+    restarts: int = setting(
+        2,
+        doc="independent DE runs; the fittest is kept",
+        low=1,
+        source="docs/reproduce.md",
+    )
+
+
+def evolution_summary(data: dict[str, Any], connections: bool = False) -> str:
+    """``best fitness F after G generations`` (and the connections evolved)."""
+    extra = f" ({', '.join(data['connections'])})" if connections else ""
+    return f"best fitness {data['best_fitness']:.2f} after {data['generations']} generations{extra}"
+
+
+class RFStage(Stage):
+    name = "rf"
+    key_id = 2
+    settings = RFSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: RFSettings = ctx.settings
+        return evolve_follower(
+            ctx, Genome(), "right", s.variants, s.generations, restarts=s.restarts
+        )
+
+    def summary(self, data: dict[str, Any]) -> str:
+        return evolution_summary(data)

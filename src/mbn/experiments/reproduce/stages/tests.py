@@ -1,0 +1,238 @@
+"""Stage ``tests``: the paper's protocol (start marks of the test maze, 3 consecutive junctions),
+jittered starts and the held-out maze, for RF, LF, the interpreter with each program, the MBN and
+the published weights; the interpreter's agreement with the networks it emulates; and the
+recordings the report draws (trajectories of every test, one MBN episode with its state)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    LoadedController,
+    MBNControllerSpec,
+    make_controller,
+    read_controller_spec,
+)
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.protocol import (
+    SUFFIXES,
+    TEST_NAMES,
+    TESTED,
+    protocol_block,
+    test_specs,
+)
+from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups, summary
+from mbn.networks.ctrnn import firing_rate
+from mbn.paper import published_lf, published_rf
+from mbn.world.mazes.load import load_maze
+
+__all__ = ["TRAJECTORY_FIELDS", "TestsSettings", "TestsStage"]
+
+#: Fields of the trajectories recorded for the report.
+TRAJECTORY_FIELDS = ("t", "pose", "camera", "tile", "stalled", "v", "w")
+
+
+@dataclass(frozen=True)
+class TestsSettings(Settings):
+    """The tests (paper 3.1: 10 start positions, three consecutive crossroads)."""
+
+    section = "tests"
+    seconds: float = setting(
+        90.0, doc="time limit of a trial", unit="s", low=1.0, source="docs/reproduce.md"
+    )
+    mbn_seconds: float = setting(
+        120.0,
+        doc="time limit of an MBN trial (its junctions count from its first tile)",
+        unit="s",
+        low=1.0,
+        source="docs/reproduce.md",
+    )
+    jitter_per_mark: int = setting(
+        20, doc="jittered trials per start mark of the test maze", low=1, source="not in the paper"
+    )
+    heldout_repeats: int = setting(
+        17,
+        doc="trials per start mark of the held-out maze (the mark, then jittered ones)",
+        low=1,
+        source="not in the paper",
+    )
+    maze: str = setting("fig4", doc="the test maze (the paper's Fig. 4)", source="paper Fig. 4")
+    heldout_maze: str = setting(
+        "heldout", doc="a maze no training and no choice ever sees", source="docs/reproduce.md"
+    )
+
+
+def _same_settings(a: LoadedController, b: LoadedController, na: str, nb: str) -> None:
+    """Controllers run in one batch must share their run settings."""
+    sa, sb = a.spec, b.spec
+    ia = sa.interpreter_spec if isinstance(sa, MBNControllerSpec) else sa
+    ib = sb.interpreter_spec if isinstance(sb, MBNControllerSpec) else sb
+    for attr in ("dt", "substeps", "method", "motor", "sensors"):
+        if getattr(ia, attr) != getattr(ib, attr):
+            raise MbnInputError(f"{na} and {nb} differ in {attr}: they cannot run in one batch")
+
+
+class TestsStage(Stage):
+    name = "tests"
+    key_id = 7
+    needs = ("rf", "lf", "im", "pm")
+    settings = TestsSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: TestsSettings = ctx.settings
+        mazes = [load_maze(s.maze), load_maze(s.heldout_maze)]
+        ctl = ctx.rundir.controller_file
+        im = read_controller_spec(ctl("im"))
+        specs = {
+            "rf": (read_controller_spec(ctl("rf")), None),
+            "lf": (read_controller_spec(ctl("lf")), None),
+            "published_rf": (CTRNNControllerSpec(net=published_rf(), behavior="right"), None),
+            "published_lf": (CTRNNControllerSpec(net=published_lf(), behavior="left"), None),
+            "im_rf": (im, "right"),
+            "im_lf": (im, "left"),
+            "mbn": (read_controller_spec(ctl("mbn")), None),
+        }
+        rules = dict(TESTED)
+        batches = [
+            ("plain networks", ("rf", "lf", "published_rf", "published_lf"), s.seconds),
+            ("interpreter", ("im_rf", "im_lf"), s.seconds),
+            ("MBN", ("mbn",), s.mbn_seconds),
+        ]
+        ran: dict[str, dict[str, TrialSpec]] = {}
+        verdicts: dict[str, dict[str, np.ndarray]] = {}
+        trajectories: dict[str, Any] = {}
+        bar = ctx.progress.task("tests", len(batches))
+        for b, (what, names, seconds) in enumerate(batches):
+            loaded = {n: make_controller(specs[n][0], specs[n][1], where=n) for n in names}
+            first = loaded[names[0]]
+            groups = []
+            for n in names:
+                ran[n] = test_specs(
+                    rules[n],
+                    seconds=seconds,
+                    jitter_per_mark=s.jitter_per_mark,
+                    heldout_repeats=s.heldout_repeats,
+                    test_seed=ctx.seeds["test_jitter"],
+                    heldout_seed=ctx.seeds["heldout_jitter"],
+                )
+                groups += [
+                    TrialGroup(
+                        f"{n}{suffix}",
+                        1 if suffix == "_heldout" else 0,
+                        ran[n][suffix],
+                        loaded[n].initial_state,
+                    )
+                    for suffix in SUFFIXES
+                ]
+            for n in names[1:]:
+                _same_settings(first, loaded[n], names[0], n)
+            ctx.progress.update(bar, completed=b, info=what)
+            v, result, slices, _ = run_trial_groups(
+                mazes,
+                groups,
+                first.controller,
+                seconds=seconds,
+                dt=first.dt,
+                sensors=first.sensors,
+                camera=first.camera,
+                record_every=2,
+            )
+            verdicts.update(v)
+            for n in names:
+                sl = slices[n]
+                trajectories[n] = jax.tree.map(
+                    lambda a, sl=sl: np.asarray(a[sl]), result.trajectory
+                )
+            ctx.progress.update(bar, completed=b + 1, info=what)
+        tests = {name: summary(verdicts[name]) for name in TEST_NAMES}
+        agreement = {}
+        for im_name, net_name in (("im_rf", "rf"), ("im_lf", "lf")):
+            for suffix in SUFFIXES:
+                a = verdicts[f"{im_name}{suffix}"]["exits"]
+                bb = verdicts[f"{net_name}{suffix}"]["exits"]
+                same = np.all(a == bb, axis=1)
+                agreement[f"{im_name}{suffix}"] = {
+                    "trials": int(same.size),
+                    "same_branches": int(same.sum()),
+                    "rate": float(same.mean()),
+                }
+        details = {
+            name: {
+                "success": verdicts[name]["success"].astype(int).tolist(),
+                "correct": verdicts[name]["correct"].astype(int).tolist(),
+                "judged": verdicts[name]["judged"].astype(int).tolist(),
+                "stall": np.round(verdicts[name]["stall"].astype(float), 5).tolist(),
+            }
+            for name in TEST_NAMES
+        }
+        ctx.rundir.save_trajectories("test_trajectories", trajectories, TRAJECTORY_FIELDS)
+        start = _record_mbn(ctx, specs["mbn"][0], mazes[0], ran["mbn"][""])
+        return {
+            "tests": tests,
+            "agreement": agreement,
+            "details": details,
+            "mazes": {"test": s.maze, "heldout": s.heldout_maze},
+            "protocol": protocol_block(ran["rf"], ran["mbn"]),
+            "recording": {"start_mark": start},
+        }
+
+    def metrics(self, data: dict[str, Any]) -> dict[str, Any]:
+        return {k: data[k] for k in ("agreement", "mazes", "protocol")}
+
+    def summary(self, data: dict[str, Any]) -> str:
+        t = data["tests"]
+        return ", ".join(f"{n} {t[n]['successes']}/{t[n]['trials']}" for n, _ in TESTED)
+
+
+def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> int:
+    """Record one MBN episode from the test maze's start marks every step, with the program it
+    sends and the interpreter's firing rates (``records/mbn_recording.npz``): the episode with
+    most changes of the tile in force, a success first, to show switching. Returns its start
+    mark (0-based)."""
+    if not isinstance(spec, MBNControllerSpec):
+        raise MbnInputError("controllers/mbn.json: not an MBN controller")
+    loaded = make_controller(spec, None, where="mbn.json")
+    group = TrialGroup("mbn", 0, paper, loaded.initial_state)
+    verdicts, result, _, _ = run_trial_groups(
+        [maze],
+        [group],
+        loaded.controller,
+        seconds=paper.seconds,
+        dt=loaded.dt,
+        sensors=loaded.sensors,
+        camera=loaded.camera,
+        record_every=1,
+        record_controller=True,
+    )
+    traj = result.trajectory
+    assert traj is not None
+    tile = np.asarray(traj.tile)
+    changes = (np.diff(tile, axis=1) != 0).sum(1) + 100 * np.asarray(verdicts["mbn"]["success"])
+    b = int(np.argmax(changes))
+    pick = lambda tree: jax.tree.map(lambda a: np.asarray(a[b]), tree)  # noqa: E731
+    pm, pm_y, im, im_y = (pick(x) for x in traj.controller)
+    n0 = spec.interpreter_spec.interpreter.num_original
+    ctx.rundir.save_record(
+        "mbn_recording",
+        {
+            "t": np.asarray(traj.t),
+            "pose": np.asarray(traj.pose[b]),
+            "ranges": np.asarray(traj.ranges[b]),
+            "camera": np.asarray(traj.camera[b]),
+            "tile": np.asarray(traj.tile[b]),
+            "stalled": np.asarray(traj.stalled[b]),
+            "v": np.asarray(traj.v[b]),
+            "w": np.asarray(traj.w[b]),
+            "program": np.asarray(firing_rate(pm, pm_y))[:, list(spec.program_neurons)],
+            "rates": np.asarray(firing_rate(im, im_y))[:, :n0],
+            "start_mark": np.asarray(b),
+        },
+    )
+    return b

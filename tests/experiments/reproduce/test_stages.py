@@ -1,0 +1,104 @@
+"""Every stage of ``mbn reproduce`` runs alone against a run folder: in a copy of the quick run
+with that stage's outputs removed, the stage run by itself (its needs read from the folder) writes
+exactly what the whole run wrote; a stage whose needs are missing is refused in one line; the
+report renders from the folder alone, without simulating."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import run_stage
+from mbn.experiments.reproduce import REPRODUCE, STAGES
+
+#: What each stage writes besides ``stages/NAME.json`` (removed before it runs alone).
+OUTPUTS = {
+    "multiplier": ["controllers/multiplier.json", "records/multiplier_grid.npz"],
+    "rf": ["controllers/rf.json", "checkpoints/rf.npz", "checkpoints/rf_restart1.npz"],
+    "lf_search": ["checkpoints/lf_search_*.npz"],
+    "lf": ["controllers/lf.json", "checkpoints/lf.npz"],
+    "im": ["controllers/im.json"],
+    "pm": ["controllers/mbn.json", "checkpoints/pm.npz"],
+    "tests": ["records/test_trajectories.npz", "records/mbn_recording.npz"],
+}
+
+
+def _copy(quick_run, tmp_path):
+    out, _ = quick_run
+    folder = tmp_path / "run"
+    shutil.copytree(out, folder)
+    rundir = RunDir(folder)
+    manifest = rundir.read_manifest()
+    config = REPRODUCE.config_from_dict(manifest["config"], str(rundir.manifest))
+    return rundir, manifest["seed"], config
+
+
+def test_the_registry_lists_the_paper_pipeline_in_order():
+    assert STAGES.names == ("multiplier", "rf", "lf_search", "lf", "im", "pm", "tests")
+    assert [s.key_id for s in STAGES] == [1, 2, 3, 4, 5, 6, 7]
+    assert set(OUTPUTS) == set(STAGES.names)
+
+
+@pytest.mark.parametrize("name", STAGES.names)
+def test_each_stage_runs_alone_against_a_run_folder(quick_run, tmp_path, name):
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    before = rundir.read_stage(name)
+    files = {
+        p.relative_to(rundir.root).as_posix(): p.read_bytes()
+        for pattern in OUTPUTS[name]
+        for p in rundir.root.glob(pattern)
+    }
+    assert files, f"{name} wrote none of {OUTPUTS[name]}"
+    rundir.stage_file(name).unlink()
+    for rel in files:
+        (rundir.root / rel).unlink()
+    data = run_stage(REPRODUCE, rundir, name, seed=seed, config=config)
+    assert json.loads(json.dumps(data)) == before
+    assert rundir.read_stage(name) == before
+    for rel in files:
+        assert (rundir.root / rel).exists(), rel
+        if rel.startswith("controllers/"):
+            assert (rundir.root / rel).read_bytes() == files[rel], rel
+
+
+@pytest.mark.parametrize("name", [s.name for s in STAGES if s.needs])
+def test_a_stage_whose_needs_are_missing_is_refused(quick_run, tmp_path, name):
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    missing = STAGES[name].needs[-1]
+    rundir.stage_file(missing).unlink()
+    with pytest.raises(MbnInputError, match=f"stage {name} needs {missing}"):
+        run_stage(REPRODUCE, rundir, name, seed=seed, config=config)
+
+
+def test_the_report_renders_from_the_folder_alone_without_simulating(
+    quick_run, tmp_path, monkeypatch
+):
+    import sys
+
+    import mbn.experiments.trials as trials
+    import mbn.world.rollout as rollout
+    from mbn.experiments.reproduce.report import write_report
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("the report simulated")
+
+    monkeypatch.setattr(rollout, "rollout", forbidden)
+    monkeypatch.setattr(trials, "run_trial_groups", forbidden)
+    monkeypatch.setattr(trials, "rollout", forbidden)
+    rundir, _, _ = _copy(quick_run, tmp_path)
+    shutil.rmtree(rundir.root / "figures")
+    (rundir.root / "figures").mkdir()
+    for f in ("report.md", "report.html"):
+        (rundir.root / f).unlink()
+    write_report(rundir)
+    assert (rundir.root / "report.html").stat().st_size > 10_000
+    assert (rundir.root / "figures" / "mbn.gif").exists()
+    source = sys.modules["mbn.experiments.reproduce.report"].__file__
+    assert source is not None
+    text = Path(source).read_text()
+    assert "pipeline.runner" not in text and "run_trial" not in text
