@@ -287,8 +287,8 @@ def _comment(f: dataclasses.Field[Any]) -> str:
 
 
 def to_toml(sections: Sequence[Settings], header: str = "") -> str:
-    """The sections as a TOML document, each field with its unit, range and source as a
-    comment (reads back with :func:`read_toml` into the same settings)."""
+    """The sections as a TOML document, each field after a comment with what it is, its unit,
+    range and source (reads back with :func:`read_toml` into the same settings)."""
     out = [f"# {line}" if line else "#" for line in header.splitlines()]
     for s in sections:
         if out:
@@ -297,8 +297,9 @@ def to_toml(sections: Sequence[Settings], header: str = "") -> str:
         out.append(f"[{s.section}]" + (f"  # {doc[0]}" if doc else ""))
         for f in dataclasses.fields(s):
             value = getattr(s, f.name)
+            out.append(f"# {_comment(f)}")
             if value is None:
-                out.append(f"# {f.name} = (not set)  # {_comment(f)}")
+                out.append(f"# {f.name} = (not set)")
                 continue
-            out.append(f"{f.name} = {_toml_value(value)}  # {_comment(f)}")
+            out.append(f"{f.name} = {_toml_value(value)}")
     return "\n".join(out) + "\n"

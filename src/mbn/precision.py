@@ -16,13 +16,17 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator
-from typing import Literal
+from typing import Any, TypeVar
 
 import jax
+import jax.numpy as jnp
 
-__all__ = ["NETWORKS", "PRECISIONS", "ROBOT", "Precision", "scope"]
+__all__ = ["NETWORKS", "PRECISIONS", "ROBOT", "Precision", "cast", "dtype_of", "scope"]
 
-Precision = Literal["float32", "float64"]
+T = TypeVar("T")
+
+#: "float32" or "float64" (checked by :func:`scope` and :func:`dtype_of`).
+Precision = str
 PRECISIONS: tuple[str, ...] = ("float32", "float64")
 #: The precision of the robot experiments.
 ROBOT: Precision = "float32"
@@ -37,3 +41,23 @@ def scope(precision: str) -> Iterator[None]:
         raise ValueError(f"precision must be float32 or float64, got {precision!r}")
     with jax.enable_x64(precision == "float64"):
         yield
+
+
+def dtype_of(precision: str) -> Any:
+    """The JAX dtype of ``precision``."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be float32 or float64, got {precision!r}")
+    return jnp.float64 if precision == "float64" else jnp.float32
+
+
+def cast(tree: T, precision: str) -> T:
+    """``tree`` (a pytree: a CTRNN, arrays, ...) with its floating arrays in ``precision``
+    (call inside :func:`scope` of the same precision)."""
+    dtype = dtype_of(precision)
+
+    def one(a: Any) -> Any:
+        if hasattr(a, "dtype") and jnp.issubdtype(a.dtype, jnp.floating):
+            return jnp.asarray(a, dtype)
+        return a
+
+    return jax.tree.map(one, tree)

@@ -1,1 +1,1 @@
-"""cli."""
+"""The ``mbn`` command line (:func:`mbn.cli.main.main`), one module per command group."""

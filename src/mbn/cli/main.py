@@ -1,4 +1,7 @@
-"""The ``mbn`` command line.
+"""The ``mbn`` command line: one module per command group (``networks``, ``world``,
+``evaluate``, ``reproduce``), each adding its sub-parsers with ``set_defaults(func=...,
+precision=...)``; :func:`main` parses, runs the command in its precision
+(:func:`mbn.precision.scope`) and turns every bad input into one line and exit status 2.
 
 Every subcommand validates its input; a bad input prints one line ``mbn: error: ...`` naming what
 is wrong (file and line where there is one) and exits with status 2. Files are written atomically.
@@ -7,35 +10,17 @@ is wrong (file and line where there is one) and exits with status 2. Files are w
 from __future__ import annotations
 
 import argparse
-import contextlib
-import json
 import sys
-import time
-from collections.abc import Iterator, Sequence
-from pathlib import Path
-from typing import Any
+from collections.abc import Sequence
 
 from mbn import __version__
-from mbn.cli.args import positive_float, positive_int
-from mbn.cli.args import seed as seed_type
-from mbn.cli.experiments import EXPERIMENT_COMMANDS, EXPERIMENT_EPILOG, add_experiment_commands
-from mbn.cli.reproduce import EPILOG as REPRODUCE_EPILOG
-from mbn.cli.reproduce import add_commands as add_reproduce
-from mbn.cli.world import WORLD_COMMANDS, WORLD_EPILOG, add_world_commands
+from mbn.cli import evaluate, networks, reproduce, world
 from mbn.errors import MbnInputError
+from mbn.precision import scope
+
+__all__ = ["EXIT_BAD_INPUT", "build_parser", "main"]
 
 EXIT_BAD_INPUT = 2
-#: Commands that run in JAX's default float32 (the robot experiments: evolved and tested so);
-#: the others enable float64.
-FLOAT32_COMMANDS = ("reproduce", "evaluate")
-
-MAIN_EPILOG = """\
-examples:
-  mbn mul train --out runs/mul.json           train a 3-neuron multiplier by BPTT
-  mbn mul report --params runs/mul.json       its error map (PNG) and metrics
-  mbn mul eval --pairs in.csv --out out.csv   products of the pairs in a CSV (x1,x2)
-  mbn pnn check --json                        emulation check of the paper's RF/LF interpreter
-"""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -51,361 +36,24 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mbn",
         description="Programmable fixed-weight CTRNNs and the Multiple Behavior Network "
         "(Montone, Donnarumma & Prevete, ICANNGA 2011).",
-        epilog=MAIN_EPILOG + WORLD_EPILOG + REPRODUCE_EPILOG + EXPERIMENT_EPILOG,
+        epilog="examples:\n" + networks.EPILOG + world.EPILOG + reproduce.EPILOG + evaluate.EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mbn {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-
-    mul = sub.add_parser(
-        "mul",
-        help="the multiplier CTRNN (paper 2.1)",
-        description="Train, evaluate and inspect multiplier CTRNNs.",
-    )
-    mul_sub = mul.add_subparsers(dest="mul_command", required=True, parser_class=_Parser)
-
-    train = mul_sub.add_parser(
-        "train",
-        help="train a multiplier by BPTT",
-        description="Train a multiplier CTRNN by backpropagation through time from many random "
-        "restarts at once and keep the best by validation (paper 2.1). Writes the parameters and "
-        "a metrics block as JSON.",
-        epilog="example:\n  mbn mul train --neurons 3 --seed 0 --out runs/mul.json",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    train.add_argument(
-        "--neurons",
-        type=positive_int,
-        default=3,
-        help="neurons of the multiplier (default 3, the paper's)",
-    )
-    train.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
-    train.add_argument(
-        "--restarts",
-        type=positive_int,
-        default=None,
-        help="restarts trained in parallel (default: the recipe's)",
-    )
-    train.add_argument(
-        "--iterations",
-        type=positive_int,
-        default=None,
-        help="Adam iterations (default: the recipe's)",
-    )
-    train.add_argument(
-        "--out",
-        type=Path,
-        default=Path("multiplier.json"),
-        help="output JSON file (default multiplier.json)",
-    )
-    train.add_argument("--quiet", action="store_true", help="no progress bar")
-
-    ev = mul_sub.add_parser(
-        "eval",
-        help="multiply the pairs of a CSV file",
-        description="Read a CSV with columns x1,x2 (values in [0, 1]) and write x1,x2,output.",
-        epilog="example:\n  mbn mul eval --pairs pairs.csv --out products.csv",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    ev.add_argument("--pairs", type=Path, required=True, help="input CSV with columns x1,x2")
-    ev.add_argument("--out", type=Path, required=True, help="output CSV (x1,x2,output)")
-    ev.add_argument(
-        "--params",
-        type=Path,
-        default=None,
-        help="multiplier JSON (default: the shipped 3-neuron multiplier)",
-    )
-
-    rep = mul_sub.add_parser(
-        "report",
-        help="error heat map (PNG) and metrics",
-        description="Draw the absolute and relative error of a multiplier over (0,1)^2 as a PNG "
-        "and print its metrics (validation pairs, dense grid, fixed-point check).",
-        epilog="example:\n  mbn mul report --params runs/mul.json --out runs/mul.png",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    rep.add_argument(
-        "--params",
-        type=Path,
-        default=None,
-        help="multiplier JSON (default: the shipped 3-neuron multiplier)",
-    )
-    rep.add_argument(
-        "--out",
-        type=Path,
-        default=Path("multiplier_error.png"),
-        help="output PNG (default multiplier_error.png)",
-    )
-    rep.add_argument(
-        "--seed",
-        type=seed_type,
-        default=None,
-        help="seed of the validation pairs (default: the one the file records)",
-    )
-    rep.add_argument("--json", action="store_true", help="print the metrics as JSON")
-
-    pnn = sub.add_parser(
-        "pnn",
-        help="programmable networks (paper section 2)",
-        description="Programmable-network tools.",
-    )
-    pnn_sub = pnn.add_subparsers(dest="pnn_command", required=True, parser_class=_Parser)
-    check = pnn_sub.add_parser(
-        "check",
-        help="emulation check of the paper's RF/LF interpreter",
-        description="Build the interpreter of the paper's published RF network with the three "
-        "connections in which RF and LF differ programmable; drive the original networks and the "
-        "interpreter (with each network's program) with random piecewise-constant inputs in "
-        "[0,1]^3; report the largest difference over time of the firing rates of neurons 2 and "
-        "3, in exact-product mode and with the multiplier.",
-        epilog="example:\n  mbn pnn check --json",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    check.add_argument("--json", action="store_true", help="print one JSON object")
-    check.add_argument(
-        "--sequences",
-        type=positive_int,
-        default=200,
-        help="random input sequences per program (default 200)",
-    )
-    check.add_argument(
-        "--seconds",
-        type=positive_float,
-        default=20.0,
-        help="length of each sequence in seconds (default 20)",
-    )
-    check.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
-    check.add_argument(
-        "--tau-ratio",
-        type=positive_float,
-        default=0.1,
-        help="multiplier time constant / network time constant (default 0.1, the paper's); the "
-        "step is a tenth of the multipliers' time constant",
-    )
-    check.add_argument(
-        "--from-rest",
-        action="store_true",
-        help="start every run at y = 0 instead of the settled state of the first input",
-    )
-    check.add_argument(
-        "--params",
-        type=Path,
-        default=None,
-        help="multiplier JSON (default: the shipped 3-neuron multiplier)",
-    )
-    add_world_commands(sub, _Parser)
-    add_experiment_commands(sub, _Parser)
-    add_reproduce(sub)
+    networks.add_commands(sub, _Parser)
+    world.add_commands(sub, _Parser)
+    evaluate.add_commands(sub, _Parser)
+    reproduce.add_commands(sub, _Parser)
     return parser
-
-
-@contextlib.contextmanager
-def _progress(enabled: bool, description: str) -> Iterator[Any]:
-    if not enabled:
-        yield None
-        return
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total}"),
-        TimeElapsedColumn(),
-        transient=True,
-    ) as progress:
-        yield (progress, progress.add_task(description, total=None))
-
-
-def _enable_x64() -> None:
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
-
-
-def _cmd_mul_train(args: argparse.Namespace) -> int:
-    import dataclasses
-
-    import jax
-
-    from mbn.networks.multiplier import save_multiplier
-    from mbn.networks.multiplier_train import recipe, train_stages
-
-    stages = list(recipe(args.neurons))
-    if args.restarts is not None:
-        stages[0] = dataclasses.replace(stages[0], num_restarts=args.restarts)
-    if args.iterations is not None:
-        stages = [dataclasses.replace(st, num_iterations=args.iterations) for st in stages]
-    if not args.out.parent.exists():
-        raise MbnInputError(f"--out: folder {args.out.parent} does not exist")
-    start = time.perf_counter()
-    with _progress(not args.quiet and sys.stderr.isatty(), "training multiplier") as bar:
-
-        def report(done: int, total: int) -> None:
-            if bar is not None:
-                bar[0].update(bar[1], completed=done, total=total)
-
-        mul, metrics = train_stages(jax.random.key(args.seed), tuple(stages), progress=report)
-    metrics["training"]["seed"] = args.seed
-    metrics["training"]["wall_seconds"] = round(time.perf_counter() - start, 2)
-    save_multiplier(args.out, mul, metrics)
-    _print_metrics(metrics, header=f"wrote {args.out}")
-    return 0
-
-
-def _print_metrics(metrics: dict[str, Any], header: str | None = None) -> None:
-    if header:
-        print(header)
-    fp = metrics["fixed_point"]
-    print(
-        f"  validation pairs within 5 %:        {metrics['fraction_within_5pct']:.0%}"
-        f" of {metrics['num_validation_pairs']}"
-    )
-    print(f"  max relative error (product>=0.05): {metrics['max_rel_error_product_ge_0.05']:.2%}")
-    print(f"  max relative error (all pairs):     {metrics['max_rel_error']:.2%}")
-    print(
-        f"  max abs error, {metrics['grid_points_per_axis']}x"
-        f"{metrics['grid_points_per_axis']} grid:     {metrics['max_abs_error_grid']:.4f}"
-    )
-    print(f"  mean abs error, grid:               {metrics['mean_abs_error_grid']:.4f}")
-    print(
-        f"  fixed point (|out(2T)-out(T)|, |out(h/10)-out(h)|): "
-        f"{fp['max_abs_diff_2T']:.1e}, {fp['max_abs_diff_fine_step']:.1e} -> "
-        f"{'ok' if fp['passed'] else 'FAILED'}"
-    )
-    training = metrics.get("training", {})
-    if "train_seconds" in training:
-        print(f"  training: {training['train_seconds']:.1f} s, seed {training.get('seed')}")
-
-
-def _load_mul(path: Path | None) -> Any:
-    from mbn.networks.multiplier import load_default, load_multiplier
-
-    return load_default() if path is None else load_multiplier(path)
-
-
-def _cmd_mul_eval(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from mbn.io import read_csv_columns, write_csv_atomic
-    from mbn.networks.multiplier import multiply
-
-    mul = _load_mul(args.params)
-    columns = read_csv_columns(args.pairs, ["x1", "x2"])
-    pairs = np.stack([columns["x1"], columns["x2"]], axis=-1)
-    outside = np.nonzero(((pairs < 0) | (pairs > 1)).any(axis=1))[0]
-    if outside.size:
-        raise MbnInputError(
-            f"{args.pairs}: data row {outside[0] + 1}: x1, x2 must be in [0, 1], got "
-            f"{pairs[outside[0]].tolist()}"
-        )
-    output = np.asarray(multiply(mul, pairs)) if len(pairs) else np.zeros(0)
-    write_csv_atomic(args.out, ["x1", "x2", "output"], np.column_stack([pairs, output]))
-    print(f"wrote {args.out} ({len(pairs)} pairs)")
-    return 0
-
-
-def _cmd_mul_report(args: argparse.Namespace) -> int:
-    import jax
-
-    from mbn.networks.multiplier import evaluate, load_default, shipped_metrics, validation_pairs
-    from mbn.viz.multiplier import plot_multiplier_error
-
-    if args.params is None:
-        mul, recorded = load_default(), shipped_metrics()
-    else:
-        from mbn.io import read_json
-        from mbn.networks.multiplier import multiplier_from_dict
-
-        data = read_json(args.params)
-        mul = multiplier_from_dict(data, where=str(args.params))
-        recorded = data.get("metrics", {}) if isinstance(data, dict) else {}
-    seed = args.seed
-    if seed is None:
-        seed = int(recorded.get("training", {}).get("seed", 0))
-    # Same derivation of the validation key as in training: key(seed) -> split -> second half.
-    _, k_val = jax.random.split(jax.random.key(seed))
-    metrics = evaluate(mul, validation_pairs(k_val))
-    metrics["validation_seed"] = seed
-    if not args.out.parent.exists():
-        raise MbnInputError(f"--out: folder {args.out.parent} does not exist")
-    plot_multiplier_error(mul, args.out, metrics=metrics)
-    if args.json:
-        print(json.dumps(metrics, indent=2))
-    else:
-        _print_metrics(metrics, header=f"wrote {args.out}")
-    return 0
-
-
-def _cmd_pnn_check(args: argparse.Namespace) -> int:
-    import jax
-
-    from mbn.networks.emulation import EmulationConfig, published_check
-
-    mul = _load_mul(args.params)
-    defaults = EmulationConfig()
-    config = EmulationConfig(
-        num_sequences=args.sequences,
-        seconds=args.seconds,
-        tau_ratio=args.tau_ratio,
-        dt=defaults.dt * args.tau_ratio / defaults.tau_ratio,
-        start="rest" if args.from_rest else "settled",
-    )
-    result = published_check(jax.random.key(args.seed), mul, config)
-    if args.json:
-        print(json.dumps({k: result[k] for k in ("exact", "trained", "num_sequences")}))
-        return 0
-    print(
-        "interpreter of the published RF with programmable "
-        + ", ".join(
-            f"{c['connection']} ({c['paper_name']}) in [{c['min']:.4g}, {c['max']:.4g}]"
-            for c in result["connections"]
-        )
-    )
-    print(
-        f"  {result['interpreter_neurons']} neurons; programs RF {result['programs'][0]}, "
-        f"LF {result['programs'][1]}"
-    )
-    start = "rest (y = 0)" if args.from_rest else f"the settled state ({config.settle:g} s)"
-    print(
-        f"  {result['num_sequences']} sequences of {args.seconds:g} s (both programs), "
-        f"multipliers at tau x {config.tau_ratio:g}, dt {config.dt:g} s, from {start}"
-    )
-    print(f"  exact product:  max |diff| = {result['exact']['max_abs_output_diff']:.2e}")
-    t = result["trained"]
-    print(
-        f"  multiplier:     median {t['median_max_abs_output_diff']:.4f}, "
-        f"95th percentile {t['p95_max_abs_output_diff']:.4f}, "
-        f"max {t['max_max_abs_output_diff']:.4f}"
-    )
-    for name, part in zip(("RF", "LF"), result["per_program"], strict=True):
-        print(
-            f"    {name} program:   median {part['median_max_abs_output_diff']:.4f}, "
-            f"95th percentile {part['p95_max_abs_output_diff']:.4f}"
-        )
-    return 0
-
-
-COMMANDS = {
-    ("mul", "train"): _cmd_mul_train,
-    ("mul", "eval"): _cmd_mul_eval,
-    ("mul", "report"): _cmd_mul_report,
-    ("pnn", "check"): _cmd_pnn_check,
-    **WORLD_COMMANDS,
-    **EXPERIMENT_COMMANDS,
-}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mbn`` command; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    key = (str(args.command), str(getattr(args, f"{args.command}_command", "")))
-    if args.command not in FLOAT32_COMMANDS:
-        _enable_x64()
+    args = build_parser().parse_args(argv)
     try:
-        if hasattr(args, "func"):
+        with scope(args.precision):
             return int(args.func(args))
-        return COMMANDS[key](args)
     except MbnInputError as exc:
         print(f"mbn: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

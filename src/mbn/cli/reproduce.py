@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from mbn.cli.args import seed
+from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "add_commands"]
 
@@ -41,7 +42,7 @@ examples:
 """
 
 
-def add_commands(sub: Any) -> None:
+def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     """Add ``reproduce`` to the ``mbn`` sub-parsers."""
     rep = sub.add_parser(
         "reproduce",
@@ -89,7 +90,8 @@ def add_commands(sub: Any) -> None:
     )
     rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
     rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
-    rep.set_defaults(func=run_reproduce)
+    # The stages run in the config's precision ([run] precision); this is the default's.
+    rep.set_defaults(func=run_reproduce, precision=ROBOT)
 
 
 def run_reproduce(args: argparse.Namespace) -> int:

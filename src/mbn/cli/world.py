@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -12,10 +11,11 @@ import numpy as np
 
 from mbn.cli.args import numbers, positive_float
 from mbn.errors import MbnInputError
+from mbn.precision import NETWORKS
 
-__all__ = ["WORLD_COMMANDS", "add_world_commands"]
+__all__ = ["EPILOG", "add_commands"]
 
-WORLD_EPILOG = """\
+EPILOG = """\
   mbn mazes                                   the built-in mazes
   mbn show-maze fig4 --out fig4.png           draw a maze: walls, tiles, junctions, starts
   mbn sonar --maze stage_arena --poses poses.csv --out ranges.csv
@@ -31,8 +31,9 @@ def _pair(text: str) -> tuple[float, float]:
     return numbers(text, 2)  # type: ignore[return-value]
 
 
-def add_world_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
-    """Add the world commands to the ``mbn`` sub-parsers."""
+def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add the world commands to the ``mbn`` sub-parsers (geometry in float64:
+    :mod:`mbn.precision`)."""
     raw = argparse.RawDescriptionHelpFormatter
     mazes = sub.add_parser(
         "mazes",
@@ -84,6 +85,10 @@ def add_world_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) ->
     drive.add_argument("--seconds", type=positive_float, required=True, help="duration (s)")
     drive.add_argument("--out", type=Path, required=True, help="output CSV")
     drive.add_argument("--maze", default=None, help="built-in name or maze file (default none)")
+    mazes.set_defaults(func=_cmd_mazes, precision=NETWORKS)
+    show.set_defaults(func=_cmd_show_maze, precision=NETWORKS)
+    sonar.set_defaults(func=_cmd_sonar, precision=NETWORKS)
+    drive.set_defaults(func=_cmd_drive, precision=NETWORKS)
 
 
 def _cmd_mazes(args: argparse.Namespace) -> int:
@@ -204,11 +209,3 @@ def _cmd_drive(args: argparse.Namespace) -> int:
             )
     print(f"wrote {steps + 1} rows to {args.out} ({int(stalled.sum())} stalled moves)")
     return 0
-
-
-WORLD_COMMANDS: dict[tuple[str, str], Callable[[argparse.Namespace], int]] = {
-    ("mazes", ""): _cmd_mazes,
-    ("show-maze", ""): _cmd_show_maze,
-    ("sonar", ""): _cmd_sonar,
-    ("drive", ""): _cmd_drive,
-}

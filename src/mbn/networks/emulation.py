@@ -27,6 +27,7 @@ from mbn.networks.programmable import (
     run_network,
 )
 from mbn.paper import DEFAULT_TAU, published_lf, published_rf
+from mbn.precision import NETWORKS, Precision, cast, scope
 
 __all__ = ["EmulationConfig", "emulation_check", "piecewise_constant_inputs", "published_check"]
 
@@ -116,8 +117,11 @@ def emulation_check(
     networks: Sequence[CTRNN],
     multiplier: Multiplier,
     config: EmulationConfig | None = None,
+    *,
+    precision: Precision = NETWORKS,
 ) -> dict[str, Any]:
-    """Build one interpreter from the connections in which ``networks`` differ and compare.
+    """Build one interpreter from the connections in which ``networks`` differ and compare, in
+    ``precision`` (:mod:`mbn.precision`).
 
     The interpreter is built from ``networks[0]``; each network is emulated with its own
     program, in exact mode and with ``multiplier``, on the same random input sequences.
@@ -130,6 +134,15 @@ def emulation_check(
     cfg = config or EmulationConfig()
     if len(networks) < 2:
         raise MbnInputError("networks: give at least two networks to tell apart")
+    with scope(precision):
+        nets = [cast(n, precision) for n in networks]
+        mul = dataclasses.replace(multiplier, net=cast(multiplier.net, precision))
+        return _emulation_check(key, nets, mul, cfg)
+
+
+def _emulation_check(
+    key: Array, networks: Sequence[CTRNN], multiplier: Multiplier, cfg: EmulationConfig
+) -> dict[str, Any]:
     base = networks[0]
     programmable = differing_connections(base, networks[1], margin=cfg.margin)
     for other in networks[2:]:
@@ -199,6 +212,10 @@ def published_check(
     multiplier: Multiplier,
     config: EmulationConfig | None = None,
     tau: float = DEFAULT_TAU,
+    *,
+    precision: Precision = NETWORKS,
 ) -> dict[str, Any]:
     """:func:`emulation_check` on the paper's published RF and LF matrices (section 3.1)."""
-    return emulation_check(key, [published_rf(tau), published_lf(tau)], multiplier, config)
+    with scope(precision):
+        nets = [published_rf(tau), published_lf(tau)]
+    return emulation_check(key, nets, multiplier, config, precision=precision)

@@ -41,6 +41,7 @@ from mbn.networks.ctrnn import (
     firing_rate,
     simulate,
 )
+from mbn.precision import NETWORKS, Precision, cast, dtype_of, scope
 
 __all__ = [
     "FORMAT",
@@ -138,8 +139,10 @@ def multiply(
     t_over_tau: float = T_OVER_TAU,
     dt_over_tau: float | None = None,
     method: Method | None = None,
+    precision: Precision = NETWORKS,
 ) -> Array:
-    """Output of ``mul`` for each pair after holding it ``t_over_tau`` time constants from rest.
+    """Output of ``mul`` for each pair after holding it ``t_over_tau`` time constants from rest,
+    computed in ``precision`` (:mod:`mbn.precision`).
 
     Args:
         mul: the multiplier.
@@ -151,25 +154,29 @@ def multiply(
     Returns:
         Firing rate of the output neuron, shape ``pairs.shape[:-1]``.
     """
-    pairs = jnp.asarray(pairs, dtype=mul.net.dtype)
-    h = mul.dt_over_tau if dt_over_tau is None else dt_over_tau
-    num_steps = round(t_over_tau / h)
-    y0 = jnp.zeros((*pairs.shape[:-1], mul.num_neurons), dtype=pairs.dtype)
-    inputs = jnp.broadcast_to(pairs, (num_steps, *pairs.shape))
-    y, _ = simulate(mul.net, y0, inputs, h, method=method or mul.method, record=False)
-    return firing_rate(mul.net, y)[..., mul.output]
+    with scope(precision):
+        net = cast(mul.net, precision)
+        pairs = jnp.asarray(pairs, dtype=net.dtype)
+        h = mul.dt_over_tau if dt_over_tau is None else dt_over_tau
+        num_steps = round(t_over_tau / h)
+        y0 = jnp.zeros((*pairs.shape[:-1], mul.num_neurons), dtype=pairs.dtype)
+        inputs = jnp.broadcast_to(pairs, (num_steps, *pairs.shape))
+        y, _ = simulate(net, y0, inputs, h, method=method or mul.method, record=False)
+        return firing_rate(net, y)[..., mul.output]
 
 
-def fixed_point_check(mul: Multiplier, pairs: ArrayLike) -> dict[str, float | bool]:
+def fixed_point_check(
+    mul: Multiplier, pairs: ArrayLike, *, precision: Precision = NETWORKS
+) -> dict[str, float | bool]:
     """Check that the output at ``T`` is a fixed point and not a transient.
 
     Compares the output at ``T`` with the output at ``2T`` and with the output at ``T`` computed
     with a 10x smaller step. Both differences must stay within :data:`FIXED_POINT_TOL` on every
     pair.
     """
-    out_t = multiply(mul, pairs)
-    out_2t = multiply(mul, pairs, t_over_tau=2 * T_OVER_TAU)
-    out_fine = multiply(mul, pairs, dt_over_tau=mul.dt_over_tau / 10)
+    out_t = multiply(mul, pairs, precision=precision)
+    out_2t = multiply(mul, pairs, t_over_tau=2 * T_OVER_TAU, precision=precision)
+    out_fine = multiply(mul, pairs, dt_over_tau=mul.dt_over_tau / 10, precision=precision)
     drift_2t = float(jnp.max(jnp.abs(out_2t - out_t)))
     drift_step = float(jnp.max(jnp.abs(out_fine - out_t)))
     return {
@@ -179,20 +186,37 @@ def fixed_point_check(mul: Multiplier, pairs: ArrayLike) -> dict[str, float | bo
     }
 
 
-def evaluate(mul: Multiplier, validation: ArrayLike, *, grid_points: int = 101) -> dict[str, Any]:
-    """Metrics of a multiplier on a validation set and on the dense grid of (0, 1)^2.
+def evaluate(
+    mul: Multiplier,
+    validation: ArrayLike,
+    *,
+    grid_points: int = 101,
+    precision: Precision = NETWORKS,
+) -> dict[str, Any]:
+    """Metrics of a multiplier on a validation set and on the dense grid of (0, 1)^2, computed in
+    ``precision`` (:mod:`mbn.precision`).
 
     Returns a JSON-ready dict: fraction of validation pairs within 5 % relative error, maximum
     relative error (over all pairs and over pairs whose product is >= 0.05), maximum and mean
     absolute error on the dense grid, and the fixed-point check.
     """
-    validation = jnp.asarray(validation, dtype=mul.net.dtype)
+    with scope(precision):
+        return _evaluate(mul, validation, grid_points, precision)
+
+
+def _evaluate(
+    mul: Multiplier, validation: ArrayLike, grid_points: int, precision: Precision
+) -> dict[str, Any]:
+    dtype = dtype_of(precision)
+    validation = jnp.asarray(validation, dtype=dtype)
     target = validation[:, 0] * validation[:, 1]
-    out = multiply(mul, validation)
+    out = multiply(mul, validation, precision=precision)
     rel = np.asarray(jnp.abs(out - target) / target)
     big = np.asarray(target) >= 0.05
-    grid = dense_grid(grid_points, dtype=mul.net.dtype)
-    grid_err = np.asarray(jnp.abs(multiply(mul, grid) - grid[:, 0] * grid[:, 1]))
+    grid = dense_grid(grid_points, dtype=dtype)
+    grid_err = np.asarray(
+        jnp.abs(multiply(mul, grid, precision=precision) - grid[:, 0] * grid[:, 1])
+    )
     return {
         "num_validation_pairs": int(validation.shape[0]),
         "fraction_within_5pct": float(np.mean(rel <= REL_TOL)),
@@ -202,7 +226,7 @@ def evaluate(mul: Multiplier, validation: ArrayLike, *, grid_points: int = 101) 
         "grid_points_per_axis": grid_points,
         "max_abs_error_grid": float(grid_err.max()),
         "mean_abs_error_grid": float(grid_err.mean()),
-        "fixed_point": fixed_point_check(mul, validation),
+        "fixed_point": fixed_point_check(mul, validation, precision=precision),
     }
 
 

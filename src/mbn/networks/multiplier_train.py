@@ -41,6 +41,7 @@ from mbn.networks.multiplier import (
     training_pairs,
     validation_pairs,
 )
+from mbn.precision import cast, scope
 
 __all__ = [
     "Params",
@@ -77,7 +78,9 @@ class TrainConfig:
             [0, 1]^2 (``num_edge_points`` per side; products 0 on the lower and left sides). The
             paper's pairs stay inside [0.05, 0.95]^2; without anchors the output is an
             extrapolation near the edges and corners (about 0.16 off at (1, 1)).
-        dtype: floating type of training (float32 is about twice as fast on CPU).
+        dtype: floating type of training (float32 is about twice as fast on CPU); the training
+            and its evaluation run in it whatever the process-wide setting
+            (:mod:`mbn.precision`).
         fixed_point_weight: weight of the penalty on ``|dy/dt|`` at T (keeps the output a
             fixed point rather than a transient).
         clip_norm: global gradient-norm clip per restart.
@@ -356,7 +359,20 @@ def train(
         its metrics (:func:`evaluate`) plus training information.
     """
     cfg = config or TrainConfig()
+    with scope(cfg.dtype):
+        return _train(key, cfg, init, progress, validation_key)
+
+
+def _train(
+    key: Array,
+    cfg: TrainConfig,
+    init: Multiplier | None,
+    progress: Callable[[int, int], None] | None,
+    validation_key: Array | None,
+) -> tuple[Multiplier, dict[str, Any]]:
     dtype = jnp.dtype(cfg.dtype)
+    if init is not None:
+        init = dataclasses.replace(init, net=cast(init.net, cfg.dtype))
     k_init, k_val = jax.random.split(key)
     if validation_key is not None:
         k_val = validation_key
@@ -426,7 +442,7 @@ def train(
     train_seconds = time.perf_counter() - start
 
     best, summary = select_restart(params, validation, cfg)
-    metrics = evaluate(best, validation.astype(best.net.dtype))
+    metrics = evaluate(best, validation.astype(best.net.dtype), precision=cfg.dtype)
     metrics["training"] = {
         **dataclasses.asdict(cfg),
         "iterations_run": done,
@@ -530,16 +546,21 @@ def select_restart(params: Params, validation: Array, cfg: TrainConfig) -> tuple
     target = validation[:, 0] * validation[:, 1]
     # every validation pair against every restart: (num_val, R, 2)
     val = jnp.broadcast_to(validation[:, None, :], (validation.shape[0], cfg.num_restarts, 2))
-    out_t = np.asarray(multiply(batched, val))
-    out_2t = np.asarray(multiply(batched, val, t_over_tau=2 * T_OVER_TAU))
-    out_fine = np.asarray(multiply(batched, val, dt_over_tau=cfg.dt_over_tau / 10))
+    prec = cfg.dtype
+    out_t = np.asarray(multiply(batched, val, precision=prec))
+    out_2t = np.asarray(multiply(batched, val, t_over_tau=2 * T_OVER_TAU, precision=prec))
+    out_fine = np.asarray(multiply(batched, val, dt_over_tau=cfg.dt_over_tau / 10, precision=prec))
     tgt = np.asarray(target)[:, None]
     within = np.mean(np.abs(out_t - tgt) / tgt <= REL_TOL, axis=0)
     drift = np.maximum(np.abs(out_2t - out_t).max(axis=0), np.abs(out_fine - out_t).max(axis=0))
     ok = np.isfinite(out_t).all(axis=0) & (drift <= FIXED_POINT_TOL)
     grid = dense_grid(101, dtype=validation.dtype)[:, None, :]
     grid_out = np.asarray(
-        multiply(batched, jnp.broadcast_to(grid, (grid.shape[0], cfg.num_restarts, 2)))
+        multiply(
+            batched,
+            jnp.broadcast_to(grid, (grid.shape[0], cfg.num_restarts, 2)),
+            precision=prec,
+        )
     )
     grid_err = np.abs(grid_out - np.asarray(grid[:, 0, 0] * grid[:, 0, 1])[:, None]).max(axis=0)
     grid_err = np.where(np.isfinite(grid_err), grid_err, np.inf)

@@ -15,6 +15,7 @@ import pytest
 from mbn.config import Settings, read_toml, setting
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Experiment, Registry, Stage, StageContext, run_experiment
+from mbn.precision import scope
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,9 @@ def test_a_toy_stage_in_a_temporary_registry_runs_through_the_runner(tmp_path):
     assert config["toy"].draws == 3
     lines: list[str] = []
     results = run_experiment(experiment, tmp_path / "run", seed=7, config=config, log=lines.append)
-    expected = jax.random.uniform(jax.random.fold_in(jax.random.key(7), 42), (3,))
+    # the stage draws from fold_in(key(seed), key_id), in the run's precision (float32)
+    with scope("float32"):
+        expected = np.asarray(jax.random.uniform(jax.random.fold_in(jax.random.key(7), 42), (3,)))
     np.testing.assert_allclose(results["stages"]["toy"]["values"], expected, rtol=0, atol=0)
     assert results["stages"]["after"]["total"] == pytest.approx(float(np.sum(expected)), abs=1e-6)
     assert "details" not in results["stages"]["toy"]

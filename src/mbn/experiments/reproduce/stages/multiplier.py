@@ -70,11 +70,15 @@ class MultiplierStage(Stage):
             mul = load_default(n)
             metrics = shipped_metrics(n)
             source = f"shipped ({SHIPPED[n]})"
-        measured = evaluate(mul, validation_pairs(jax.random.fold_in(ctx.key, 1), 100))
+        precision = ctx.section("run").precision
+        measured = evaluate(
+            mul, validation_pairs(jax.random.fold_in(ctx.key, 1), 100), precision=precision
+        )
         save_multiplier(ctx.rundir.controller_file("multiplier"), mul, metrics)
         grid = np.asarray(dense_grid(GRID_POINTS))
         ctx.rundir.save_record(
-            "multiplier_grid", {"grid": grid, "output": np.asarray(multiply(mul, grid))}
+            "multiplier_grid",
+            {"grid": grid, "output": np.asarray(multiply(mul, grid, precision=precision))},
         )
         return {
             "source": source,

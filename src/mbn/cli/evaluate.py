@@ -1,12 +1,11 @@
-"""The experiment commands of ``mbn``: ``evaluate`` (the paper's test protocol on a controller)
-(the paper's test protocol on a controller file)."""
+"""``mbn evaluate``: the paper's test protocol on a controller file (float32, as the robot
+experiments: :mod:`mbn.precision`)."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import math
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,12 +13,11 @@ import numpy as np
 
 from mbn.cli.args import positive_float, positive_int, seed
 from mbn.errors import MbnInputError
+from mbn.precision import ROBOT
 
-__all__ = ["EXPERIMENT_COMMANDS", "EXPERIMENT_EPILOG", "add_experiment_commands"]
+__all__ = ["EPILOG", "add_commands"]
 
-EXPERIMENT_EPILOG = """\
-  mbn reproduce --out runs/full                the paper's whole experiment and its report
-  mbn reproduce --quick --out runs/quick       a smoke run of every stage (under 2 minutes)
+EPILOG = """\
   mbn evaluate --controller rf.json --maze fig4 --behavior right --repeats 3 --json
 """
 
@@ -39,9 +37,9 @@ examples:
 """
 
 
-def add_experiment_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     """Add the experiment commands to the ``mbn`` sub-parsers (``parser_class`` is the class
-    the sub-parsers use; kept for symmetry with :func:`mbn.cli.world.add_world_commands`)."""
+    the sub-parsers use; as every command group takes)."""
     from mbn.experiments.trials import BEHAVIORS
 
     ev = sub.add_parser(
@@ -99,6 +97,7 @@ def add_experiment_commands(sub: Any, parser_class: type[argparse.ArgumentParser
     )
     ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
     ev.add_argument("--json", action="store_true", help="print one JSON object")
+    ev.set_defaults(func=_cmd_evaluate, precision=ROBOT)
 
 
 def _program_for(args: argparse.Namespace, kind: str) -> str | None:
@@ -198,8 +197,3 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         f"correct junctions, mean stall fraction {result['mean_stall_fraction']:.4f}"
     )
     return 0
-
-
-EXPERIMENT_COMMANDS: dict[tuple[str, str], Callable[[argparse.Namespace], int]] = {
-    ("evaluate", ""): _cmd_evaluate,
-}
