@@ -10,7 +10,10 @@
 * :mod:`mbn.world.geometry` — exact reference geometry (segment ray casting, polygon collision);
 * :mod:`mbn.world.engine` — the fast engine: lattice ray marching with culled windows, cell
   collision, the blob-finding camera;
-* :mod:`mbn.world.rollout` — batched, jitted episodes of controllers in mazes;
+* :mod:`mbn.world.step` — one robot step (sensing, speed limits, kinematics, the stall rule),
+  shared by the rollout and the Gymnasium environment;
+* :mod:`mbn.world.rollout` — batched, jitted episodes of controllers in mazes, with their
+  statistics and junction passes (:mod:`mbn.world.stats`);
 * :mod:`mbn.viz.render` — pictures of mazes and episodes, animated GIFs;
 * :mod:`mbn.world.gym_env` — the Gymnasium environment ``mbn/PioneerMaze-v0`` (optional extra).
 

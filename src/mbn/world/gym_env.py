@@ -1,8 +1,9 @@
 """A Gymnasium environment: one Pioneer 3DX in a maze, driven by speed commands.
 
 ``PioneerMazeEnv`` (registered as ``mbn/PioneerMaze-v0`` when this module is imported) runs the
-same world as :mod:`mbn.world.rollout`, for one robot at a time: the engine's exact sonar rays,
-body-wall collision and blob-finding camera (:mod:`mbn.world.engine`) under one jitted step.
+same world as :mod:`mbn.world.rollout`, for one robot at a time: a stateful shell over the robot
+step that the rollout runs too (:mod:`mbn.world.step`: the engine's exact sonar rays, body-wall
+collision and blob-finding camera, the speed limits and the kinematics) under one jitted step.
 
 * **Action** ``(v, w)``: linear (m/s) and angular (rad/s) speed, a ``Box`` of
   ``[-0.5, 0.5] x [-pi/2, pi/2]``; commands beyond it are clipped to the P3DX's limits as Stage
@@ -61,27 +62,11 @@ import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.world.engine import (
-    CameraConfig,
-    World,
-    cast,
-    collides_cells,
-    compile_mazes,
-    maze_constants,
-    see_tiles,
-    tile_under,
-    window_words,
-)
-from mbn.world.geometry import sonar_rays
+from mbn.world.engine import CameraConfig, World, compile_mazes, maze_constants
 from mbn.world.mazes.model import Maze
-from mbn.world.robot import (
-    MAX_ANGULAR_SPEED,
-    MAX_LINEAR_SPEED,
-    SONAR_MAX_RANGE,
-    SONAR_POSES,
-    clip_command,
-    integrate_pose,
-)
+from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED, SONAR_MAX_RANGE, SONAR_POSES
+from mbn.world.sensors import ALL_SONARS
+from mbn.world.step import Reading, applied_speeds, locate, move, overlaps, sense, undo_stalled
 
 __all__ = ["ENV_ID", "MAX_BLOBS", "PioneerMazeEnv", "register"]
 
@@ -98,38 +83,19 @@ _CLEARANCE = 0.5  # metres: closer than this to a wall scales the reward down
 
 
 # ---------------------------------------------------------------------------------------------
-# the jitted single-robot step (a batch of 1 in maze 0 of a compiled world)
+# the jitted single-robot step (a batch of 1 in maze 0 of a compiled world), over mbn.world.step
 #
 # The world travels as an argument (a pytree whose lattice sizes are static), so every
 # environment on the same maze shares one compiled step.
 
 
-def _sense(
-    world: World, camera: CameraConfig | None, pose: Array
-) -> tuple[Array, Array, Array, Array]:
-    """Sonar ranges ``(1, 16)``, blobs and nearest tile in view ``(1,)``, tile under ``(1,)``."""
+@partial(jax.jit, static_argnames=("camera",))
+def _observe(world: World, camera: CameraConfig | None, pose: Array) -> tuple[Array, Reading]:
+    """Whether the body at ``pose (1, 3)`` overlaps a wall, and what the robot senses there."""
     mi = jnp.zeros((1,), jnp.int32)
     mc = maze_constants(world, mi)
-    words, ci, cj = window_words(world, mc, pose[:, 0], pose[:, 1])
-    origins, angles = sonar_rays(pose, SONAR_POSES)
-    ranges = cast(world, mc, words, ci, cj, origins[..., 0], origins[..., 1], angles)
-    if camera is None:
-        blobs = nearest = jnp.zeros((1,), jnp.int32)
-    else:
-        reading = see_tiles(world, mc, mi, words, ci, cj, pose, camera)
-        blobs, nearest = reading.blobs, reading.nearest
-    return ranges, blobs, nearest, tile_under(world, mi, pose)
-
-
-@partial(jax.jit, static_argnames=("camera",))
-def _observe(
-    world: World, camera: CameraConfig | None, pose: Array
-) -> tuple[Array, Array, Array, Array, Array]:
-    """Whether the body at ``pose (1, 3)`` overlaps a wall, and what the robot senses there."""
-    mc = maze_constants(world, jnp.zeros((1,), jnp.int32))
-    words, ci, cj = window_words(world, mc, pose[:, 0], pose[:, 1])
-    hit = collides_cells(world, mc, words, ci, cj, pose)
-    return (hit, *_sense(world, camera, pose))
+    place = locate(world, mc, pose)
+    return overlaps(world, mc, place), sense(world, mc, mi, place, ALL_SONARS, camera)
 
 
 @partial(jax.jit, static_argnames=("camera",))
@@ -140,16 +106,16 @@ def _step(
     v_cmd: Array,
     w_cmd: Array,
     dt: Array,
-) -> tuple[Array, ...]:
-    """One step of the world's rules for the robot at ``pose (1, 3)``: the new pose, whether the
-    move was undone, the applied speeds and what the robot senses at the new pose."""
-    mc = maze_constants(world, jnp.zeros((1,), jnp.int32))
-    v, w = clip_command(v_cmd, w_cmd)
-    cand = integrate_pose(pose, v, w, dt)
-    words, ci, cj = window_words(world, mc, cand[:, 0], cand[:, 1])
-    hit = collides_cells(world, mc, words, ci, cj, cand)
-    new = jnp.where(hit[:, None], pose, cand)
-    return (new, hit, v, w, *_sense(world, camera, new))
+) -> tuple[Array, Array, Array, Array, Reading]:
+    """One step of the world's rules for the robot at ``pose (1, 3)``: the new pose (the old one
+    if the move stalled), whether it stalled, the speeds driven and what the robot senses at the
+    new pose."""
+    mi = jnp.zeros((1,), jnp.int32)
+    mc = maze_constants(world, mi)
+    moved = move(world, mc, pose, v_cmd, w_cmd, dt)
+    here = undo_stalled(moved.stalled, locate(world, mc, pose), moved.place)
+    v, w = applied_speeds(moved.stalled, moved.v, moved.w)
+    return here.pose, moved.stalled, v, w, sense(world, mc, mi, here, ALL_SONARS, camera)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -339,16 +305,16 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 if not self._collides(cand):
                     pose = cand
                     break
-        out = jax.device_get(_observe(self._world, self.camera, self._jnp_pose(pose)))
-        _, ranges, blobs, nearest, under = out
+        _, reading = jax.device_get(_observe(self._world, self.camera, self._jnp_pose(pose)))
         self._pose = pose.astype(np.float64)
         self._steps = 0
         self._stalled = False
-        self._tile = int(under[0])
-        self._camera_reading = int(nearest[0])
-        self._ranges = np.asarray(ranges[0], dtype=np.float64)
+        self._tile = int(reading.under[0])
+        self._camera_reading = int(reading.camera[0])
+        self._ranges = np.asarray(reading.ranges[0], dtype=np.float64)
         self._trail = [self._pose.copy()]
-        return self._observation(self._ranges, int(blobs[0])), self._info(int(blobs[0]))
+        blobs = int(reading.blobs[0])
+        return self._observation(self._ranges, blobs), self._info(blobs)
 
     def step(
         self, action: np.ndarray
@@ -357,9 +323,9 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (2,) or not np.all(np.isfinite(a)):
             raise MbnInputError(f"action must be 2 finite numbers (v, w), got {action!r}")
-        if self.normalized_actions:
-            a = np.clip(a, -1.0, 1.0) * np.array([MAX_LINEAR_SPEED, MAX_ANGULAR_SPEED])
-        out = jax.device_get(
+        if self.normalized_actions:  # [-1, 1] to the limits; the step clips what lies beyond
+            a = a * np.array([MAX_LINEAR_SPEED, MAX_ANGULAR_SPEED])
+        new, hit, v, w, reading = jax.device_get(
             _step(
                 self._world,
                 self.camera,
@@ -369,24 +335,22 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 jnp.asarray(self.dt, self._dtype),
             )
         )
-        new, hit, v, w, ranges, blobs, nearest, under = out
         self._steps += 1
         self._stalled = bool(hit[0])
         self._pose = np.asarray(new[0], dtype=np.float64)
-        if int(under[0]) > 0:
-            self._tile = int(under[0])
-        self._camera_reading = int(nearest[0])
-        self._ranges = np.asarray(ranges[0], dtype=np.float64)
+        if int(reading.under[0]) > 0:
+            self._tile = int(reading.under[0])
+        self._camera_reading = int(reading.camera[0])
+        self._ranges = np.asarray(reading.ranges[0], dtype=np.float64)
         self._trail.append(self._pose.copy())
         v_app, w_app = float(v[0]), float(w[0])
         if self._stalled:
             reward = -_STALL_PENALTY
-            v_app = w_app = 0.0
         else:
             clear = min(1.0, float(self._ranges.min()) / _CLEARANCE)
             reward = (v_app / MAX_LINEAR_SPEED) * (1.0 - abs(w_app) / MAX_ANGULAR_SPEED) * clear
         truncated = self._steps >= self.max_steps
-        n_blobs = int(blobs[0])
+        n_blobs = int(reading.blobs[0])
         obs = self._observation(self._ranges, n_blobs)
         return obs, float(reward), False, truncated, self._info(n_blobs, v_app, w_app)
 
