@@ -49,8 +49,8 @@ from typing import Literal
 import numpy as np
 
 from mbn.errors import MbnInputError
-from mbn.world.mazes.load import read_text, validate_maze
 from mbn.world.mazes.model import Maze, merge_cells
+from mbn.world.mazes.validate import read_text, validate_maze
 
 __all__ = [
     "StageModel",
