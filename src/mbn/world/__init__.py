@@ -15,5 +15,6 @@
 * :mod:`mbn.world.rollout` — batched, jitted episodes of controllers in mazes;
 * :mod:`mbn.world.gym_env` — the Gymnasium environment ``mbn/PioneerMaze-v0`` (optional extra).
 
-See ``docs/world.md``, ``docs/mazes.md`` and ``docs/pictures.md``.
+Pictures of mazes and episodes are drawn by :mod:`mbn.viz`. See ``docs/world.md``,
+``docs/mazes.md`` and ``docs/pictures.md``.
 """
