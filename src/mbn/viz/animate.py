@@ -71,7 +71,7 @@ def animate_episode(
         poses: ``(n, 3)`` poses, e.g. ``trajectory.pose[b]``.
         path: the GIF to write.
         ranges: ``(n, k)`` sonar readings to draw as rays (``sonars``: their Stage indices, see
-            :func:`draw_trajectory`).
+            :func:`~mbn.viz.episodes.draw_trajectory`).
         camera: ``(n,)`` camera readings (colours of the nearest tile in view: 0, 1, 2); also
             turns on the field-of-view wedge (``camera_fov_deg`` wide, ``camera_range`` long).
         tile: ``(n,)`` tile in force (0, 1, 2).
