@@ -208,7 +208,7 @@ def test_without_gymnasium_the_import_error_says_what_to_install(monkeypatch):
 
 def test_importing_mbn_does_not_import_gymnasium():
     code = (
-        "import sys, mbn, mbn.world, mbn.viz.render, mbn.world.rollout;"
+        "import sys, mbn, mbn.world, mbn.viz.animate, mbn.world.rollout;"
         " assert 'gymnasium' not in sys.modules, 'gymnasium imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -17,7 +17,7 @@ from mbn.world.junctions import (
     rule_exit,
 )
 from mbn.world.mazes.builtin import crossroad, stage_arena
-from mbn.world.mazes.load import parse_maze_text
+from mbn.world.mazes.grid_text import parse_maze_text
 
 # a plus at (1, 2), a T at (3, 2) (exits W, E, N), corners at (1, 0), (1, 4), (3, 0), dead ends
 # at (0, 2), (2, 4), (3, 3)

@@ -105,7 +105,7 @@ def _cmd_mazes(args: argparse.Namespace) -> int:
 
 
 def _cmd_show_maze(args: argparse.Namespace) -> int:
-    from mbn.viz.render import save_maze_png
+    from mbn.viz.maze import save_maze_png
     from mbn.world.mazes.load import load_maze
 
     maze = load_maze(args.maze)

@@ -1,4 +1,7 @@
-"""Pictures (matplotlib, Agg backend). Every function writes one PNG file atomically."""
+"""The multiplier's error map: absolute and relative error over the unit square (matplotlib, Agg).
+
+The figure is made and written (a PNG, atomically) by :mod:`mbn.viz.style`.
+"""
 
 from __future__ import annotations
 
@@ -7,24 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from mbn.io import atomic_open
 from mbn.networks.multiplier import Multiplier, dense_grid, multiply
+from mbn.viz.style import new_figure, save_png
 
 __all__ = ["draw_multiplier_error", "plot_multiplier_error"]
-
-
-def _figure(*args: Any, **kwargs: Any) -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
-
-    return Figure(*args, **kwargs)
-
-
-def _save(fig: Any, path: str | Path) -> None:
-    with atomic_open(path, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=120, bbox_inches="tight")
 
 
 def plot_multiplier_error(
@@ -79,7 +68,7 @@ def draw_multiplier_error(
     with np.errstate(divide="ignore", invalid="ignore"):
         rel_err = np.where(target > 0, abs_err / np.where(target > 0, target, 1), np.nan)
 
-    fig = _figure(figsize=(11, 4.6))
+    fig = new_figure((11, 4.6), layout=None)  # placed by gridspec, cropped when saved
     ax_abs, ax_rel = fig.subplots(1, 2, gridspec_kw={"wspace": 0.35})
     extent = (0, 1, 0, 1)
     im = ax_abs.imshow(abs_err.T, origin="lower", extent=extent, cmap="viridis")
@@ -114,4 +103,4 @@ def draw_multiplier_error(
             f"fixed point {'ok' if metrics['fixed_point']['passed'] else 'FAILED'}"
         )
     fig.suptitle(title)
-    _save(fig, path)
+    save_png(fig, path, tight=True)

@@ -17,30 +17,18 @@ from typing import Any
 
 import numpy as np
 
-from mbn.io import atomic_open
 from mbn.networks.programmable import Connection
+from mbn.viz.animate import animate_episode
+from mbn.viz.episodes import plot_episodes
+from mbn.viz.style import new_figure, save_png
 from mbn.world.mazes.model import Maze
 
 __all__ = ["de_curves", "mbn_animation", "mbn_traces", "test_trajectories"]
 
 
-def _figure(figsize: tuple[float, float]) -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=figsize)
-
-
-def _save(fig: Any, path: Path, dpi: int = 100) -> None:
-    with atomic_open(path, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=dpi, bbox_inches="tight")
-
-
 def de_curves(stages: dict[str, Any], path: Path) -> None:
     """DE best and mean fitness per generation of RF, LF and PM, and the LF search's choice."""
-    fig = _figure((11, 7.5))
+    fig = new_figure((11, 7.5), layout=None)
     axes = fig.subplots(2, 2)
     for ax, (name, title) in zip(
         (axes[0, 0], axes[1, 0], axes[1, 1]),
@@ -84,7 +72,7 @@ def de_curves(stages: dict[str, Any], path: Path) -> None:
     ax.legend(loc="lower right", fontsize=7)
     ax.set_title("LF: which 3 connections to re-evolve (green: chosen)")
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path, dpi=100, tight=True)
 
 
 def test_trajectories(
@@ -96,8 +84,6 @@ def test_trajectories(
 ) -> None:
     """The paper-protocol trials of one test on ``maze``, one panel per start mark (``details``:
     per trial ``success``, ``correct``, ``judged``, ``stall``)."""
-    from mbn.viz.render import plot_episodes
-
     n = len(details["success"])
     titles = [
         f"start {k + 1}: {'ok' if details['success'][k] else 'FAIL'} "
@@ -105,7 +91,7 @@ def test_trajectories(
         for k in range(n)
     ]
     fig = plot_episodes(maze, trajectory, list(range(n)), titles=titles, ncols=5, title=title)
-    _save(fig, path, dpi=70)
+    save_png(fig, path, dpi=70, tight=True)
 
 
 def mbn_traces(
@@ -120,7 +106,7 @@ def mbn_traces(
     b = int(recording["start_mark"])
     program, rates = recording["program"], recording["rates"]
     t, camera, tile = recording["t"], recording["camera"], recording["tile"]
-    fig = _figure((11, 7))
+    fig = new_figure((11, 7), layout=None)
     ax = fig.subplots(4, 1, sharex=True, gridspec_kw={"height_ratios": [1, 2, 2, 1.4]})
     ax[0].step(t, camera, where="post", color="C7", label="camera (tile in view)")
     ax[0].step(t, tile, where="post", color="C3", lw=2, label="tile in force (driven over)")
@@ -151,7 +137,7 @@ def mbn_traces(
         "(red lines: tile in force changes)"
     )
     fig.tight_layout()
-    _save(fig, path)
+    save_png(fig, path, dpi=100, tight=True)
 
 
 def mbn_animation(
@@ -163,8 +149,6 @@ def mbn_animation(
     path: Path,
 ) -> None:
     """The recorded MBN episode as an animated GIF."""
-    from mbn.viz.render import animate_episode
-
     b = int(recording["start_mark"])
     animate_episode(
         maze,

@@ -3,9 +3,11 @@
 * :mod:`mbn.world.robot` — the Pioneer 3DX as Stage models it (body octagon, 16 sonars, speed
   limits) and its forward-Euler kinematics;
 * :mod:`mbn.world.sensors` — the paper's 10 sonars, the normalisation of S, eq. 3, noise settings;
-* :mod:`mbn.world.mazes.model`, :mod:`~mbn.world.mazes.load`, :mod:`~mbn.world.mazes.stage`,
-  :mod:`~mbn.world.mazes.builtin`, :mod:`~mbn.world.mazes.generate` — mazes: data,
-  ``.maze``/TOML/Stage files, built-ins, generated corridor mazes;
+* :mod:`mbn.world.mazes` — mazes: the data (:mod:`~mbn.world.mazes.model`), its checks
+  (:mod:`~mbn.world.mazes.validate`), ``.maze``/TOML/Stage files
+  (:mod:`~mbn.world.mazes.grid_text`, :mod:`~mbn.world.mazes.toml_maze`,
+  :mod:`~mbn.world.mazes.stage`), built-ins (:mod:`~mbn.world.mazes.builtin`), generated corridor
+  mazes (:mod:`~mbn.world.mazes.generate`) and the loader (:mod:`~mbn.world.mazes.load`);
 * :mod:`mbn.world.junctions` — decision cells, wall-following rule exits, junction passes;
 * :mod:`mbn.world.geometry` — exact reference geometry (segment ray casting, polygon collision);
 * :mod:`mbn.world.engine` — the fast engine: lattice ray marching with culled windows, cell
@@ -14,8 +16,8 @@
   shared by the rollout and the Gymnasium environment;
 * :mod:`mbn.world.rollout` — batched, jitted episodes of controllers in mazes, with their
   statistics and junction passes (:mod:`mbn.world.stats`);
-* :mod:`mbn.viz.render` — pictures of mazes and episodes, animated GIFs;
 * :mod:`mbn.world.gym_env` — the Gymnasium environment ``mbn/PioneerMaze-v0`` (optional extra).
 
-See ``docs/world.md``, ``docs/mazes.md`` and ``docs/pictures.md``.
+Pictures of mazes and episodes are drawn by :mod:`mbn.viz`. See ``docs/world.md``,
+``docs/mazes.md`` and ``docs/pictures.md``.
 """

@@ -32,7 +32,7 @@ collision and blob-finding camera, the speed limits and the kinematics) under on
   ``reset(options={"start": ...})`` picks another start (index or pose) for that episode.
 * **Rendering**: ``render_mode="rgb_array"`` returns an ``(H, W, 3)`` uint8 frame of the maze with
   the robot, its trail since the reset, its sonar rays and the camera's field of view
-  (:class:`mbn.viz.render.EpisodeView`).
+  (:class:`mbn.viz.episodes.EpisodeView`).
 
 Gymnasium is an optional dependency (``pip install 'mbn[gym]'``); importing :mod:`mbn` or
 :mod:`mbn.world` does not import it. ``gymnasium.make("mbn/PioneerMaze-v0")`` needs this module
@@ -359,7 +359,7 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if self.render_mode != "rgb_array":
             return None
         if self._view is None:
-            from mbn.viz.render import EpisodeView
+            from mbn.viz.episodes import EpisodeView
 
             self._view = EpisodeView(
                 self.maze,

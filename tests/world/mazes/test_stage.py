@@ -5,14 +5,14 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib.image as mpimg
 import numpy as np
 import pytest
+from PIL import Image
 
 from mbn.errors import MbnInputError
 from mbn.world.mazes.builtin import ARENA_WALLS
 from mbn.world.mazes.load import load_maze
-from mbn.world.mazes.stage import parse_stage_world, read_stage_world, tokenize
+from mbn.world.mazes.stage import bitmap_grey, parse_stage_world, read_stage_world, tokenize
 
 DATA = Path(__file__).resolve().parents[2] / "data" / "stage_world"
 
@@ -27,7 +27,7 @@ def write(tmp_path: Path, name: str, text: str) -> Path:
 def save_png(path: Path, grey_rows: list[list[int]]) -> None:
     """Save 8-bit grey levels as an RGB PNG (row 0 on top)."""
     grey = np.array(grey_rows, dtype=np.uint8)
-    mpimg.imsave(path, np.stack([grey] * 3, axis=-1))
+    Image.fromarray(np.stack([grey] * 3, axis=-1), "RGB").save(path)
 
 
 def test_tokenizer():
@@ -70,6 +70,32 @@ def test_bitmap_floorplan_gives_its_dark_pixels_as_rectangles():
     )
     np.testing.assert_allclose(maze.starts, [[4.0, 4.0, 0.0]])
     assert maze.bounds == (0.0, 8.0, 0.0, 8.0)
+
+
+def test_bitmap_grey_levels_of_the_test_floorplan():
+    # plus4.png is RGBA; grey is the mean of R, G, B on 0..255, alpha ignored
+    np.testing.assert_array_equal(
+        bitmap_grey(DATA / "plus4.png"),
+        [[20, 20, 255, 20], [20, 255, 255, 255], [20, 255, 255, 20], [20, 20, 20, 20]],
+    )
+
+
+@pytest.mark.parametrize("mode", ["1", "L", "LA", "P", "RGB", "RGBA", "I;16"])
+def test_bitmap_grey_of_every_png_mode(tmp_path: Path, mode: str):
+    levels = np.array([[0, 127, 128, 255]], dtype=np.uint8)
+    rgb = Image.fromarray(np.stack([levels] * 3, axis=-1), "RGB")
+    if mode == "I;16":
+        image = Image.fromarray(levels.astype(np.uint16) * 257)
+        assert image.mode == "I;16"
+    elif mode == "1":
+        image = rgb.convert("L").point(lambda v: 255 * (v > 127)).convert("1")
+    elif mode == "P":
+        image = rgb.quantize(colors=4)  # a palette of exactly the four levels
+    else:
+        image = rgb.convert(mode)
+    image.save(tmp_path / "m.png")
+    want = [[0, 0, 255, 255]] if mode == "1" else levels
+    np.testing.assert_array_equal(bitmap_grey(tmp_path / "m.png"), want)
 
 
 def test_bitmap_threshold_pixel_shape_and_extent(tmp_path: Path):

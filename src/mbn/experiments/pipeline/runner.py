@@ -88,8 +88,9 @@ class RunConfig:
 
 def versions() -> dict[str, str]:
     """Versions of what the results depend on."""
+    from importlib.metadata import version
+
     import jaxlib
-    import matplotlib
     import optax
 
     return {
@@ -99,7 +100,7 @@ def versions() -> dict[str, str]:
         "jaxlib": jaxlib.__version__,
         "numpy": np.__version__,
         "optax": optax.__version__,
-        "matplotlib": matplotlib.__version__,
+        "matplotlib": version("matplotlib"),
         "platform": jax.default_backend(),
     }
 

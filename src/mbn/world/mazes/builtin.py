@@ -3,7 +3,7 @@
 * ``cross_L`` ... ``cross_LSR`` (:func:`crossroad`): a junction entered from the south with the
   given exits open (L left = west, S straight = north, R right = east); every arm is 3 cells
   (3.6 m) long and closed at its far end; one start at the south end facing north. Built as
-  ``.maze`` text and read by :func:`mbn.world.mazes.load.parse_maze_text`.
+  ``.maze`` text and read by :func:`mbn.world.mazes.grid_text.parse_maze_text`.
 * ``stage_arena``: the arena of the Stage reference data (``docs/world.md``): five corridors,
   1.2 m wide, crossing in a plus, a T and two L turns, walled by 10 rectangles in
   [0, 14] x [0, 10.4]; six starts in corridor centres.
@@ -20,8 +20,9 @@ from importlib import resources
 import numpy as np
 
 from mbn.errors import MbnInputError
-from mbn.world.mazes.load import parse_maze_text, validate_maze
+from mbn.world.mazes.grid_text import parse_maze_text
 from mbn.world.mazes.model import DEFAULT_CELL, Maze
+from mbn.world.mazes.validate import validate_maze
 
 __all__ = [
     "ARENA_BOUNDS",

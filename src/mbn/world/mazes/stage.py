@@ -11,9 +11,9 @@ listed below are read but ignored.
 How models become maze parts (lengths in metres, angles in degrees as in Stage):
 
 * A model with a ``bitmap "file.png"`` property (a ``floorplan``) is a **bitmap floorplan**. The
-  image is read with :func:`matplotlib.image.imread` (PNG; other formats through Pillow when
-  installed), turned grey as the mean of R, G, B on a 0..255 scale (alpha ignored); pixels
-  ``<= 127`` are obstacles. As in Stage (``BlockGroup::CalcSize``), the bounding box of the dark
+  image is read with Pillow (PNG or any other format it knows) and turned grey as the mean of
+  R, G, B on a 0..255 scale (alpha ignored; :func:`bitmap_grey`); pixels ``<= 127`` are
+  obstacles. As in Stage (``BlockGroup::CalcSize``), the bounding box of the dark
   pixels — not the whole image — is scaled to the model's ``size [sx sy ...]`` and centred on its
   ``pose [x y z a]`` (shifted by ``origin`` if given); ``bitmap_extent="image"`` scales the whole
   image instead. Dark pixels are merged into rectangles (pixels need not be square).
@@ -49,12 +49,13 @@ from typing import Literal
 import numpy as np
 
 from mbn.errors import MbnInputError
-from mbn.world.mazes.load import read_text, validate_maze
 from mbn.world.mazes.model import Maze, merge_cells
+from mbn.world.mazes.validate import read_text, validate_maze
 
 __all__ = [
     "StageModel",
     "Token",
+    "bitmap_grey",
     "parse_stage_world",
     "read_stage_world",
     "tokenize",
@@ -363,30 +364,34 @@ def _rect(frame: _Frame, cx: float, cy: float, sx: float, sy: float) -> Rect:
     return (x - sx / 2, x + sx / 2, y - sy / 2, y + sy / 2)
 
 
-def _load_bitmap(path: Path, where: str) -> np.ndarray:
-    """Obstacle mask ``(H, W)`` of an image, first row north: grey (mean of RGB, 0..255) <= 127
-    (within 1e-3, for float decoding)."""
-    import matplotlib.image as mpimg
+def bitmap_grey(path: str | os.PathLike[str], where: str = "bitmap") -> np.ndarray:
+    """The grey levels ``(H, W)`` of an image, first row north, on a 0..255 scale (float64).
+
+    The image is decoded by Pillow; grey is the mean of R, G and B (alpha ignored), so a grey
+    image gives its own levels. 16-bit grey images are scaled to 0..255 (``v / 257``); 16-bit
+    colour PNGs come as 8-bit RGB from Pillow; 1-bit images give 0 and 255. An image that cannot be
+    read is an :class:`MbnInputError` starting with ``where``.
+    """
+    from PIL import Image, UnidentifiedImageError
 
     try:
-        img = np.asarray(mpimg.imread(str(path)))
+        with Image.open(path) as image:
+            if image.mode.startswith("I;16") or (image.mode == "I" and image.format == "PNG"):
+                return np.asarray(image, dtype=np.float64) / 257.0
+            rgb = np.asarray(image.convert("RGB"), dtype=np.float64)
+    except UnidentifiedImageError:
+        raise MbnInputError(
+            f"{where}: cannot read bitmap {str(path)!r} (not an image file Pillow can read)"
+        ) from None
     except (OSError, ValueError, SyntaxError) as exc:
         reason = " ".join(str(exc).split())
         raise MbnInputError(f"{where}: cannot read bitmap {str(path)!r} ({reason})") from None
-    if img.ndim == 2:
-        grey = img.astype(np.float64)
-    elif img.ndim == 3 and img.shape[2] >= 3:
-        grey = img[..., :3].astype(np.float64).mean(axis=-1)
-    elif img.ndim == 3 and img.shape[2] in (1, 2):
-        grey = img[..., 0].astype(np.float64)
-    else:
-        raise MbnInputError(f"{where}: bitmap {str(path)!r} has an unusable shape {img.shape}")
-    if np.issubdtype(img.dtype, np.floating):
-        grey = grey * 255.0
-    elif img.dtype == np.uint16:
-        grey = grey / 257.0
-    # float32 decoding of 8-bit levels is off by up to ~1e-5: 127/255 * 255 must stay dark
-    return grey <= 127.0 + 1e-3
+    return rgb.mean(axis=-1)
+
+
+def _load_bitmap(path: Path, where: str) -> np.ndarray:
+    """Obstacle mask ``(H, W)`` of an image, first row north: grey (:func:`bitmap_grey`) <= 127."""
+    return bitmap_grey(path, where) <= 127.0
 
 
 def _bitmap_walls(

@@ -1,21 +1,14 @@
-"""Pictures of mazes and robot episodes: PNG figures and animated GIFs (matplotlib, Agg).
+"""Pictures of robot episodes: paths, body footprints, stalls and sonar rays (matplotlib, Agg).
 
-Everything here draws on :class:`matplotlib.figure.Figure` objects made directly (never through
-``pyplot``), so nothing changes matplotlib's global state or backend; each function returns its
-Figure, and the writers replace their file atomically (a temporary file in the same folder, then
-a rename). Coordinates are the world's: metres, x east, y north, equal aspect.
-
-* :func:`draw_maze` / :func:`save_maze_png` — walls, floor tiles, decision cells, start poses;
 * :func:`draw_trajectory` — one robot's path, body footprints, stalls and sonar rays;
 * :func:`plot_episodes` — several robots of a rollout batch (small multiples or an overlay);
-* :func:`animate_episode` — an animated GIF of one episode;
 * :class:`EpisodeView` — a maze with one robot drawn on it, updated in place (the frames of
-  :func:`animate_episode` and of the Gymnasium environment's ``rgb_array`` rendering).
+  :func:`mbn.viz.animate.animate_episode` and of the Gymnasium environment's ``rgb_array``
+  rendering).
 
-Colours: walls dark grey, free space white, decision cells of grid mazes pale blue, one-colour
-tiles orange, two-colour tiles blue (blob 0, the half to the right of the tile's heading) and
-magenta (blob 1), start poses green arrows numbered by their index in ``maze.starts``, stalls red
-crosses, sonar rays teal (solid up to an echo, dotted where a ray reads the 5 m maximum).
+The maze under them is drawn by :mod:`mbn.viz.maze`; figures are made and saved by
+:mod:`mbn.viz.style`. Colours: paths purple (then :data:`PATH_COLORS`), stalls red crosses, sonar
+rays teal (solid up to an echo, dotted where a ray reads the 5 m maximum).
 """
 
 from __future__ import annotations
@@ -24,39 +17,42 @@ import functools
 import math
 import os
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.artist import Artist
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import FancyArrow, Patch, Polygon, Rectangle, Wedge
+from matplotlib.patches import Polygon, Wedge
 from numpy.typing import ArrayLike
 
 from mbn.errors import MbnInputError
-from mbn.io import atomic_open
-from mbn.world.mazes.model import DEFAULT_CELL, Maze
+from mbn.viz.maze import (
+    TILE1_COLOR,
+    TILE2_COLORS,
+    draw_maze,
+    legend_below,
+    maze_figsize,
+    maze_legend_handles,
+    root_figure,
+)
+from mbn.viz.style import new_figure, save_png
+from mbn.world.mazes.model import Maze
 from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
 
 __all__ = [
     "PATH_COLORS",
+    "RAY_COLOR",
+    "STALL_COLOR",
     "EpisodeView",
-    "animate_episode",
-    "draw_maze",
     "draw_trajectory",
     "plot_episodes",
-    "save_maze_png",
+    "poses_array",
+    "sonar_indices",
 ]
 
-WALL_COLOR = "#3a3d42"
-DECISION_COLOR = "#dfe8f5"
-TILE1_COLOR = "#f28e2b"
-TILE2_COLORS = ("#2f6db5", "#c936c0")
-START_COLOR = "#1e8a3c"
 RAY_COLOR = "#0e9f9f"
 STALL_COLOR = "#d62728"
 #: Colours given to successive robots (the first is the default trajectory colour).
@@ -72,60 +68,10 @@ PATH_COLORS = (
 )
 _CAMERA_FOV_COLORS = {0: "#9aa0a6", 1: TILE1_COLOR, 2: TILE2_COLORS[1]}
 _TILE_WORDS = {0: "none", 1: "1-colour", 2: "2-colour"}
-_PNG_DPI = 150
-_GIF_MAX_FRAMES = 150
 
 
-# ---------------------------------------------------------------------------------------------
-# helpers
-
-
-def _root_figure(ax: Axes) -> Figure:
-    """The top-level Figure holding ``ax`` (also when ``ax`` lives in a SubFigure)."""
-    fig: Any = ax.figure
-    while not isinstance(fig, Figure):
-        fig = fig.figure
-    return fig
-
-
-def _extent(maze: Maze) -> tuple[float, float, float, float]:
-    """The drawn area: ``bounds`` plus the frame (walled mazes) or a margin (open mazes)."""
-    x0, x1, y0, y1 = maze.bounds
-    pad = _frame_width(maze) if maze.outside_is_wall else 0.05 * max(x1 - x0, y1 - y0)
-    return x0 - pad, x1 + pad, y0 - pad, y1 + pad
-
-
-def _frame_width(maze: Maze) -> float:
-    x0, x1, y0, y1 = maze.bounds
-    return max(0.05, 0.012 * max(x1 - x0, y1 - y0))
-
-
-def _scale(maze: Maze) -> float:
-    """A length for markers: the grid cell, or the default corridor width."""
-    return float(maze.cell) if maze.cell is not None else DEFAULT_CELL
-
-
-def _figsize(maze: Maze, longest: float = 7.0, extra_h: float = 0.9) -> tuple[float, float]:
-    """Figure size (inches) for one maze panel: the longer side ``longest`` inches."""
-    x0, x1, y0, y1 = _extent(maze)
-    w, h = x1 - x0, y1 - y0
-    if w >= h:
-        return longest, max(3.0, longest * h / w) + extra_h
-    return max(3.5, longest * w / h) + 0.6, longest + extra_h
-
-
-def _new_figure(figsize: tuple[float, float], dpi: float = 100.0) -> Figure:
-    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save_png(fig: Figure, path: str | os.PathLike[str], dpi: float = _PNG_DPI) -> None:
-    with atomic_open(Path(path), "wb") as handle:
-        fig.savefig(handle, format="png", dpi=dpi, facecolor="white")
-
-
-def _poses(poses: ArrayLike, name: str = "poses") -> np.ndarray:
+def poses_array(poses: ArrayLike, name: str = "poses") -> np.ndarray:
+    """``poses`` as a finite float64 ``(n, 3)`` array with ``n >= 1``, or an error naming them."""
     p = np.asarray(poses, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 1:
         raise MbnInputError(f"{name} must have shape (n, 3) with n >= 1, got {p.shape}")
@@ -134,7 +80,7 @@ def _poses(poses: ArrayLike, name: str = "poses") -> np.ndarray:
     return p
 
 
-def _sonar_indices(k: int, sonars: Sequence[int] | None) -> tuple[int, ...]:
+def sonar_indices(k: int, sonars: Sequence[int] | None) -> tuple[int, ...]:
     """Stage indices of the ``k`` columns of a ranges array: ``sonars`` if given, else all 16
     (k = 16) or the paper's 10 (k = 10)."""
     if sonars is None:
@@ -212,217 +158,6 @@ def _limits_with(ax: Axes, maze: Maze, p: np.ndarray) -> None:
     ax.set_ylim(min(y0, p[:, 1].min() - pad), max(y1, p[:, 1].max() + pad))
 
 
-def _maze_legend_handles(maze: Maze, *, junctions: bool, starts: bool, tiles: bool) -> list[Any]:
-    handles: list[Any] = [Patch(facecolor=WALL_COLOR, label="wall")]
-    if junctions and maze.grid is not None and maze.cell is not None:
-        handles.append(Patch(facecolor=DECISION_COLOR, edgecolor="#b9c6d8", label="decision cell"))
-    if tiles and any(t.colors == 1 for t in maze.tiles):
-        handles.append(Patch(facecolor=TILE1_COLOR, label="one-colour tile"))
-    if tiles and any(t.colors == 2 for t in maze.tiles):
-        handles.append(
-            (
-                Patch(facecolor=TILE2_COLORS[0], label="two-colour tile"),
-                Patch(facecolor=TILE2_COLORS[1]),
-            )
-        )
-    if starts and len(maze.starts):
-        handles.append(
-            Line2D([], [], color=START_COLOR, marker=">", ls="-", lw=1.5, ms=6, label="start")
-        )
-    return handles
-
-
-def _legend(target: Figure | Axes, handles: list[Any]) -> None:
-    """A legend below the figure (or the axes) holding ``handles``; a tuple of patches is one
-    entry drawn as adjacent swatches (a two-colour tile)."""
-    from matplotlib.legend_handler import HandlerTuple
-
-    labels = [(h[0] if isinstance(h, tuple) else h).get_label() for h in handles]
-    kw: dict[str, Any] = {
-        "handler_map": {tuple: HandlerTuple(ndivide=None, pad=0.0)},
-        "frameon": False,
-        "fontsize": 8,
-        "ncol": len(handles) if len(handles) <= 8 else math.ceil(len(handles) / 2),
-        "handlelength": 2.0,
-        "columnspacing": 1.2,
-    }
-    if isinstance(target, Figure):
-        target.legend(handles, labels, loc="outside lower center", **kw)
-    else:
-        target.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.09), **kw)
-
-
-# ---------------------------------------------------------------------------------------------
-# mazes
-
-
-def draw_maze(
-    maze: Maze,
-    ax: Axes | None = None,
-    *,
-    junctions: bool = True,
-    starts: bool = True,
-    tiles: bool = True,
-    title: str | None = None,
-    legend: bool | None = None,
-) -> Figure:
-    """Draw ``maze``: walls, free space, tiles, decision cells and start poses.
-
-    Walls are dark grey rectangles (artists with gid ``"wall"``, one per row of ``maze.walls``);
-    a maze whose outside is solid also gets a dark frame round its bounds (gid ``"frame"``). Tiles
-    are drawn from :meth:`Tile.corners`: one-colour tiles orange (gid ``"tile1"``), two-colour
-    tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1).
-    Decision cells of grid mazes (:func:`mbn.world.junctions.decision_cells`) are shaded pale blue
-    (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled with their index.
-
-    Args:
-        maze: the maze.
-        ax: axes to draw on; None makes a new figure sized to the maze.
-        junctions, starts, tiles: whether to draw each of those layers.
-        title: the axes title; None uses the maze's name, ``""`` none.
-        legend: a legend below the axes; None means yes for a new figure, no on given axes.
-
-    Returns:
-        The Figure drawn on.
-    """
-    new = ax is None
-    if ax is None:
-        fig = _new_figure(_figsize(maze))
-        ax = fig.add_subplot()
-    else:
-        fig = _root_figure(ax)
-    _, x1, y0, y1 = maze.bounds
-    ex0, ex1, ey0, ey1 = _extent(maze)
-    ax.set_facecolor("white")
-    if junctions and maze.grid is not None and maze.cell is not None:
-        from mbn.world.junctions import decision_cells
-
-        dec = decision_cells(maze)
-        g = float(maze.cell)
-        rows = dec.shape[0]
-        for r, c in zip(*np.nonzero(dec), strict=True):
-            ax.add_patch(
-                Rectangle(
-                    (c * g, (rows - 1 - r) * g),
-                    g,
-                    g,
-                    facecolor=DECISION_COLOR,
-                    edgecolor="none",
-                    zorder=0.5,
-                    gid="decision",
-                )
-            )
-    if tiles:
-        for tile in maze.tiles:
-            c = tile.corners()
-            if tile.colors == 1:
-                ax.add_patch(
-                    Polygon(c, closed=True, facecolor=TILE1_COLOR, edgecolor="none", zorder=1)
-                )
-                ax.patches[-1].set_gid("tile1")
-            else:
-                m_lo, m_hi = (c[0] + c[3]) / 2, (c[1] + c[2]) / 2
-                halves = (np.array([c[0], c[1], m_hi, m_lo]), np.array([m_lo, m_hi, c[2], c[3]]))
-                for half, color in zip(halves, TILE2_COLORS, strict=True):
-                    ax.add_patch(
-                        Polygon(half, closed=True, facecolor=color, edgecolor="none", zorder=1)
-                    )
-                    ax.patches[-1].set_gid("tile2")
-    for xa, xb, ya, yb in maze.walls:
-        ax.add_patch(
-            Rectangle(
-                (xa, ya),
-                xb - xa,
-                yb - ya,
-                facecolor=WALL_COLOR,
-                edgecolor=WALL_COLOR,
-                linewidth=0.4,
-                zorder=2,
-                gid="wall",
-            )
-        )
-    if maze.outside_is_wall:
-        f = _frame_width(maze)
-        for rect in (
-            (ex0, ey0, ex1 - ex0, f),
-            (ex0, y1, ex1 - ex0, f),
-            (ex0, y0, f, y1 - y0),
-            (x1, y0, f, y1 - y0),
-        ):
-            ax.add_patch(
-                Rectangle(
-                    rect[:2],
-                    rect[2],
-                    rect[3],
-                    facecolor=WALL_COLOR,
-                    edgecolor=WALL_COLOR,
-                    linewidth=0.4,
-                    zorder=2,
-                    gid="frame",
-                )
-            )
-    if starts and len(maze.starts):
-        s = _scale(maze)
-        length = 0.5 * s
-        for k, (x, y, th) in enumerate(maze.starts):
-            d = np.array([math.cos(th), math.sin(th)])
-            tail = np.array([x, y]) - 0.5 * length * d
-            ax.add_patch(
-                FancyArrow(
-                    tail[0],
-                    tail[1],
-                    length * d[0],
-                    length * d[1],
-                    width=0.06 * s,
-                    head_width=0.24 * s,
-                    head_length=0.2 * s,
-                    length_includes_head=True,
-                    facecolor=START_COLOR,
-                    edgecolor="white",
-                    linewidth=0.5,
-                    zorder=4,
-                    gid="start",
-                )
-            )
-            label = np.array([x, y]) - (0.5 * length + 0.13 * s) * d
-            ax.text(
-                label[0],
-                label[1],
-                str(k),
-                color=START_COLOR,
-                fontsize=8,
-                fontweight="bold",
-                ha="center",
-                va="center",
-                zorder=4,
-                gid="start_label",
-            )
-    ax.set_xlim(ex0, ex1)
-    ax.set_ylim(ey0, ey1)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.tick_params(labelsize=8)
-    ax.set_title(maze.name if title is None else title)
-    if legend if legend is not None else new:
-        handles = _maze_legend_handles(maze, junctions=junctions, starts=starts, tiles=tiles)
-        _legend(fig if new else ax, handles)
-    return fig
-
-
-def save_maze_png(
-    maze: Maze, path: str | os.PathLike[str], *, dpi: float = _PNG_DPI, **kw: Any
-) -> Figure:
-    """Draw ``maze`` (:func:`draw_maze`, keyword arguments passed on) and write it as a PNG."""
-    fig = draw_maze(maze, **kw)
-    _save_png(fig, path, dpi)
-    return fig
-
-
-# ---------------------------------------------------------------------------------------------
-# trajectories
-
-
 def draw_trajectory(
     maze: Maze,
     poses: ArrayLike,
@@ -466,18 +201,20 @@ def draw_trajectory(
     Returns:
         The Figure drawn on.
     """
-    p = _poses(poses)
+    p = poses_array(poses)
     n = p.shape[0]
     new = ax is None
     if ax is None:
         fig = (
-            draw_maze(maze, legend=False) if with_maze is not False else _new_figure(_figsize(maze))
+            draw_maze(maze, legend=False)
+            if with_maze is not False
+            else new_figure(maze_figsize(maze))
         )
         if not fig.axes:
             fig.add_subplot().set_aspect("equal")
         ax = fig.axes[0]
     else:
-        fig = _root_figure(ax)
+        fig = root_figure(ax)
         if with_maze:
             draw_maze(maze, ax, legend=False)
     color = PATH_COLORS[0] if color is None else color
@@ -542,14 +279,14 @@ def draw_trajectory(
         r = np.asarray(ranges, dtype=np.float64)
         if r.ndim != 2 or r.shape[0] != n:
             raise MbnInputError(f"ranges must have shape ({n}, k), got {r.shape}")
-        ids = _sonar_indices(r.shape[1], sonars)
+        ids = sonar_indices(r.shape[1], sonars)
         for i in sonar_at:
             if not -n <= i < n:
                 raise MbnInputError(f"sonar_at index {i} out of range for {n} samples")
             _draw_rays(ax, p[i], r[i], ids)
     _limits_with(ax, maze, p)
     if new and with_maze is not False:
-        handles = _maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
+        handles = maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
         handles.append(Line2D([], [], color=color, lw=1.6, label=label or "path"))
         if stalled is not None and np.any(stalled):
             handles.append(
@@ -557,9 +294,9 @@ def draw_trajectory(
             )
         if sonar_at:
             handles.append(Line2D([], [], color=RAY_COLOR, lw=0.9, label="sonar rays"))
-        _legend(fig, handles)
+        legend_below(fig, handles)
     if path is not None:
-        _save_png(fig, path)
+        save_png(fig, path)
     return fig
 
 
@@ -642,7 +379,7 @@ def plot_episodes(
     ray_ids: tuple[int, ...] | None = None
     if rg is not None and rg.ndim == 3 and not overlay:
         try:
-            ray_ids = _sonar_indices(rg.shape[-1], sonars)
+            ray_ids = sonar_indices(rg.shape[-1], sonars)
         except MbnInputError:
             if sonars is not None:
                 raise
@@ -674,20 +411,20 @@ def plot_episodes(
                 label=titles[j] if titles is not None else f"robot {i}",
             )
         handles = [h for h in ax.get_lines() if h.get_gid() == "path"]
-        handles += _maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
+        handles += maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
         if st is not None and st[idx].any():
             handles.append(
                 Line2D([], [], color=STALL_COLOR, marker="x", ls="", mew=1.6, label="stall")
             )
-        _legend(ax, handles)
+        legend_below(ax, handles)
     else:
         if ncols is None:
             cols = len(idx) if len(idx) <= 3 else (2 if len(idx) == 4 else 3)
         else:
             cols = max(1, int(ncols))
         rows = math.ceil(len(idx) / cols)
-        pw, ph = _figsize(maze, longest=4.2, extra_h=0.5)
-        fig = _new_figure((pw * cols, ph * rows + 0.6))
+        pw, ph = maze_figsize(maze, longest=4.2, extra_h=0.5)
+        fig = new_figure((pw * cols, ph * rows + 0.6))
         axes = fig.subplots(rows, cols, squeeze=False)
         for j, i in enumerate(idx):
             ax = axes[j // cols][j % cols]
@@ -710,7 +447,7 @@ def plot_episodes(
             )
         for j in range(len(idx), rows * cols):
             axes[j // cols][j % cols].set_visible(False)
-        handles = _maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
+        handles = maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
         handles.append(Line2D([], [], color=PATH_COLORS[0], lw=1.6, label="path"))
         if st is not None and st[idx].any():
             handles.append(
@@ -718,15 +455,11 @@ def plot_episodes(
             )
         if ray_ids is not None:
             handles.append(Line2D([], [], color=RAY_COLOR, lw=0.9, label="sonar rays (end)"))
-        _legend(fig, handles)
+        legend_below(fig, handles)
         fig.suptitle(suptitle)
     if path is not None:
-        _save_png(fig, path)
+        save_png(fig, path)
     return fig
-
-
-# ---------------------------------------------------------------------------------------------
-# one robot, updated in place
 
 
 class EpisodeView:
@@ -755,8 +488,8 @@ class EpisodeView:
         (default the maze's name); ``camera_fov_deg`` draws the camera's field of view
         (``camera_range`` metres) when given."""
         self.maze = maze
-        w, h = _figsize(maze, longest=width, extra_h=0.7)
-        self.figure = _new_figure((w, h), dpi=dpi)
+        w, h = maze_figsize(maze, longest=width, extra_h=0.7)
+        self.figure = new_figure((w, h), dpi=dpi)
         self.ax = self.figure.add_subplot()
         draw_maze(maze, self.ax, legend=False, title="")
         self.figure.suptitle(maze.name if title is None else title, fontsize=11)
@@ -830,7 +563,7 @@ class EpisodeView:
         ``ranges (k,)`` (Stage indices ``sonars``, see :func:`draw_trajectory`), the camera's
         reading (colours of the nearest tile in view: 0, 1, 2), the tile in force, the time (s)
         and whether it is stalled."""
-        p = _poses(np.asarray(pose, dtype=np.float64).reshape(1, 3), "pose")[0]
+        p = poses_array(np.asarray(pose, dtype=np.float64).reshape(1, 3), "pose")[0]
         self.body.set_xy(_body(p[None])[0])
         nose = float(BODY[:, 0].max())
         self.heading.set_data(
@@ -843,7 +576,7 @@ class EpisodeView:
             self.trail.set_data([], [])
         if ranges is not None:
             r = np.asarray(ranges, dtype=np.float64).reshape(-1)
-            segs, hit = _ray_segments(p, r, _sonar_indices(r.size, sonars))
+            segs, hit = _ray_segments(p, r, sonar_indices(r.size, sonars))
             self.rays.set_segments(list(segs[hit]))
             self.misses.set_segments(list(segs[~hit]))
             self.echoes.set_data(segs[hit, 1, 0], segs[hit, 1, 1])
@@ -910,141 +643,3 @@ class EpisodeView:
             self.ax.draw_artist(a)
         buf = np.asarray(canvas.buffer_rgba())
         return np.array(buf[..., :3], dtype=np.uint8)
-
-
-def _gif_palette(samples: list[np.ndarray]) -> Any:
-    """One palette (a ``P`` image of 255 colours) for every frame of a GIF, from a few frames:
-    one palette keeps colours steady from frame to frame and lets Pillow store only what changed.
-    """
-    from PIL import Image
-
-    montage = Image.fromarray(np.concatenate(samples, axis=0))
-    return montage.quantize(colors=255, method=Image.Quantize.MEDIANCUT)
-
-
-def animate_episode(
-    maze: Maze,
-    poses: ArrayLike,
-    path: str | os.PathLike[str],
-    *,
-    ranges: ArrayLike | None = None,
-    sonars: Sequence[int] | None = None,
-    camera: ArrayLike | None = None,
-    tile: ArrayLike | None = None,
-    stalled: ArrayLike | None = None,
-    t: ArrayLike | None = None,
-    dt: float = 0.1,
-    fps: float = 10.0,
-    every: int = 1,
-    max_frames: int = _GIF_MAX_FRAMES,
-    dpi: float = 100.0,
-    width: float = 6.0,
-    title: str | None = None,
-    camera_fov_deg: float = 60.0,
-    camera_range: float = 3.0,
-) -> Figure:
-    """Write an animated GIF of one episode: the robot's footprint moving with its trail, the sonar
-    rays, the camera's field of view and a status line (time, camera reading, tile in force).
-
-    Frames show samples ``0, every, 2 every, ...``; when that would exceed ``max_frames`` (150 by
-    default), ``every`` is raised to ``ceil(n / max_frames)`` so the GIF stays modest: the GIF
-    then has ``ceil(n / every)`` frames. Each frame lasts ``1 / fps`` seconds. Frames are rendered
-    with the Agg canvas (:class:`EpisodeView`) and written by Pillow (a matplotlib dependency)
-    with one shared 255-colour palette, to a temporary file beside ``path`` that is then renamed
-    over it.
-
-    Args:
-        maze: the maze.
-        poses: ``(n, 3)`` poses, e.g. ``trajectory.pose[b]``.
-        path: the GIF to write.
-        ranges: ``(n, k)`` sonar readings to draw as rays (``sonars``: their Stage indices, see
-            :func:`draw_trajectory`).
-        camera: ``(n,)`` camera readings (colours of the nearest tile in view: 0, 1, 2); also
-            turns on the field-of-view wedge (``camera_fov_deg`` wide, ``camera_range`` long).
-        tile: ``(n,)`` tile in force (0, 1, 2).
-        stalled: ``(n,)`` bool.
-        t: ``(n,)`` sample times (s); default ``i * dt``.
-        dt: seconds between samples when ``t`` is not given.
-        fps: frames per second of the GIF.
-        every: draw every that many samples (raised automatically, see above).
-        max_frames: the most frames written.
-        dpi, width: frame resolution and width (inches); 6 in at 100 dpi gives frames 600 px
-            wide.
-        title: the title above the maze (default the maze's name).
-
-    Returns:
-        The Figure (showing the last frame).
-    """
-    from PIL import Image
-
-    p = _poses(poses)
-    n = p.shape[0]
-    if isinstance(every, bool) or not (isinstance(every, int) and every >= 1):
-        raise MbnInputError(f"every must be an integer >= 1, got {every!r}")
-    if isinstance(max_frames, bool) or not (isinstance(max_frames, int) and max_frames >= 1):
-        raise MbnInputError(f"max_frames must be an integer >= 1, got {max_frames!r}")
-    if not (fps > 0 and math.isfinite(fps)):
-        raise MbnInputError(f"fps must be > 0, got {fps!r}")
-    target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise MbnInputError(f"{target}: folder {folder} does not exist")
-
-    def per_sample(a: ArrayLike | None, name: str, dtype: Any) -> np.ndarray | None:
-        if a is None:
-            return None
-        arr = np.asarray(a, dtype=dtype)
-        if arr.shape[:1] != (n,):
-            raise MbnInputError(f"{name} must have {n} samples (first axis), got {arr.shape}")
-        return arr
-
-    rg = per_sample(ranges, "ranges", np.float64)
-    cam = per_sample(camera, "camera", np.int64)
-    tl = per_sample(tile, "tile", np.int64)
-    st = per_sample(stalled, "stalled", bool)
-    times = per_sample(t, "t", np.float64)
-    if times is None:
-        times = np.arange(n) * float(dt)
-    if rg is not None and rg.ndim != 2:
-        raise MbnInputError(f"ranges must have shape ({n}, k), got {rg.shape}")
-    ids = None if rg is None else _sonar_indices(rg.shape[1], sonars)
-    every = max(every, math.ceil(n / max_frames))
-    frames_at = np.arange(0, n, every)
-    view = EpisodeView(
-        maze,
-        width=width,
-        dpi=dpi,
-        title=title,
-        camera_fov_deg=camera_fov_deg if cam is not None else None,
-        camera_range=camera_range,
-    )
-
-    def render(i: int) -> np.ndarray:
-        view.update(
-            p[i],
-            trail=p[: i + 1],
-            ranges=None if rg is None else rg[i],
-            sonars=ids,
-            camera=None if cam is None else int(cam[i]),
-            tile=None if tl is None else int(tl[i]),
-            t=float(times[i]),
-            stalled=bool(st[i]) if st is not None else False,
-        )
-        return view.rgb()
-
-    picks = sorted({int(frames_at[0]), int(frames_at[len(frames_at) // 2]), int(frames_at[-1])})
-    palette = _gif_palette([render(i) for i in picks])
-    images = [
-        Image.fromarray(render(int(i))).quantize(palette=palette, dither=Image.Dither.NONE)
-        for i in frames_at
-    ]
-    with atomic_open(target, "wb") as handle:
-        images[0].save(
-            handle,
-            format="GIF",
-            save_all=True,
-            append_images=images[1:],
-            duration=max(1, round(1000 / fps)),
-            loop=0,
-        )
-    return view.figure

@@ -1,0 +1,286 @@
+"""Pictures of mazes: walls, floor tiles, decision cells and start poses (matplotlib, Agg).
+
+* :func:`draw_maze` / :func:`save_maze_png` — a maze on new or given axes, or as a PNG;
+* the helpers the other pictures of a maze share: :func:`maze_figsize` (a figure sized to the
+  maze), :func:`maze_legend_handles` and :func:`legend_below` (the legend under a picture),
+  :func:`root_figure`.
+
+Figures are made and saved by :mod:`mbn.viz.style`. Coordinates are the world's: metres, x east,
+y north, equal aspect. Colours: walls dark grey, free space white, decision cells of grid mazes
+pale blue, one-colour tiles orange, two-colour tiles blue (blob 0, the half to the right of the
+tile's heading) and magenta (blob 1), start poses green arrows numbered by their index in
+``maze.starts``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import FancyArrow, Patch, Polygon, Rectangle
+
+from mbn.viz.style import new_figure, save_png
+from mbn.world.mazes.model import DEFAULT_CELL, Maze
+
+__all__ = [
+    "DECISION_COLOR",
+    "START_COLOR",
+    "TILE1_COLOR",
+    "TILE2_COLORS",
+    "WALL_COLOR",
+    "draw_maze",
+    "legend_below",
+    "maze_figsize",
+    "maze_legend_handles",
+    "root_figure",
+    "save_maze_png",
+]
+
+WALL_COLOR = "#3a3d42"
+DECISION_COLOR = "#dfe8f5"
+TILE1_COLOR = "#f28e2b"
+TILE2_COLORS = ("#2f6db5", "#c936c0")
+START_COLOR = "#1e8a3c"
+
+
+def root_figure(ax: Axes) -> Figure:
+    """The top-level Figure holding ``ax`` (also when ``ax`` lives in a SubFigure)."""
+    fig: Any = ax.figure
+    while not isinstance(fig, Figure):
+        fig = fig.figure
+    return fig
+
+
+def _extent(maze: Maze) -> tuple[float, float, float, float]:
+    """The drawn area: ``bounds`` plus the frame (walled mazes) or a margin (open mazes)."""
+    x0, x1, y0, y1 = maze.bounds
+    pad = _frame_width(maze) if maze.outside_is_wall else 0.05 * max(x1 - x0, y1 - y0)
+    return x0 - pad, x1 + pad, y0 - pad, y1 + pad
+
+
+def _frame_width(maze: Maze) -> float:
+    x0, x1, y0, y1 = maze.bounds
+    return max(0.05, 0.012 * max(x1 - x0, y1 - y0))
+
+
+def _scale(maze: Maze) -> float:
+    """A length for markers: the grid cell, or the default corridor width."""
+    return float(maze.cell) if maze.cell is not None else DEFAULT_CELL
+
+
+def maze_figsize(maze: Maze, longest: float = 7.0, extra_h: float = 0.9) -> tuple[float, float]:
+    """Figure size (inches) for one maze panel: the longer side ``longest`` inches."""
+    x0, x1, y0, y1 = _extent(maze)
+    w, h = x1 - x0, y1 - y0
+    if w >= h:
+        return longest, max(3.0, longest * h / w) + extra_h
+    return max(3.5, longest * w / h) + 0.6, longest + extra_h
+
+
+def maze_legend_handles(maze: Maze, *, junctions: bool, starts: bool, tiles: bool) -> list[Any]:
+    handles: list[Any] = [Patch(facecolor=WALL_COLOR, label="wall")]
+    if junctions and maze.grid is not None and maze.cell is not None:
+        handles.append(Patch(facecolor=DECISION_COLOR, edgecolor="#b9c6d8", label="decision cell"))
+    if tiles and any(t.colors == 1 for t in maze.tiles):
+        handles.append(Patch(facecolor=TILE1_COLOR, label="one-colour tile"))
+    if tiles and any(t.colors == 2 for t in maze.tiles):
+        handles.append(
+            (
+                Patch(facecolor=TILE2_COLORS[0], label="two-colour tile"),
+                Patch(facecolor=TILE2_COLORS[1]),
+            )
+        )
+    if starts and len(maze.starts):
+        handles.append(
+            Line2D([], [], color=START_COLOR, marker=">", ls="-", lw=1.5, ms=6, label="start")
+        )
+    return handles
+
+
+def legend_below(target: Figure | Axes, handles: list[Any]) -> None:
+    """A legend below the figure (or the axes) holding ``handles``; a tuple of patches is one
+    entry drawn as adjacent swatches (a two-colour tile)."""
+    from matplotlib.legend_handler import HandlerTuple
+
+    labels = [(h[0] if isinstance(h, tuple) else h).get_label() for h in handles]
+    kw: dict[str, Any] = {
+        "handler_map": {tuple: HandlerTuple(ndivide=None, pad=0.0)},
+        "frameon": False,
+        "fontsize": 8,
+        "ncol": len(handles) if len(handles) <= 8 else math.ceil(len(handles) / 2),
+        "handlelength": 2.0,
+        "columnspacing": 1.2,
+    }
+    if isinstance(target, Figure):
+        target.legend(handles, labels, loc="outside lower center", **kw)
+    else:
+        target.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.09), **kw)
+
+
+def draw_maze(
+    maze: Maze,
+    ax: Axes | None = None,
+    *,
+    junctions: bool = True,
+    starts: bool = True,
+    tiles: bool = True,
+    title: str | None = None,
+    legend: bool | None = None,
+) -> Figure:
+    """Draw ``maze``: walls, free space, tiles, decision cells and start poses.
+
+    Walls are dark grey rectangles (artists with gid ``"wall"``, one per row of ``maze.walls``);
+    a maze whose outside is solid also gets a dark frame round its bounds (gid ``"frame"``). Tiles
+    are drawn from :meth:`Tile.corners`: one-colour tiles orange (gid ``"tile1"``), two-colour
+    tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1).
+    Decision cells of grid mazes (:func:`mbn.world.junctions.decision_cells`) are shaded pale blue
+    (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled with their index.
+
+    Args:
+        maze: the maze.
+        ax: axes to draw on; None makes a new figure sized to the maze.
+        junctions, starts, tiles: whether to draw each of those layers.
+        title: the axes title; None uses the maze's name, ``""`` none.
+        legend: a legend below the axes; None means yes for a new figure, no on given axes.
+
+    Returns:
+        The Figure drawn on.
+    """
+    new = ax is None
+    if ax is None:
+        fig = new_figure(maze_figsize(maze))
+        ax = fig.add_subplot()
+    else:
+        fig = root_figure(ax)
+    _, x1, y0, y1 = maze.bounds
+    ex0, ex1, ey0, ey1 = _extent(maze)
+    ax.set_facecolor("white")
+    if junctions and maze.grid is not None and maze.cell is not None:
+        from mbn.world.junctions import decision_cells
+
+        dec = decision_cells(maze)
+        g = float(maze.cell)
+        rows = dec.shape[0]
+        for r, c in zip(*np.nonzero(dec), strict=True):
+            ax.add_patch(
+                Rectangle(
+                    (c * g, (rows - 1 - r) * g),
+                    g,
+                    g,
+                    facecolor=DECISION_COLOR,
+                    edgecolor="none",
+                    zorder=0.5,
+                    gid="decision",
+                )
+            )
+    if tiles:
+        for tile in maze.tiles:
+            c = tile.corners()
+            if tile.colors == 1:
+                ax.add_patch(
+                    Polygon(c, closed=True, facecolor=TILE1_COLOR, edgecolor="none", zorder=1)
+                )
+                ax.patches[-1].set_gid("tile1")
+            else:
+                m_lo, m_hi = (c[0] + c[3]) / 2, (c[1] + c[2]) / 2
+                halves = (np.array([c[0], c[1], m_hi, m_lo]), np.array([m_lo, m_hi, c[2], c[3]]))
+                for half, color in zip(halves, TILE2_COLORS, strict=True):
+                    ax.add_patch(
+                        Polygon(half, closed=True, facecolor=color, edgecolor="none", zorder=1)
+                    )
+                    ax.patches[-1].set_gid("tile2")
+    for xa, xb, ya, yb in maze.walls:
+        ax.add_patch(
+            Rectangle(
+                (xa, ya),
+                xb - xa,
+                yb - ya,
+                facecolor=WALL_COLOR,
+                edgecolor=WALL_COLOR,
+                linewidth=0.4,
+                zorder=2,
+                gid="wall",
+            )
+        )
+    if maze.outside_is_wall:
+        f = _frame_width(maze)
+        for rect in (
+            (ex0, ey0, ex1 - ex0, f),
+            (ex0, y1, ex1 - ex0, f),
+            (ex0, y0, f, y1 - y0),
+            (x1, y0, f, y1 - y0),
+        ):
+            ax.add_patch(
+                Rectangle(
+                    rect[:2],
+                    rect[2],
+                    rect[3],
+                    facecolor=WALL_COLOR,
+                    edgecolor=WALL_COLOR,
+                    linewidth=0.4,
+                    zorder=2,
+                    gid="frame",
+                )
+            )
+    if starts and len(maze.starts):
+        s = _scale(maze)
+        length = 0.5 * s
+        for k, (x, y, th) in enumerate(maze.starts):
+            d = np.array([math.cos(th), math.sin(th)])
+            tail = np.array([x, y]) - 0.5 * length * d
+            ax.add_patch(
+                FancyArrow(
+                    tail[0],
+                    tail[1],
+                    length * d[0],
+                    length * d[1],
+                    width=0.06 * s,
+                    head_width=0.24 * s,
+                    head_length=0.2 * s,
+                    length_includes_head=True,
+                    facecolor=START_COLOR,
+                    edgecolor="white",
+                    linewidth=0.5,
+                    zorder=4,
+                    gid="start",
+                )
+            )
+            label = np.array([x, y]) - (0.5 * length + 0.13 * s) * d
+            ax.text(
+                label[0],
+                label[1],
+                str(k),
+                color=START_COLOR,
+                fontsize=8,
+                fontweight="bold",
+                ha="center",
+                va="center",
+                zorder=4,
+                gid="start_label",
+            )
+    ax.set_xlim(ex0, ex1)
+    ax.set_ylim(ey0, ey1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.tick_params(labelsize=8)
+    ax.set_title(maze.name if title is None else title)
+    if legend if legend is not None else new:
+        handles = maze_legend_handles(maze, junctions=junctions, starts=starts, tiles=tiles)
+        legend_below(fig if new else ax, handles)
+    return fig
+
+
+def save_maze_png(
+    maze: Maze, path: str | os.PathLike[str], *, dpi: float | None = None, **kw: Any
+) -> Figure:
+    """Draw ``maze`` (:func:`draw_maze`, keyword arguments passed on) and write it as a PNG
+    (atomically) at ``dpi`` (default :data:`mbn.viz.style.DPI`)."""
+    fig = draw_maze(maze, **kw)
+    save_png(fig, path, dpi)
+    return fig
