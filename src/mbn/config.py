@@ -39,6 +39,7 @@ __all__ = [
     "setting",
     "settings_to_dict",
     "to_toml",
+    "toml_error",
 ]
 
 S = TypeVar("S", bound="Settings")
@@ -189,6 +190,26 @@ _TABLE = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-]+)\s*\]\s*(#.*)?$")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_\-]+)\s*=")
 
 
+def toml_error(exc: tomllib.TOMLDecodeError, text: str, where: str) -> MbnInputError:
+    """A TOML syntax error as ``"{where}:{line}: message (column c)"``."""
+    message = str(exc)
+    match = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", message)
+    if match is not None:
+        body = message[: match.start()]
+        return MbnInputError(
+            f"{where}:{match.group(1)}: TOML syntax error: {body} (column {match.group(2)})"
+        )
+    match = re.search(r"\s*\(at end of document\)\s*$", message)
+    if match is not None:
+        last = max(1, len(text.splitlines()))
+        body = message[: match.start()]
+        return MbnInputError(f"{where}:{last}: TOML syntax error: {body} (at end of file)")
+    lineno = getattr(exc, "lineno", None)
+    if isinstance(lineno, int):
+        return MbnInputError(f"{where}:{lineno}: TOML syntax error: {message}")
+    return MbnInputError(f"{where}: TOML syntax error: {message}")
+
+
 def read_toml(path: str | Path) -> TomlDocument:
     """Read a settings file (TOML). Errors: one line naming the file (and the line)."""
     path = Path(path)
@@ -203,10 +224,7 @@ def read_toml(path: str | Path) -> TomlDocument:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        line = getattr(exc, "lineno", None)
-        message = getattr(exc, "msg", str(exc))
-        at = f":{line}" if line else ""
-        raise MbnInputError(f"{path}{at}: invalid TOML ({message})") from None
+        raise toml_error(exc, text, str(path)) from None
     except RecursionError:
         raise MbnInputError(f"{path}: invalid TOML (nested too deeply)") from None
     lines: dict[tuple[str, str], int] = {}

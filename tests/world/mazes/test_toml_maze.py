@@ -131,13 +131,16 @@ def test_toml_syntax_errors_name_the_line():
         ),
         (
             "[[wall]]\nxmin = '0'\nxmax = 1\nymin = 0\nymax = 1\n",
-            "b.toml:1: [[wall]] #1: xmin must be a number, got '0'",
+            "b.toml:1: [[wall]] #1: xmin: expected a finite number, got '0'",
         ),
         (
             "[[wall]]\nxmin = true\nxmax = 1\nymin = 0\nymax = 1\n",
-            "xmin must be a number, got True",
+            "xmin: expected a finite number, got True",
         ),
-        ("[[wall]]\nxmin = nan\nxmax = 1\nymin = 0\nymax = 1\n", "xmin must be finite"),
+        (
+            "[[wall]]\nxmin = nan\nxmax = 1\nymin = 0\nymax = 1\n",
+            "xmin: expected a finite number, got nan",
+        ),
         (
             rects_toml("wall", [(0, 1, 0, 1)]) + "[[tile]]\nx = 2\ny = 2\ncolors = 3\n",
             "b.toml:6: [[tile]] #1: colors must be 1 or 2, got 3",

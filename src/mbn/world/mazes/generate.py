@@ -13,7 +13,7 @@ import numpy as np
 from mbn.errors import MbnInputError
 from mbn.world.mazes.model import DEFAULT_CELL, Maze, merge_cells
 
-__all__ = ["corridor_maze", "grid_to_text"]
+__all__ = ["corridor_maze"]
 
 
 def corridor_maze(
@@ -95,13 +95,3 @@ def corridor_maze(
         cell=cell,
         source="generated",
     )
-
-
-def grid_to_text(maze: Maze) -> str:
-    """The grid of a grid maze as ``.maze`` text (header with the cell size; tiles and starts
-    are not written)."""
-    if maze.grid is None or maze.cell is None:
-        raise MbnInputError(f"maze {maze.name!r} has no grid")
-    lines = [f"; {maze.name}", f"cell = {maze.cell:g}"]
-    lines += ["".join(row) for row in maze.grid]
-    return "\n".join(lines) + "\n"

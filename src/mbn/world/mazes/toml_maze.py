@@ -40,7 +40,9 @@ from typing import Any
 
 import numpy as np
 
+from mbn.config import toml_error
 from mbn.errors import MbnInputError
+from mbn.io import expect_number
 from mbn.world.mazes.model import DEFAULT_CELL, DEFAULT_TILE_LENGTH, Maze, Tile, merge_grid
 from mbn.world.mazes.validate import read_text, validate_maze
 
@@ -62,35 +64,6 @@ def _table_lines(text: str, table: str) -> list[int]:
     return [n for n, line in enumerate(text.splitlines(), start=1) if pattern.match(line)]
 
 
-def _toml_error(exc: tomllib.TOMLDecodeError, text: str, where: str) -> MbnInputError:
-    """A TOML syntax error as ``"{where}:{line}: message (column c)"``."""
-    message = str(exc)
-    match = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", message)
-    if match is not None:
-        body = message[: match.start()]
-        return MbnInputError(
-            f"{where}:{match.group(1)}: TOML syntax error: {body} (column {match.group(2)})"
-        )
-    match = re.search(r"\s*\(at end of document\)\s*$", message)
-    if match is not None:
-        last = max(1, len(text.splitlines()))
-        body = message[: match.start()]
-        return MbnInputError(f"{where}:{last}: TOML syntax error: {body} (at end of file)")
-    lineno = getattr(exc, "lineno", None)
-    if isinstance(lineno, int):
-        return MbnInputError(f"{where}:{lineno}: TOML syntax error: {message}")
-    return MbnInputError(f"{where}: TOML syntax error: {message}")
-
-
-def _number(value: Any, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise MbnInputError(f"{what} must be a number, got {value!r}")
-    out = float(value)
-    if not math.isfinite(out):
-        raise MbnInputError(f"{what} must be finite, got {value!r}")
-    return out
-
-
 def parse_toml_maze(
     text: str,
     where: str = "<toml>",
@@ -106,7 +79,7 @@ def parse_toml_maze(
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise _toml_error(exc, text, where) from None
+        raise toml_error(exc, text, where) from None
 
     for key in data:
         if key not in (*_TABLE_KEYS, "name"):
@@ -222,7 +195,7 @@ def parse_toml_maze(
 
 
 def _number_in(value: Any, label: str, key: str) -> float:
-    return _number(value, f"{label}: {key}")
+    return expect_number(value, f"{label}: {key}")
 
 
 def _complement(free: np.ndarray) -> np.ndarray:
