@@ -10,14 +10,16 @@ one line in its registry.
 
 from mbn.experiments.pipeline.context import StageContext
 from mbn.experiments.pipeline.registry import Registry, Stage
+from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.experiments.pipeline.runner import Experiment, RunConfig, run_experiment
+from mbn.experiments.pipeline.runner import Experiment, run_experiment
 
 __all__ = [
     "Experiment",
     "Registry",
     "RunConfig",
     "RunDir",
+    "RunSettings",
     "Stage",
     "StageContext",
     "run_experiment",

@@ -5,18 +5,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import jax
 import numpy as np
 
 from mbn.evolution.de import DEConfig, DEState
 from mbn.experiments.pipeline.progress import Progress
+from mbn.experiments.pipeline.runconfig import RunConfig
 from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
-
-if TYPE_CHECKING:
-    from mbn.experiments.pipeline.registry import Stage
-    from mbn.experiments.pipeline.runner import RunConfig
 
 __all__ = ["DEResult", "StageContext", "generation_stats"]
 
@@ -46,7 +43,9 @@ class StageContext:
         seed: the run's seed.
         seeds: the seeds derived from it (recorded in ``results.json``).
         run_key: the run's key (``jax.random.key(seed)``, made once by the runner).
-        stage: the stage running.
+        name: the name of the stage running.
+        key_id: its key number.
+        needs: the stages it reads.
         progress: progress bars (silent when disabled).
     """
 
@@ -55,18 +54,20 @@ class StageContext:
     seed: int
     seeds: dict[str, int]
     run_key: jax.Array
-    stage: Stage
+    name: str
+    key_id: int
+    needs: tuple[str, ...]
     progress: Progress
 
     @property
     def key(self) -> jax.Array:
         """This stage's key: ``fold_in(run key, stage.key_id)``."""
-        return jax.random.fold_in(self.run_key, self.stage.key_id)
+        return jax.random.fold_in(self.run_key, self.key_id)
 
     @property
     def settings(self) -> Any:
         """This stage's settings (its section of the config)."""
-        return self.config[self.stage.name]
+        return self.config[self.name]
 
     def section(self, name: str) -> Any:
         """A section of the config (shared settings, or another stage's)."""
@@ -74,8 +75,8 @@ class StageContext:
 
     def read(self, name: str) -> dict[str, Any]:
         """The data of a stage this one needs."""
-        if name not in self.stage.needs:
-            raise RuntimeError(f"stage {self.stage.name} reads {name!r} but does not declare it")
+        if name not in self.needs:
+            raise RuntimeError(f"stage {self.name} reads {name!r} but does not declare it")
         return self.rundir.read_stage(name)
 
     def evolve(

@@ -11,12 +11,10 @@ it but the bulky ``details``).
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 from mbn.config import Settings
-
-if TYPE_CHECKING:
-    from mbn.experiments.pipeline.context import StageContext
+from mbn.experiments.pipeline.context import StageContext
 
 __all__ = ["Registry", "Stage"]
 

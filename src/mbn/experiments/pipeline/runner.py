@@ -22,14 +22,15 @@ import jax
 import numpy as np
 
 from mbn import __version__
-from mbn.config import Settings, TomlDocument, from_mapping, setting, settings_to_dict, to_toml
+from mbn.config import Settings, TomlDocument, from_mapping
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.context import StageContext
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
+from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import write_json_atomic
-from mbn.precision import PRECISIONS, ROBOT, scope
+from mbn.precision import scope
 
 __all__ = [
     "Experiment",
@@ -43,47 +44,6 @@ __all__ = [
     "run_stage",
     "versions",
 ]
-
-
-@dataclass(frozen=True)
-class RunSettings(Settings):
-    """How the run as a whole is made."""
-
-    section = "run"
-    quick: bool = setting(
-        False,
-        doc="a smoke run: the experiment's quick preset (tiny budgets) under the file's values",
-        source="docs/reproduce.md",
-    )
-    precision: str = setting(
-        ROBOT,
-        doc="floating-point precision of every stage",
-        choices=PRECISIONS,
-        source="docs/precision.md (the robot experiments are evolved and tested in float32)",
-    )
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """A run's effective settings: one :class:`~mbn.config.Settings` per section, in order."""
-
-    sections: tuple[Settings, ...]
-
-    def __getitem__(self, name: str) -> Any:
-        for s in self.sections:
-            if s.section == name:
-                return s
-        raise KeyError(name)
-
-    @property
-    def quick(self) -> bool:
-        return bool(self["run"].quick)
-
-    def to_dict(self) -> dict[str, dict[str, Any]]:
-        return {s.section: settings_to_dict(s) for s in self.sections}
-
-    def to_toml(self, header: str = "") -> str:
-        return to_toml(self.sections, header)
 
 
 def versions() -> dict[str, str]:
@@ -291,7 +251,9 @@ def _context(
         seed=seed,
         seeds=experiment.seeds(seed),
         run_key=jax.random.key(seed),
-        stage=stage,
+        name=stage.name,
+        key_id=stage.key_id,
+        needs=tuple(stage.needs),
         progress=progress,
     )
 

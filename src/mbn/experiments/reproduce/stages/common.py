@@ -106,8 +106,8 @@ def stage_perturbations(
 
 def read_network(ctx: StageContext, name: str) -> CTRNN:
     """The CTRNN of ``controllers/NAME.json``, saved by stage ``name`` (which must be needed)."""
-    if name not in ctx.stage.needs:
-        raise RuntimeError(f"stage {ctx.stage.name} reads {name}.json but does not need {name}")
+    if name not in ctx.needs:
+        raise RuntimeError(f"stage {ctx.name} reads {name}.json but does not need {name}")
     spec = read_controller_spec(ctx.rundir.controller_file(name))
     if not isinstance(spec, CTRNNControllerSpec):
         raise MbnInputError(f"{ctx.rundir.controller_file(name)}: not a CTRNN controller")
@@ -129,7 +129,7 @@ def evolve_follower(
     the stage's key, checkpoint ``NAME``; restart r with the key folded with r, checkpoint
     ``NAME_restartR``), keep the restart with the best fitness, score its best (branch fitness
     and the paper's terms) and save it as ``controllers/NAME.json`` (NAME: the stage's)."""
-    name = ctx.stage.name
+    name = ctx.name
     followers = ctx.section("followers")
     fitness = robust_fitness(
         crossroad_fitness(genome, task(ctx, rule, variants, approaches)),

@@ -1,0 +1,53 @@
+"""A run's effective settings (:class:`RunConfig`: one settings object per section) and the
+section every experiment has (:class:`RunSettings`: ``[run]``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from mbn.config import Settings, setting, settings_to_dict, to_toml
+from mbn.precision import PRECISIONS, ROBOT
+
+__all__ = ["RunConfig", "RunSettings"]
+
+
+@dataclass(frozen=True)
+class RunSettings(Settings):
+    """How the run as a whole is made."""
+
+    section = "run"
+    quick: bool = setting(
+        False,
+        doc="a smoke run: the experiment's quick preset (tiny budgets) under the file's values",
+        source="docs/reproduce.md",
+    )
+    precision: str = setting(
+        ROBOT,
+        doc="floating-point precision of every stage",
+        choices=PRECISIONS,
+        source="docs/precision.md (the robot experiments are evolved and tested in float32)",
+    )
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A run's effective settings: one :class:`~mbn.config.Settings` per section, in order."""
+
+    sections: tuple[Settings, ...]
+
+    def __getitem__(self, name: str) -> Any:
+        for s in self.sections:
+            if s.section == name:
+                return s
+        raise KeyError(name)
+
+    @property
+    def quick(self) -> bool:
+        return bool(self["run"].quick)
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        return {s.section: settings_to_dict(s) for s in self.sections}
+
+    def to_toml(self, header: str = "") -> str:
+        return to_toml(self.sections, header)
