@@ -118,7 +118,8 @@ def test_print_config_prints_every_setting_and_reads_back_to_the_same_config(tmp
     assert main(["reproduce", "--quick", "--print-config"]) == 0
     text = capsys.readouterr().out
     assert "[rf]" in text and "generations = 15" in text
-    assert "# DE generations" in text and "source: paper 3.1" in text and "unit" not in text[:0]
+    assert "# DE generations" in text and "source: paper 3.1" in text
+    assert "# length of a training episode; unit: s; range [0.1, inf]" in text
     path = tmp_path / "printed.toml"
     path.write_text(text)
     assert REPRODUCE.config(document=read_toml(path)) == REPRODUCE.config(quick=True)

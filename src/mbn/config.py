@@ -291,7 +291,7 @@ def _comment(f: dataclasses.Field[Any]) -> str:
     meta = f.metadata
     parts = [meta.get("doc", "")]
     if meta.get("unit"):
-        parts.append(meta["unit"])
+        parts.append(f"unit: {meta['unit']}")
     low, high = meta.get("low"), meta.get("high")
     if low is not None or high is not None:
         lo = "-inf" if low is None else f"{low:g}"

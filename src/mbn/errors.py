@@ -18,5 +18,9 @@ class UnstableStepError(MbnInputError):
     """An integration step too large for the stiffness of a network."""
 
 
-class UnstableStepWarning(RuntimeWarning):
+class MbnWarning(UserWarning):
+    """A warning of :mod:`mbn` (the command line prints it as one line ``mbn: warning: ...``)."""
+
+
+class UnstableStepWarning(MbnWarning, RuntimeWarning):
     """An integration step that is probably too large for the stiffness of a network."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import json
 import math
 import os
@@ -26,14 +27,17 @@ from mbn.errors import MbnInputError
 __all__ = [
     "atomic_open",
     "check_fields",
+    "check_writable",
     "expect_int",
     "expect_int_list",
     "expect_number",
     "expect_number_list",
     "expect_object",
     "expect_str",
+    "json_text",
     "read_csv_columns",
     "read_json",
+    "read_text",
     "write_csv_atomic",
     "write_json_atomic",
 ]
@@ -55,7 +59,12 @@ def atomic_open(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
         raise MbnInputError(f"{path}: folder {directory} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    if path.is_dir():
+        raise MbnInputError(f"{path}: is a folder, not a file")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as exc:
+        raise MbnInputError(f"{path}: cannot write ({exc.strerror})") from None
     try:
         # mkstemp makes the file private (0600); give it the permissions open() would
         os.chmod(tmp, 0o666 & ~_umask())
@@ -64,6 +73,10 @@ def atomic_open(path: str | Path, mode: str = "w") -> Iterator[IO[Any]]:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise MbnInputError(f"{path}: cannot write ({exc.strerror or exc})") from None
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -78,6 +91,24 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, np.generic):
+        return _finite(value.item())
+    return value
+
+
+def json_text(data: Any, indent: int | None = None) -> str:
+    """``data`` as strict JSON: a value that is not finite (NaN, inf) becomes ``null``, so what
+    ``--json`` prints always parses."""
+    return json.dumps(_finite(data), indent=indent, allow_nan=False, default=_json_default)
+
+
 def write_json_atomic(path: str | Path, data: Any) -> None:
     """Write ``data`` as indented JSON, atomically."""
     with atomic_open(path) as handle:
@@ -85,17 +116,55 @@ def write_json_atomic(path: str | Path, data: Any) -> None:
         handle.write("\n")
 
 
-def read_json(path: str | Path) -> Any:
-    """Read a JSON file; errors name the file and line."""
+def check_writable(path: str | Path, what: str = "--out") -> Path:
+    """Refuse, before any long work, an output file that cannot be written: its folder missing,
+    read-only, full or not a real file system, or the path a folder (one line naming the path and
+    the system's reason). Nothing is left behind."""
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise MbnInputError(f"{what} {path}: is a folder, not a file")
+    if not directory.is_dir():
+        raise MbnInputError(f"{what} {path}: folder {directory} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+        try:
+            with os.fdopen(fd, "wb") as handle:
+                handle.write(b"\0")
+                handle.flush()
+                os.fsync(handle.fileno())
+        finally:
+            os.unlink(tmp)
+    except OSError as exc:
+        raise MbnInputError(f"{what} {path}: cannot write ({exc.strerror or exc})") from None
+    return path
+
+
+def read_text(path: str | Path) -> str:
+    """A text file as UTF-8 (errors: one line naming the file: unreadable, not UTF-8)."""
     path = Path(path)
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except OSError as exc:
         raise MbnInputError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise MbnInputError(f"{path}:{line}: not UTF-8 text (byte {exc.start})") from None
+
+
+def read_json(path: str | Path) -> Any:
+    """Read a JSON file; errors name the file and line (unreadable, not UTF-8, invalid JSON,
+    nested too deeply)."""
+    path = Path(path)
+    text = read_text(path)
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise MbnInputError(f"{path}:{exc.lineno}: invalid JSON ({exc.msg})") from None
+    except RecursionError:
+        raise MbnInputError(f"{path}: invalid JSON (nested too deeply)") from None
 
 
 def read_csv_columns(path: str | Path, columns: Sequence[str]) -> dict[str, np.ndarray]:
@@ -106,41 +175,50 @@ def read_csv_columns(path: str | Path, columns: Sequence[str]) -> dict[str, np.n
             finite number, naming the file and line.
     """
     path = Path(path)
+    reader = csv.reader(io.StringIO(read_text(path), newline=""))
     try:
-        handle = path.open(newline="")
-    except OSError as exc:
-        raise MbnInputError(f"{path}: cannot read ({exc.strerror})") from None
-    with handle:
-        reader = csv.reader(handle)
-        header = next(reader, None)
-        if header is None:
-            raise MbnInputError(f"{path}:1: empty file, expected a header with {','.join(columns)}")
-        header = [h.strip() for h in header]
-        missing = [c for c in columns if c not in header]
-        if missing:
-            raise MbnInputError(
-                f"{path}:1: missing column(s) {', '.join(missing)} (header has {','.join(header)})"
-            )
-        index = [header.index(c) for c in columns]
-        rows: list[list[float]] = []
-        for row in reader:
-            line = reader.line_num
-            if not row or all(not cell.strip() for cell in row):
-                continue
-            if len(row) < len(header):
-                raise MbnInputError(f"{path}:{line}: expected {len(header)} fields, got {len(row)}")
-            values: list[float] = []
-            for name, i in zip(columns, index, strict=True):
-                try:
-                    value = float(row[i])
-                except ValueError:
-                    raise MbnInputError(
-                        f"{path}:{line}: column {name}: {row[i].strip()!r} is not a number"
-                    ) from None
-                if not math.isfinite(value):
-                    raise MbnInputError(f"{path}:{line}: column {name}: {row[i]!r} is not finite")
-                values.append(value)
-            rows.append(values)
+        return _csv_columns(path, reader, columns)
+    except csv.Error as exc:
+        raise MbnInputError(f"{path}:{reader.line_num}: invalid CSV ({exc})") from None
+
+
+def _clip(text: str, limit: int = 40) -> str:
+    """``text``, cut to ``limit`` characters for an error message."""
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
+def _csv_columns(path: Path, reader: Any, columns: Sequence[str]) -> dict[str, np.ndarray]:
+    header = next(reader, None)
+    if header is None:
+        raise MbnInputError(f"{path}:1: empty file, expected a header with {','.join(columns)}")
+    header = [h.strip() for h in header]
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise MbnInputError(
+            f"{path}:1: missing column(s) {', '.join(missing)} (header has {','.join(header)})"
+        )
+    index = [header.index(c) for c in columns]
+    rows: list[list[float]] = []
+    for row in reader:
+        line = reader.line_num
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        if len(row) < len(header):
+            raise MbnInputError(f"{path}:{line}: expected {len(header)} fields, got {len(row)}")
+        values: list[float] = []
+        for name, i in zip(columns, index, strict=True):
+            try:
+                value = float(row[i])
+            except ValueError:
+                raise MbnInputError(
+                    f"{path}:{line}: column {name}: {_clip(row[i].strip())!r} is not a number"
+                ) from None
+            if not math.isfinite(value):
+                raise MbnInputError(
+                    f"{path}:{line}: column {name}: {_clip(row[i].strip())!r} is not finite"
+                )
+            values.append(value)
+        rows.append(values)
     data = np.array(rows, dtype=np.float64).reshape(-1, len(columns))
     return {name: data[:, i] for i, name in enumerate(columns)}
 

@@ -143,11 +143,22 @@ def test_bad_parameter_file_gives_one_line_and_status_2(tmp_path, capsys):
     assert "p.json:2: invalid JSON" in err
 
 
-def test_bad_flag_values_exit_with_status_2(capsys):
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["mul", "train", "--neurons", "0"], "--neurons: must be in [1, 64], got 0"),
+        (["mul", "train", "--restarts", "1000000000"], "--restarts: must be in [1, 100000]"),
+        (["pnn", "check", "--sequences", "1e9"], "--sequences: '1e9' is not an integer"),
+        (["pnn", "check", "--sequences", "1000000000"], "--sequences: must be in [1, 100000]"),
+        (["pnn", "check", "--seconds", "1e12"], "--seconds: must be at most 3600 s, got 1e12"),
+    ],
+)
+def test_bad_flag_values_exit_with_status_2(capsys, argv, message):
     with pytest.raises(SystemExit) as exc:
-        main(["mul", "train", "--neurons", "0"])
+        main(argv)
     assert exc.value.code == 2
-    assert "must be >= 1" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and message in err, err
 
 
 def test_existing_output_survives_a_failed_run(tmp_path, capsys):

@@ -278,8 +278,11 @@ CTRNN_CASES = [
     (_set("sensors", "sonars", "all"), r"sensors.sonars: expected a list of integers"),
     (_set("motor", "speed_neuron", 3), r"motor.speed_neuron 3 is not one of the 3 neurons"),
     (_set("motor", "turn_neuron", _DELETE), r"motor: missing field 'turn_neuron'"),
-    (_set("substeps", 0), r"substeps must be an integer >= 1"),
+    (_set("substeps", 0), r"substeps must be an integer in \[1, 10000\], got 0"),
+    (_set("substeps", 10**9), r"substeps must be an integer in \[1, 10000\], got 1000000000"),
     (_set("dt", "fast"), r"dt: expected a finite number"),
+    (_set("dt", 1e6), r"dt must be a number in \(0, 1\] s, got 1000000.0"),
+    (_set("network", "W", [["1", 0, 0], [0, 0, 0], [0, 0, 0]]), r"network.W: expected numbers"),
     (_set("method", "leapfrog"), r"method must be euler or rk4"),
     (_set("behavior", "up"), r"behavior must be right, left or null"),
     (_set("weights", []), r"unknown field\(s\) 'weights'"),
@@ -421,3 +424,16 @@ def test_a_failed_save_writes_nothing(tmp_path, ctrnn_spec, interpreter_spec):
         save_controller(tmp_path / "no" / "c.json", ctrnn_spec)
     assert path.read_text() == "precious\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json"]
+
+
+def test_a_weight_finite_in_json_but_too_large_for_float32_is_refused_by_name(tmp_path, ctrnn_spec):
+    from mbn.precision import scope
+
+    path = tmp_path / "big.json"
+    data = controller_to_dict(ctrnn_spec)
+    data["network"]["W"][0][0] = 1e39
+    path.write_text(json.dumps(data))
+    with scope("float32"), pytest.raises(MbnInputError) as exc:
+        load_controller(path)
+    assert "network.W: a value of magnitude 1e+39 is too large for float32" in str(exc.value)
+    assert "NaN" not in str(exc.value) and str(path) in str(exc.value)

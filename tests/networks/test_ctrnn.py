@@ -256,7 +256,9 @@ def test_check_dt_warns_or_raises_above_the_limit():
         ({"tau": [1.0, 1.0, 1.0]}, r"tau: expected a scalar or shape"),
         ({"W": [[np.nan, 0], [0, 0]]}, r"W: contains non-finite"),
         ({"bias": [np.inf, 0]}, r"bias: contains non-finite"),
-        ({"W": [["a", 0], [0, 0]]}, r"W: not an array of numbers"),
+        ({"W": [["a", 0], [0, 0]]}, r"W: expected numbers, got text"),
+        ({"W": [["1.5", 0], [0, 0]]}, r"W: expected numbers, got text"),
+        ({"W": [[1, 2], [3]]}, r"W: not an array of numbers"),
     ],
 )
 def test_bad_parameters_are_named(kwargs, message):

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 
-__all__ = ["numbers", "positive_float", "positive_int", "seed"]
+__all__ = ["int_in", "number_in", "numbers", "positive_float", "positive_int", "seed"]
 
 
 def positive_int(text: str) -> int:
@@ -53,3 +54,33 @@ def numbers(text: str, n: int) -> tuple[float, ...]:
     if not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(f"numbers must be finite, got {text!r}")
     return values
+
+
+def int_in(low: int, high: int) -> Callable[[str], int]:
+    """An argument type: an integer in ``[low, high]`` (an absurd value is refused in one line
+    instead of running out of memory or time)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"must be in [{low}, {high}], got {value}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def number_in(high: float, unit: str = "") -> Callable[[str], float]:
+    """An argument type: a finite number in ``(0, high]``."""
+
+    def parse(text: str) -> float:
+        value = positive_float(text)
+        if value > high:
+            raise argparse.ArgumentTypeError(f"must be at most {high:g}{unit}, got {text}")
+        return value
+
+    parse.__name__ = "number"
+    return parse

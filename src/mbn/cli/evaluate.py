@@ -4,15 +4,15 @@ experiments: :mod:`mbn.precision`)."""
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mbn.cli.args import positive_float, positive_int, seed
+from mbn.cli.args import int_in, number_in, seed
 from mbn.errors import MbnInputError
+from mbn.io import json_text
 from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "add_commands"]
@@ -79,19 +79,19 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument(
         "--repeats",
-        type=positive_int,
+        type=int_in(1, 10_000),
         default=1,
         help="trials per start mark (default 1)",
     )
     ev.add_argument(
         "--junctions",
-        type=positive_int,
+        type=int_in(1, 32),
         default=3,
         help="consecutive junctions judged (default 3, the paper's)",
     )
     ev.add_argument(
         "--seconds",
-        type=positive_float,
+        type=number_in(36_000, " s"),
         default=60.0,
         help="time limit of a trial in seconds (default 60)",
     )
@@ -172,7 +172,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     )
     result = summary(verdict)
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
         return 0
     what = loaded.kind + (f", program {loaded.program}" if loaded.program else "")
     print(

@@ -1,7 +1,8 @@
 """The ``mbn`` command line: one module per command group (``networks``, ``world``,
 ``evaluate``, ``reproduce``), each adding its sub-parsers with ``set_defaults(func=...,
-precision=...)``; :func:`main` parses, runs the command in its precision
-(:func:`mbn.precision.scope`) and turns every bad input into one line and exit status 2.
+precision=..., writes=...)``; :func:`main` parses, checks that an output file can be written
+before any work, runs the command in its precision (:func:`mbn.precision.scope`) and turns every
+bad input and every system error into one line and exit status 2.
 
 Every subcommand validates its input; a bad input prints one line ``mbn: error: ...`` naming what
 is wrong (file and line where there is one) and exits with status 2. Files are written atomically.
@@ -11,11 +12,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import TextIO
 
 from mbn import __version__
 from mbn.cli import evaluate, networks, reproduce, world
-from mbn.errors import MbnInputError
+from mbn.errors import MbnInputError, MbnWarning
+from mbn.io import check_writable
 from mbn.precision import scope
 
 __all__ = ["EXIT_BAD_INPUT", "build_parser", "main"]
@@ -48,14 +52,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """Warnings of mbn as one line ``mbn: warning: ...``; those of NumPy and JAX (overflow in an
+    intermediate, a dtype note) are not the user's to act on and are not shown."""
+    if issubclass(category, MbnWarning):
+        print(f"mbn: warning: {message}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mbn`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        with scope(args.precision):
+        if getattr(args, "writes", None) == "file":
+            check_writable(args.out)  # before any long work
+        with warnings.catch_warnings(), scope(args.precision):
+            warnings.showwarning = _show_warning
             return int(args.func(args))
     except MbnInputError as exc:
         print(f"mbn: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as exc:  # a system error no reader or writer named: still one line
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"mbn: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("mbn: interrupted", file=sys.stderr)

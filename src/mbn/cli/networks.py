@@ -6,16 +6,16 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import positive_float, positive_int
+from mbn.cli.args import int_in, number_in
 from mbn.cli.args import seed as seed_type
 from mbn.errors import MbnInputError
+from mbn.io import json_text
 from mbn.precision import NETWORKS
 
 __all__ = ["EPILOG", "add_commands"]
@@ -48,20 +48,20 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     train.add_argument(
         "--neurons",
-        type=positive_int,
+        type=int_in(1, 64),
         default=3,
         help="neurons of the multiplier (default 3, the paper's)",
     )
     train.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
     train.add_argument(
         "--restarts",
-        type=positive_int,
+        type=int_in(1, 100_000),
         default=None,
         help="restarts trained in parallel (default: the recipe's)",
     )
     train.add_argument(
         "--iterations",
-        type=positive_int,
+        type=int_in(1, 10_000_000),
         default=None,
         help="Adam iterations (default: the recipe's)",
     )
@@ -72,7 +72,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="output JSON file (default multiplier.json)",
     )
     train.add_argument("--quiet", action="store_true", help="no progress bar")
-    train.set_defaults(func=_cmd_mul_train, precision=NETWORKS)
+    train.set_defaults(func=_cmd_mul_train, precision=NETWORKS, writes="file")
 
     ev = mul_sub.add_parser(
         "eval",
@@ -89,7 +89,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         default=None,
         help="multiplier JSON (default: the shipped 3-neuron multiplier)",
     )
-    ev.set_defaults(func=_cmd_mul_eval, precision=NETWORKS)
+    ev.set_defaults(func=_cmd_mul_eval, precision=NETWORKS, writes="file")
 
     rep = mul_sub.add_parser(
         "report",
@@ -118,7 +118,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="seed of the validation pairs (default: the one the file records)",
     )
     rep.add_argument("--json", action="store_true", help="print the metrics as JSON")
-    rep.set_defaults(func=_cmd_mul_report, precision=NETWORKS)
+    rep.set_defaults(func=_cmd_mul_report, precision=NETWORKS, writes="file")
 
     pnn = sub.add_parser(
         "pnn",
@@ -140,20 +140,20 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     check.add_argument("--json", action="store_true", help="print one JSON object")
     check.add_argument(
         "--sequences",
-        type=positive_int,
+        type=int_in(1, 100_000),
         default=200,
         help="random input sequences per program (default 200)",
     )
     check.add_argument(
         "--seconds",
-        type=positive_float,
+        type=number_in(3_600, " s"),
         default=20.0,
         help="length of each sequence in seconds (default 20)",
     )
     check.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
     check.add_argument(
         "--tau-ratio",
-        type=positive_float,
+        type=number_in(10),
         default=0.1,
         help="multiplier time constant / network time constant (default 0.1, the paper's); the "
         "step is a tenth of the multipliers' time constant",
@@ -202,8 +202,6 @@ def _cmd_mul_train(args: argparse.Namespace) -> int:
         stages[0] = dataclasses.replace(stages[0], num_restarts=args.restarts)
     if args.iterations is not None:
         stages = [dataclasses.replace(st, num_iterations=args.iterations) for st in stages]
-    if not args.out.parent.exists():
-        raise MbnInputError(f"--out: folder {args.out.parent} does not exist")
     start = time.perf_counter()
     with _progress(not args.quiet and sys.stderr.isatty(), "training multiplier") as bar:
 
@@ -266,6 +264,12 @@ def _cmd_mul_eval(args: argparse.Namespace) -> int:
             f"{pairs[outside[0]].tolist()}"
         )
     output = np.asarray(multiply(mul, pairs)) if len(pairs) else np.zeros(0)
+    if not np.all(np.isfinite(output)):
+        where = args.params or "the shipped multiplier"
+        raise MbnInputError(
+            f"{where}: its output is not finite for some pairs (the weights make the integration "
+            "overflow); nothing written"
+        )
     write_csv_atomic(args.out, ["x1", "x2", "output"], np.column_stack([pairs, output]))
     print(f"wrote {args.out} ({len(pairs)} pairs)")
     return 0
@@ -293,11 +297,9 @@ def _cmd_mul_report(args: argparse.Namespace) -> int:
     _, k_val = jax.random.split(jax.random.key(seed))
     metrics = evaluate(mul, validation_pairs(k_val))
     metrics["validation_seed"] = seed
-    if not args.out.parent.exists():
-        raise MbnInputError(f"--out: folder {args.out.parent} does not exist")
     plot_multiplier_error(mul, args.out, metrics=metrics)
     if args.json:
-        print(json.dumps(metrics, indent=2))
+        print(json_text(metrics, indent=2))
     else:
         _print_metrics(metrics, header=f"wrote {args.out}")
     return 0
@@ -319,7 +321,7 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
     )
     result = published_check(jax.random.key(args.seed), mul, config)
     if args.json:
-        print(json.dumps({k: result[k] for k in ("exact", "trained", "num_sequences")}))
+        print(json_text({k: result[k] for k in ("exact", "trained", "num_sequences")}))
         return 0
     print(
         "interpreter of the published RF with programmable "

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mbn.cli.args import numbers, positive_float
+from mbn.cli.args import number_in, numbers
 from mbn.errors import MbnInputError
+from mbn.io import json_text
 from mbn.precision import NETWORKS
 
 __all__ = ["EPILOG", "add_commands"]
@@ -81,14 +81,16 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     drive.add_argument("--start", type=_triple, required=True, metavar="X,Y,THETA")
     drive.add_argument("--cmd", type=_pair, required=True, metavar="V,W")
-    drive.add_argument("--dt", type=positive_float, default=0.1, help="step (s, default 0.1)")
-    drive.add_argument("--seconds", type=positive_float, required=True, help="duration (s)")
+    drive.add_argument("--dt", type=number_in(1.0, " s"), default=0.1, help="step (s, default 0.1)")
+    drive.add_argument(
+        "--seconds", type=number_in(100_000, " s"), required=True, help="duration (s)"
+    )
     drive.add_argument("--out", type=Path, required=True, help="output CSV")
     drive.add_argument("--maze", default=None, help="built-in name or maze file (default none)")
     mazes.set_defaults(func=_cmd_mazes, precision=NETWORKS)
-    show.set_defaults(func=_cmd_show_maze, precision=NETWORKS)
-    sonar.set_defaults(func=_cmd_sonar, precision=NETWORKS)
-    drive.set_defaults(func=_cmd_drive, precision=NETWORKS)
+    show.set_defaults(func=_cmd_show_maze, precision=NETWORKS, writes="file")
+    sonar.set_defaults(func=_cmd_sonar, precision=NETWORKS, writes="file")
+    drive.set_defaults(func=_cmd_drive, precision=NETWORKS, writes="file")
 
 
 def _cmd_mazes(args: argparse.Namespace) -> int:
@@ -96,7 +98,7 @@ def _cmd_mazes(args: argparse.Namespace) -> int:
 
     items = describe_builtins()
     if args.json:
-        print(json.dumps({name: text for name, text in items}))
+        print(json_text({name: text for name, text in items}))
         return 0
     width = max(len(name) for name, _ in items)
     for name, text in items:

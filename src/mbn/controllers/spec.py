@@ -17,7 +17,6 @@ The JSON form is :mod:`mbn.controllers.codec`; making a spec run is :mod:`mbn.co
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -37,6 +36,8 @@ __all__ = [
     "KIND_CTRNN",
     "KIND_INTERPRETER",
     "KIND_MBN",
+    "MAX_DT",
+    "MAX_SUBSTEPS",
     "MULTIPLIER_KIND",
     "NUM_INPUTS",
     "PM_INPUTS",
@@ -64,11 +65,22 @@ PM_INPUTS = 2
 # --------------------------------------------------------------------------------------------
 
 
+#: The longest robot step a controller may ask for (s): Stage's default is 0.1 s; beyond a second
+#: the sonars would sample a corridor too coarsely to follow it.
+MAX_DT = 1.0
+#: The most network steps per robot step (each costs a full integration step of the network).
+MAX_SUBSTEPS = 10_000
+
+
 def _check_run_settings(dt: float, substeps: int, method: str) -> None:
-    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (0 < dt < math.inf):
-        raise MbnInputError(f"dt must be a finite number > 0, got {dt!r}")
-    if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
-        raise MbnInputError(f"substeps must be an integer >= 1, got {substeps!r}")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (0 < dt <= MAX_DT):
+        raise MbnInputError(f"dt must be a number in (0, {MAX_DT:g}] s, got {dt!r}")
+    if (
+        isinstance(substeps, bool)
+        or not isinstance(substeps, int)
+        or not 1 <= substeps <= MAX_SUBSTEPS
+    ):
+        raise MbnInputError(f"substeps must be an integer in [1, {MAX_SUBSTEPS}], got {substeps!r}")
     if method not in ("euler", "rk4"):
         raise MbnInputError(f"method must be euler or rk4, got {method!r}")
 

@@ -116,13 +116,35 @@ class CTRNN:
 
 
 def _finite_array(value: ArrayLike, name: str, dtype: np.dtype) -> np.ndarray:
+    """``value`` as a finite array of ``dtype``: numbers only (text such as ``"1.5"`` is refused,
+    not parsed), finite, and within the range of ``dtype`` (a value finite in a JSON file can
+    still be too large for float32)."""
+    if isinstance(value, (str, bytes)) or _holds_text(value):
+        raise MbnInputError(f"{name}: expected numbers, got text")
     try:
-        arr = np.asarray(value, dtype=dtype)
-    except (TypeError, ValueError) as exc:
+        wide = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError) as exc:
         raise MbnInputError(f"{name}: not an array of numbers ({exc})") from None
-    if not np.all(np.isfinite(arr)):
+    if not np.all(np.isfinite(wide)):
         raise MbnInputError(f"{name}: contains non-finite values (NaN or inf)")
-    return arr
+    limit = float(np.finfo(dtype).max)
+    if wide.size and float(np.max(np.abs(wide))) > limit:
+        raise MbnInputError(
+            f"{name}: a value of magnitude {float(np.max(np.abs(wide))):.3g} is too large for "
+            f"{np.dtype(dtype).name} (at most {limit:.3g})"
+        )
+    return wide.astype(dtype)
+
+
+def _holds_text(value: object, depth: int = 0) -> bool:
+    """Whether nested lists hold a string (what JSON gives for ``"1.5"``)."""
+    if isinstance(value, (str, bytes)):
+        return True
+    if isinstance(value, (list, tuple)) and depth < 8:
+        return any(_holds_text(v, depth + 1) for v in value)
+    if isinstance(value, np.ndarray) and value.dtype.kind in "USO":
+        return value.dtype.kind in "US" or any(_holds_text(v, depth + 1) for v in value.flat)
+    return False
 
 
 def make_ctrnn(

@@ -29,7 +29,7 @@ from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.io import write_json_atomic
+from mbn.io import check_writable, write_json_atomic
 from mbn.precision import scope
 
 __all__ = [
@@ -216,9 +216,13 @@ def prepare(
     """Check the folder (:func:`check_out_dir`), then create it, or check that a run resumed was
     started with the same seed and config."""
     check_out_dir(rundir.root, experiment.kind, resume=resume, force=force)
-    if force:
-        rundir.clear()
-    rundir.create()
+    try:
+        if force:
+            rundir.clear()
+        rundir.create()
+    except OSError as exc:
+        raise MbnInputError(f"--out {rundir.root}: cannot write ({exc.strerror or exc})") from None
+    check_writable(rundir.manifest, "--out")
     mine = _manifest(experiment, seed, config)
     if resume and rundir.manifest.exists():
         old = rundir.read_manifest()

@@ -1,0 +1,137 @@
+"""Files that cannot be written or read: one line naming the path and the reason, exit status 2,
+checked before any long work, nothing written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from mbn.cli.main import main
+
+
+def _one_line(capsys, *words: str) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("mbn: error: "), err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in err, err
+    return err
+
+
+def _pairs(tmp_path: Path) -> Path:
+    path = tmp_path / "pairs.csv"
+    path.write_text("x1,x2\n0.5,0.5\n")
+    return path
+
+
+def _poses(tmp_path: Path) -> Path:
+    path = tmp_path / "poses.csv"
+    path.write_text("x,y,theta\n0.5,0.5,0\n")
+    return path
+
+
+COMMANDS = {
+    "mul train": lambda tmp, out: (
+        ["mul", "train", "--iterations", "1", "--restarts", "2", "--out", out]
+    ),
+    "mul eval": lambda tmp, out: ["mul", "eval", "--pairs", str(_pairs(tmp)), "--out", out],
+    "mul report": lambda tmp, out: ["mul", "report", "--out", out],
+    "show-maze": lambda tmp, out: ["show-maze", "cross_L", "--out", out],
+    "sonar": lambda tmp, out: (
+        ["sonar", "--maze", "stage_arena", "--poses", str(_poses(tmp)), "--out", out]
+    ),
+    "drive": lambda tmp, out: (
+        ["drive", "--start", "0,0,0", "--cmd", "0,0", "--seconds", "1", "--out", out]
+    ),
+}
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize(
+    ("where", "words"),
+    [
+        ("folder", ["is a folder, not a file"]),
+        ("missing", ["does not exist"]),
+        ("proc", ["/proc/", "cannot write"]),
+    ],
+)
+def test_an_output_that_cannot_be_written_is_one_line_before_any_work(
+    tmp_path, capsys, monkeypatch, command, where, words
+):
+    import mbn.networks.multiplier_train as train
+
+    def no_training(*args, **kwargs):
+        raise AssertionError("trained before checking --out")
+
+    monkeypatch.setattr(train, "train_stages", no_training)
+    out = {
+        "folder": str(tmp_path),
+        "missing": str(tmp_path / "no" / "such" / "out.x"),
+        "proc": "/proc/mbn-out.x",
+    }[where]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(COMMANDS[command](tmp_path, out)) == 2
+    _one_line(capsys, out, *words)
+    after = sorted(p.name for p in tmp_path.iterdir() if p.suffix != ".csv")
+    assert after == [p for p in before if not p.endswith(".csv")]
+
+
+def test_reproduce_into_a_folder_that_cannot_be_made_is_one_line(capsys):
+    assert main(["reproduce", "--quick", "--out", "/proc/mbn-run"]) == 2
+    _one_line(capsys, "--out /proc/mbn-run", "cannot write")
+
+
+@pytest.mark.parametrize(
+    ("flag", "make"),
+    [
+        ("--controller", lambda p: p.write_bytes(b'{"kind": "mbn.controller.ctrnn\xff"}')),
+        ("--params", lambda p: p.write_bytes(b'{"kind": "\xfe"}')),
+    ],
+)
+def test_a_file_that_is_not_utf8_is_one_line(tmp_path, capsys, flag, make):
+    path = tmp_path / "f.json"
+    make(path)
+    if flag == "--controller":
+        argv = ["evaluate", "--controller", str(path), "--maze", "fig4", "--behavior", "right"]
+    else:
+        argv = ["mul", "report", "--params", str(path), "--out", str(tmp_path / "m.png")]
+    assert main(argv) == 2
+    _one_line(capsys, str(path), "not UTF-8")
+
+
+@pytest.mark.parametrize("command", ["mul eval", "sonar"])
+def test_a_csv_that_is_not_utf8_or_has_a_huge_field_is_one_line(tmp_path, capsys, command):
+    header = "x1,x2" if command == "mul eval" else "x,y,theta"
+    bad = tmp_path / "bad.csv"
+    bad.write_bytes(header.encode() + b"\n0.5,\xff\n")
+    huge = tmp_path / "huge.csv"
+    huge.write_text(header + "\n" + "1" * 200_000 + ",1,1\n")
+    for path, words in ((bad, ["bad.csv:2", "not UTF-8"]), (huge, ["huge.csv:2", "field larger"])):
+        if command == "mul eval":
+            argv = ["mul", "eval", "--pairs", str(path), "--out", str(tmp_path / "o.csv")]
+        else:
+            argv = ["sonar", "--maze", "stage_arena", "--poses", str(path)]
+            argv += ["--out", str(tmp_path / "o.csv")]
+        assert main(argv) == 2
+        err = _one_line(capsys, *words)
+        assert len(err) < 300
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_json_nested_100000_deep_is_one_line(tmp_path, capsys):
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    argv = ["evaluate", "--controller", str(path), "--maze", "fig4", "--behavior", "right"]
+    assert main(argv) == 2
+    _one_line(capsys, "deep.json", "nested too deeply")
+
+
+def test_a_run_manifest_that_is_a_list_is_one_line(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps([1, 2]))
+    assert main(["reproduce", "--quick", "--out", str(run), "--resume"]) == 2
+    _one_line(capsys, "run.json", "expected an object")
