@@ -119,7 +119,7 @@ def test_print_config_prints_every_setting_and_reads_back_to_the_same_config(tmp
     text = capsys.readouterr().out
     assert "[rf]" in text and "generations = 15" in text
     assert "# DE generations" in text and "source: paper 3.1" in text
-    assert "# length of a training episode; unit: s; range [0.1, inf]" in text
+    assert "# length of a training episode; unit: s; range [0.1, 3600]" in text
     path = tmp_path / "printed.toml"
     path.write_text(text)
     assert REPRODUCE.config(document=read_toml(path)) == REPRODUCE.config(quick=True)
@@ -136,3 +136,24 @@ def test_a_bad_config_file_on_the_command_line_is_one_line_and_exit_2(tmp_path, 
     assert not out.exists()
     assert main(["reproduce", "--config", str(tmp_path / "none.toml")]) == 2
     assert "none.toml: cannot read" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[rf]\ngenerations = " + "9" * 400 + "\n",
+            r"rf\.generations: 400-digit integer is too large",
+        ),
+        ("[de]\nF = " + "9" * 400 + "\n", r"de\.F: 400-digit number is too large"),
+        ("[de]\nF = " + "9" * 5000 + "\n", r"invalid TOML \(Exceeds the limit"),
+        ("[rf]\ngenerations = 1000000000\n", r"rf\.generations: must be <= 100000"),
+        ("[tests]\nseconds = 1e12\n", r"tests\.seconds: must be <= 3600"),
+    ],
+)
+def test_absurd_numbers_in_a_settings_file_are_refused_in_one_line(tmp_path, text, message):
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    with pytest.raises(MbnInputError, match=message) as exc:
+        REPRODUCE.config(document=read_toml(path))
+    assert len(str(exc.value)) < 200

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from mbn.errors import MbnInputError
+from mbn.io import integer_digits
 
 __all__ = [
     "Settings",
@@ -86,6 +87,10 @@ def _describe(hint: Any) -> str:
     return {bool: "boolean", int: "integer", float: "number", str: "string"}.get(hint, str(hint))
 
 
+def _clip(text: str, limit: int = 60) -> str:
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _check_scalar(value: Any, hint: Any, meta: Mapping[str, Any], where: str) -> Any:
     if hint is bool:
         if not isinstance(value, bool):
@@ -93,13 +98,20 @@ def _check_scalar(value: Any, hint: Any, meta: Mapping[str, Any], where: str) ->
         return value
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise MbnInputError(f"{where}: expected an integer, got {value!r}")
+            raise MbnInputError(f"{where}: expected an integer, got {_clip(repr(value))}")
+        if abs(value) > 2**53:
+            raise MbnInputError(f"{where}: {integer_digits(value)}-digit integer is too large")
     elif hint is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise MbnInputError(f"{where}: expected a number, got {value!r}")
+            raise MbnInputError(f"{where}: expected a number, got {_clip(repr(value))}")
+        try:
+            value = float(value)
+        except OverflowError:
+            raise MbnInputError(
+                f"{where}: {len(str(abs(value)))}-digit number is too large"
+            ) from None
         if not math.isfinite(value):
             raise MbnInputError(f"{where}: expected a finite number, got {value!r}")
-        value = float(value)
     elif hint is str:
         if not isinstance(value, str):
             raise MbnInputError(f"{where}: expected a string, got {value!r}")
@@ -225,6 +237,8 @@ def read_toml(path: str | Path) -> TomlDocument:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise toml_error(exc, text, str(path)) from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise MbnInputError(f"{path}: invalid TOML ({str(exc).split(':')[0]})") from None
     except RecursionError:
         raise MbnInputError(f"{path}: invalid TOML (nested too deeply)") from None
     lines: dict[tuple[str, str], int] = {}

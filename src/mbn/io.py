@@ -34,6 +34,7 @@ __all__ = [
     "expect_number_list",
     "expect_object",
     "expect_str",
+    "integer_digits",
     "json_text",
     "read_csv_columns",
     "read_json",
@@ -165,6 +166,8 @@ def read_json(path: str | Path) -> Any:
         raise MbnInputError(f"{path}:{exc.lineno}: invalid JSON ({exc.msg})") from None
     except RecursionError:
         raise MbnInputError(f"{path}: invalid JSON (nested too deeply)") from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise MbnInputError(f"{path}: invalid JSON ({str(exc).split(':')[0]})") from None
 
 
 def read_csv_columns(path: str | Path, columns: Sequence[str]) -> dict[str, np.ndarray]:
@@ -267,11 +270,28 @@ def expect_int(value: Any, where: str) -> int:
     return value
 
 
+def integer_digits(n: int) -> int:
+    """Decimal digits of an integer, also of one too long for ``str`` (over 4300 digits)."""
+    try:
+        return len(str(abs(n)))
+    except ValueError:
+        return int(abs(n).bit_length() * 0.30103) + 1
+
+
 def expect_number(value: Any, where: str) -> float:
-    """``value`` as a float if it is a finite number (not a bool)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    """``value`` as a float if it is a finite number (not a bool; an integer of hundreds of
+    digits is refused as too large, not overflowed)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise MbnInputError(f"{where}: expected a finite number, got {_clip(repr(value))}")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise MbnInputError(
+            f"{where}: {integer_digits(int(value))}-digit integer is too large"
+        ) from None
+    if not math.isfinite(number):
         raise MbnInputError(f"{where}: expected a finite number, got {value!r}")
-    return float(value)
+    return number
 
 
 def expect_str(value: Any, where: str, choices: Sequence[str] | None = None) -> str:

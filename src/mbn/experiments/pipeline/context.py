@@ -10,6 +10,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.runconfig import RunConfig
@@ -47,6 +48,7 @@ class StageContext:
         key_id: its key number.
         needs: the stages it reads.
         progress: progress bars (silent when disabled).
+        log: prints a notice (one line).
     """
 
     rundir: RunDir
@@ -58,6 +60,7 @@ class StageContext:
     key_id: int
     needs: tuple[str, ...]
     progress: Progress
+    log: Callable[[str], None] = print
 
     @property
     def key(self) -> jax.Array:
@@ -79,6 +82,27 @@ class StageContext:
             raise RuntimeError(f"stage {self.name} reads {name!r} but does not declare it")
         return self.rundir.read_stage(name)
 
+    def _resumable(self, name: str, config: DEConfig) -> Checkpoint | None:
+        """The checkpoint of DE ``name`` if there is a usable one; an unreadable or foreign one
+        is reported in one line and removed (the DE then starts again from its first
+        generation, which gives the same result: every generation draws from its own key)."""
+        path = self.rundir.checkpoint_file(name)
+        if not path.exists():
+            return None
+        try:
+            cp = self.rundir.load_checkpoint(name)
+            shape = tuple(cp.state.population.shape)
+            if shape != (config.popsize, config.num_dims):
+                raise MbnInputError(
+                    f"{path}: a population of shape {shape}, not ({config.popsize}, "
+                    f"{config.num_dims})"
+                )
+        except MbnInputError as exc:
+            self.log(f"notice: {exc}; {name} starts again from its first generation")
+            path.unlink(missing_ok=True)
+            return None
+        return cp
+
     def evolve(
         self,
         name: str,
@@ -95,8 +119,8 @@ class StageContext:
         ``fold_in(key, g)``."""
         from mbn.experiments.evolve import generation, start
 
-        if self.rundir.checkpoint_file(name).exists():
-            cp = self.rundir.load_checkpoint(name)
+        cp = self._resumable(name, config)
+        if cp is not None:
             state, history = cp.state, list(cp.history)
         else:
             state = start(key, config, fitness, population)

@@ -28,12 +28,15 @@ class Stage:
         needs: names of the stages whose outputs it reads.
         settings: its settings class (a :class:`~mbn.config.Settings` with ``section == name``),
             or None.
+        outputs: files it writes (relative to the run folder) that later stages or the report
+            read: a finished stage whose output is missing is run again.
     """
 
     name: ClassVar[str] = ""
     key_id: ClassVar[int] = 0
     needs: ClassVar[tuple[str, ...]] = ()
     settings: ClassVar[type[Settings] | None] = None
+    outputs: ClassVar[tuple[str, ...]] = ()
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         raise NotImplementedError

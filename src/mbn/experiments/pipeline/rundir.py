@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import shutil
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -95,6 +96,16 @@ class RunDir:
         for name in FILES:
             (self.root / name).unlink(missing_ok=True)
 
+    def remove_temporary_files(self) -> list[Path]:
+        """Remove the temporary files a killed run left behind (``.NAME.*.tmp``, from atomic
+        writes that never finished); returns them."""
+        found = [p for p in self.root.glob(".*.tmp") if p.is_file()]
+        for sub in SUBFOLDERS:
+            found += [p for p in (self.root / sub).glob(".*.tmp") if p.is_file()]
+        for p in found:
+            p.unlink(missing_ok=True)
+        return found
+
     def read_manifest(self) -> dict[str, Any]:
         return expect_object(read_json(self.manifest), str(self.manifest))
 
@@ -156,8 +167,15 @@ class RunDir:
                     generation=jnp.asarray(z["generation"]),
                 )
                 history = [(float(row[0]), float(row[1])) for row in z["history"]]
-        except (OSError, KeyError, ValueError) as exc:
-            raise MbnInputError(f"{path}: unreadable checkpoint ({exc})") from None
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise MbnInputError(
+                f"{path}: unreadable checkpoint ({exc or type(exc).__name__})"
+            ) from None
+        if len(history) != int(state.generation) + 1:
+            raise MbnInputError(
+                f"{path}: unreadable checkpoint (generation {int(state.generation)} with "
+                f"{len(history)} history rows)"
+            )
         return Checkpoint(state, history)
 
     # -- records ---------------------------------------------------------------------------------

@@ -224,6 +224,8 @@ def prepare(
         raise MbnInputError(f"--out {rundir.root}: cannot write ({exc.strerror or exc})") from None
     check_writable(rundir.manifest, "--out")
     mine = _manifest(experiment, seed, config)
+    if resume:
+        rundir.remove_temporary_files()
     if resume and rundir.manifest.exists():
         old = rundir.read_manifest()
         if old.get("seed") != seed:
@@ -248,6 +250,7 @@ def _context(
     config: RunConfig,
     stage: Stage,
     progress: Progress,
+    log: Callable[[str], None] = print,
 ) -> StageContext:
     return StageContext(
         rundir=rundir,
@@ -259,6 +262,7 @@ def _context(
         key_id=stage.key_id,
         needs=tuple(stage.needs),
         progress=progress,
+        log=log,
     )
 
 
@@ -337,10 +341,13 @@ def run_experiment(
             if stages is not None and not _wanted(experiment.registry, stage.name, wanted):
                 continue
             if rundir.stage_done(stage.name):
-                log(f"stage {stage.name}: done before, kept")
-                continue
+                missing = [f for f in stage.outputs if not (rundir.root / f).exists()]
+                if not missing:
+                    log(f"stage {stage.name}: done before, kept")
+                    continue
+                log(f"notice: stage {stage.name}: {missing[0]} is missing; running it again")
             t0 = time.perf_counter()
-            data = stage.run(_context(experiment, rundir, seed, config, stage, bars))
+            data = stage.run(_context(experiment, rundir, seed, config, stage, bars, log))
             rundir.write_stage(stage.name, data)
             timings[stage.name] = round(time.perf_counter() - t0, 2)
             rundir.write_timings(timings)

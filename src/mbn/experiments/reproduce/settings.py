@@ -25,7 +25,11 @@ class DESettings(Settings):
 
     section = "de"
     popsize: int = setting(
-        _DE["popsize"], doc="population size", low=4, source="paper 3.1 (18 individuals)"
+        _DE["popsize"],
+        doc="population size",
+        low=4,
+        high=10_000,
+        source="paper 3.1 (18 individuals)",
     )
     F: float = setting(
         _DE["F"], doc="differential weight", low=0.0, high=2.0, source="paper 3.1 (step-size)"
@@ -44,6 +48,7 @@ class FollowerSettings(Settings):
         20.0,
         doc="genes are kept in [-bound, bound]",
         low=0.0,
+        high=1e4,
         source="docs/reproduce.md (the paper's weights of hundreds make the Euler step unstable)",
     )
     perturbation_sigma: float = setting(
@@ -56,6 +61,7 @@ class FollowerSettings(Settings):
         3,
         doc="perturbed copies of each genome scored beside it (0: none)",
         low=0,
+        high=100,
         source="docs/reproduce.md (robust evolution)",
     )
     episode_seconds: float = setting(
@@ -63,6 +69,7 @@ class FollowerSettings(Settings):
         doc="length of a training episode",
         unit="s",
         low=0.1,
+        high=3600.0,
         source="paper 3.1 ('about 20 seconds'); docs/experiments.md",
     )
 

@@ -80,6 +80,8 @@ def parse_toml_maze(
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise toml_error(exc, text, where) from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise MbnInputError(f"{where}: invalid TOML ({str(exc).split(':')[0]})") from None
 
     for key in data:
         if key not in (*_TABLE_KEYS, "name"):

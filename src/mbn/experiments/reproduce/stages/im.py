@@ -19,6 +19,7 @@ __all__ = ["IMStage"]
 class IMStage(Stage):
     name = "im"
     key_id = 5
+    outputs = ("controllers/im.json",)
     needs = ("multiplier", "rf", "lf")
 
     def run(self, ctx: StageContext) -> dict[str, Any]:

@@ -26,8 +26,12 @@ class LFSettings(Settings):
     """The left-follower (LF): 3 connections of RF re-evolved."""
 
     section = "lf"
-    generations: int = setting(200, doc="DE generations", low=0, source="docs/reproduce.md")
-    variants: int = setting(4, doc="starts per crossroad", low=1, source="docs/experiments.md")
+    generations: int = setting(
+        200, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
+    )
+    variants: int = setting(
+        4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
+    )
     approaches: tuple[str, ...] = setting(
         ("south", "west", "east"),
         doc="how the robot enters the crossroads (the LF search chooses on them too)",
@@ -46,6 +50,7 @@ class LFSettings(Settings):
 class LFStage(Stage):
     name = "lf"
     key_id = 4
+    outputs = ("controllers/lf.json",)
     needs = ("rf", "lf_search")
     settings = LFSettings
 

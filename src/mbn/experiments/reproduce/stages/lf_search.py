@@ -42,8 +42,8 @@ class LFSearchSettings(Settings):
         doc="connections tried, 0-based ('W[i,j]', 'WE[i,k]'); every triple is evolved",
         source="docs/reproduce.md (the connections into the turning neuron)",
     )
-    generations: int = setting(100, doc="DE generations per triple", low=0)
-    variants: int = setting(2, doc="starts per crossroad while searching", low=1)
+    generations: int = setting(100, doc="DE generations per triple", low=0, high=100_000)
+    variants: int = setting(2, doc="starts per crossroad while searching", low=1, high=100)
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -50,6 +50,7 @@ class MultiplierSettings(Settings):
 class MultiplierStage(Stage):
     name = "multiplier"
     key_id = 1
+    outputs = ("controllers/multiplier.json", "records/multiplier_grid.npz")
     settings = MultiplierSettings
 
     def run(self, ctx: StageContext) -> dict[str, Any]:

@@ -48,16 +48,20 @@ class PMSettings(Settings):
     """The program module (PM): a CTRNN from the camera's tile readings to the program."""
 
     section = "pm"
-    generations: int = setting(250, doc="DE generations", low=0, source="docs/reproduce.md")
-    variants: int = setting(1, doc="starts per episode", low=1)
-    bound: float = setting(10.0, doc="genes are kept in [-bound, bound]", low=0.0)
+    generations: int = setting(
+        250, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
+    )
+    variants: int = setting(1, doc="starts per episode", low=1, high=100)
+    bound: float = setting(10.0, doc="genes are kept in [-bound, bound]", low=0.0, high=1e4)
     init: float = setting(
         10.0, doc="the first generation is drawn in [-init, init] (0 < init <= bound)", low=0.0
     )
     perturbation_sigma: float = setting(
-        1.0, doc="standard deviation of the PM's weight perturbations", low=0.0
+        1.0, doc="standard deviation of the PM's weight perturbations", low=0.0, high=1e4
     )
-    perturbation_copies: int = setting(0, doc="perturbed copies per genome (0: none)", low=0)
+    perturbation_copies: int = setting(
+        0, doc="perturbed copies per genome (0: none)", low=0, high=100
+    )
     approaches: tuple[str, ...] = setting(
         ("south", "west", "east"),
         doc="how the robot enters the crossroads of the memory and rest episodes",
@@ -97,6 +101,7 @@ class PMSettings(Settings):
 class PMStage(Stage):
     name = "pm"
     key_id = 6
+    outputs = ("controllers/mbn.json",)
     needs = ("rf", "lf", "im")
     settings = PMSettings
 

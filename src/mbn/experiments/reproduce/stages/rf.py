@@ -19,17 +19,21 @@ class RFSettings(Settings):
     """The right-follower (RF): all 12 genes (W 3x3, WE on the diagonal) evolved."""
 
     section = "rf"
-    generations: int = setting(300, doc="DE generations", low=0, source="docs/reproduce.md")
+    generations: int = setting(
+        300, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
+    )
     variants: int = setting(
         4,
         doc="starts per crossroad: the mark and variants - 1 jittered ones",
         low=1,
+        high=100,
         source="docs/experiments.md (the paper: one start per crossroad)",
     )
     restarts: int = setting(
         2,
         doc="independent DE runs; the fittest is kept",
         low=1,
+        high=100,
         source="docs/reproduce.md",
     )
 
@@ -43,6 +47,7 @@ def evolution_summary(data: dict[str, Any], connections: bool = False) -> str:
 class RFStage(Stage):
     name = "rf"
     key_id = 2
+    outputs = ("controllers/rf.json",)
     settings = RFSettings
 
     def run(self, ctx: StageContext) -> dict[str, Any]:

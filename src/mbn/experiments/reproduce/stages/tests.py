@@ -45,22 +45,33 @@ class TestsSettings(Settings):
 
     section = "tests"
     seconds: float = setting(
-        90.0, doc="time limit of a trial", unit="s", low=1.0, source="docs/reproduce.md"
+        90.0,
+        doc="time limit of a trial",
+        unit="s",
+        low=1.0,
+        high=3600.0,
+        source="docs/reproduce.md",
     )
     mbn_seconds: float = setting(
         120.0,
         doc="time limit of an MBN trial (its junctions count from its first tile)",
         unit="s",
         low=1.0,
+        high=3600.0,
         source="docs/reproduce.md",
     )
     jitter_per_mark: int = setting(
-        20, doc="jittered trials per start mark of the test maze", low=1, source="not in the paper"
+        20,
+        doc="jittered trials per start mark of the test maze",
+        low=1,
+        high=1000,
+        source="not in the paper",
     )
     heldout_repeats: int = setting(
         17,
         doc="trials per start mark of the held-out maze (the mark, then jittered ones)",
         low=1,
+        high=1000,
         source="not in the paper",
     )
     maze: str = setting("fig4", doc="the test maze (the paper's Fig. 4)", source="paper Fig. 4")
@@ -82,6 +93,7 @@ def _same_settings(a: LoadedController, b: LoadedController, na: str, nb: str) -
 class TestsStage(Stage):
     name = "tests"
     key_id = 7
+    outputs = ("records/test_trajectories.npz", "records/mbn_recording.npz")
     needs = ("rf", "lf", "im", "pm")
     settings = TestsSettings
 
