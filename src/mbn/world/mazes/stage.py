@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -364,6 +365,11 @@ def _rect(frame: _Frame, cx: float, cy: float, sx: float, sy: float) -> Rect:
     return (x - sx / 2, x + sx / 2, y - sy / 2, y + sy / 2)
 
 
+#: The largest bitmap floorplan read (pixels): a small compressed file can decode to gigapixels;
+#: Stage floorplans are a few thousand pixels a side.
+MAX_BITMAP_PIXELS = 16_000_000
+
+
 def bitmap_grey(path: str | os.PathLike[str], where: str = "bitmap") -> np.ndarray:
     """The grey levels ``(H, W)`` of an image, first row north, on a 0..255 scale (float64).
 
@@ -375,10 +381,26 @@ def bitmap_grey(path: str | os.PathLike[str], where: str = "bitmap") -> np.ndarr
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as image:
+        with warnings.catch_warnings():  # Pillow warns of large images; the limit below is ours
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(path)  # reads the header only
+        with image:
+            width, height = image.size
+            if width * height > MAX_BITMAP_PIXELS:
+                raise MbnInputError(
+                    f"{where}: bitmap {str(path)!r} is {width} x {height} pixels, over the limit "
+                    f"of {MAX_BITMAP_PIXELS // 1_000_000} M pixels (scale it down)"
+                )
             if image.mode.startswith("I;16") or (image.mode == "I" and image.format == "PNG"):
                 return np.asarray(image, dtype=np.float64) / 257.0
-            rgb = np.asarray(image.convert("RGB"), dtype=np.float64)
+            rgb = np.asarray(image.convert("RGB"), dtype=np.uint16)
+    except MbnInputError:
+        raise
+    except Image.DecompressionBombError:
+        raise MbnInputError(
+            f"{where}: bitmap {str(path)!r} decodes to more pixels than the limit of "
+            f"{MAX_BITMAP_PIXELS // 1_000_000} M pixels (scale it down)"
+        ) from None
     except UnidentifiedImageError:
         raise MbnInputError(
             f"{where}: cannot read bitmap {str(path)!r} (not an image file Pillow can read)"
@@ -386,7 +408,7 @@ def bitmap_grey(path: str | os.PathLike[str], where: str = "bitmap") -> np.ndarr
     except (OSError, ValueError, SyntaxError) as exc:
         reason = " ".join(str(exc).split())
         raise MbnInputError(f"{where}: cannot read bitmap {str(path)!r} ({reason})") from None
-    return rgb.mean(axis=-1)
+    return rgb.sum(axis=-1, dtype=np.uint16) / 3.0
 
 
 def _load_bitmap(path: Path, where: str) -> np.ndarray:

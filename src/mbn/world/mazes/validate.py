@@ -41,24 +41,92 @@ def _fmt_pose(pose: np.ndarray) -> str:
     return f"({pose[0]:g}, {pose[1]:g}, {math.degrees(pose[2]):g} deg)"
 
 
+#: Cells of the compressed coordinate grid up to which free space is found by a difference array
+#: (memory 4 bytes a cell); beyond it, by a sweep line with a segment tree (memory linear in the
+#: number of walls).
+_DIRECT_CELLS = 16_000_000
+
+
 def _has_free_space(maze: Maze) -> bool:
     """Whether some point of a walled maze's bounds is not inside a wall (exact: the walls' edge
-    coordinates cut the bounds into cells, each wholly free or wholly solid)."""
+    coordinates cut the bounds into cells, each wholly free or wholly solid). Time and memory grow
+    with the number of walls (``O(K log K)``, or the compressed grid when it is small), never with
+    their product with the grid."""
     if not maze.outside_is_wall:
         return True
     x0, x1, y0, y1 = maze.bounds
     w = maze.walls
+    if w.shape[0] == 0:
+        return x1 > x0 and y1 > y0
     xs = np.unique(np.clip(np.concatenate([[x0, x1], w[:, 0], w[:, 1]]), x0, x1))
     ys = np.unique(np.clip(np.concatenate([[y0, y1], w[:, 2], w[:, 3]]), y0, y1))
-    cx = (xs[:-1] + xs[1:]) / 2
-    cy = (ys[:-1] + ys[1:]) / 2
-    if cx.size == 0 or cy.size == 0:
+    if xs.size < 2 or ys.size < 2:
         return False
-    inx = (w[:, 0][None, :] < cx[:, None]) & (cx[:, None] < w[:, 1][None, :])  # (X, K)
-    iny = (w[:, 2][None, :] < cy[:, None]) & (cy[:, None] < w[:, 3][None, :])  # (Y, K)
-    # a cell (i, j) is solid if some wall k covers both its x and y centre
-    covered = (inx.astype(np.int32) @ iny.T.astype(np.int32)) > 0  # (X, Y)
-    return not bool(np.all(covered))
+    # each wall covers the compressed cells [i0, i1) x [j0, j1)
+    i0 = np.searchsorted(xs, np.clip(w[:, 0], x0, x1))
+    i1 = np.searchsorted(xs, np.clip(w[:, 1], x0, x1))
+    j0 = np.searchsorted(ys, np.clip(w[:, 2], y0, y1))
+    j1 = np.searchsorted(ys, np.clip(w[:, 3], y0, y1))
+    keep = (i1 > i0) & (j1 > j0)
+    i0, i1, j0, j1 = i0[keep], i1[keep], j0[keep], j1[keep]
+    nx, ny = xs.size - 1, ys.size - 1
+    if nx * ny <= _DIRECT_CELLS:
+        diff = np.zeros((nx + 1, ny + 1), np.int32)
+        np.add.at(diff, (i0, j0), 1)
+        np.add.at(diff, (i0, j1), -1)
+        np.add.at(diff, (i1, j0), -1)
+        np.add.at(diff, (i1, j1), 1)
+        cover = diff.cumsum(0).cumsum(1)[:nx, :ny]
+        return bool(np.any(cover == 0))
+    return _sweep_has_gap(i0, i1, j0, j1, nx, ny)
+
+
+def _sweep_has_gap(
+    i0: np.ndarray, i1: np.ndarray, j0: np.ndarray, j1: np.ndarray, nx: int, ny: int
+) -> bool:
+    """Whether the rectangles ``[i0, i1) x [j0, j1)`` of an ``nx x ny`` index grid leave a cell
+    uncovered: a sweep over x with a segment tree holding, per node, the count of rectangles
+    covering it whole and the least coverage below it."""
+    size = 1
+    while size < ny:
+        size *= 2
+    add = np.zeros(2 * size, np.int64)
+    low = np.zeros(2 * size, np.int64)
+    # cells beyond ny are padding: count them as covered
+    low[size + ny : 2 * size] = 1 << 40
+    for node in range(size - 1, 0, -1):
+        low[node] = min(low[2 * node], low[2 * node + 1])
+
+    def update(node: int, lo: int, hi: int, a: int, b: int, v: int) -> None:
+        if b <= lo or hi <= a:
+            return
+        if a <= lo and hi <= b:
+            add[node] += v
+        else:
+            mid = (lo + hi) // 2
+            update(2 * node, lo, mid, a, b, v)
+            update(2 * node + 1, mid, hi, a, b, v)
+        if node >= size:
+            low[node] = add[node] + (1 << 40 if node - size >= ny else 0)
+        else:
+            low[node] = add[node] + min(low[2 * node], low[2 * node + 1])
+
+    events: dict[int, list[tuple[int, int, int]]] = {}
+    for a0, a1, b0, b1 in zip(i0.tolist(), i1.tolist(), j0.tolist(), j1.tolist(), strict=True):
+        events.setdefault(a0, []).append((b0, b1, 1))
+        events.setdefault(a1, []).append((b0, b1, -1))
+    xs = sorted(events)
+    if not xs or xs[0] > 0:
+        return True
+    for k, x in enumerate(xs):
+        if x >= nx:
+            break
+        for b0, b1, v in events[x]:
+            update(1, 0, size, b0, b1, v)
+        end = xs[k + 1] if k + 1 < len(xs) else nx
+        if end > x and low[1] == 0:
+            return True
+    return xs[-1] < nx
 
 
 def _bucket(n: int) -> int:
