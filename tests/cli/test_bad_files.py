@@ -135,3 +135,41 @@ def test_a_run_manifest_that_is_a_list_is_one_line(tmp_path, capsys):
     (run / "run.json").write_text(json.dumps([1, 2]))
     assert main(["reproduce", "--quick", "--out", str(run), "--resume"]) == 2
     _one_line(capsys, "run.json", "expected an object")
+
+
+def test_a_world_with_thousands_of_nested_models_is_one_line(tmp_path, capsys):
+    path = tmp_path / "nested.world"
+    path.write_text("define m model ( )\n" + "m (\n" * 5000 + ")\n" * 5000)
+    assert main(["show-maze", str(path), "--out", str(tmp_path / "n.png")]) == 2
+    _one_line(capsys, "nested.world:66", "nested more than 64 deep")
+
+
+@pytest.mark.parametrize(
+    ("metrics", "words"),
+    [
+        ([1, 2], "metrics: expected an object, got list"),
+        ({"training": [1]}, "metrics.training: expected an object, got list"),
+        ({"training": {"seed": "7"}}, "metrics.training.seed: expected an integer, got '7'"),
+        ({"training": {"seed": -1}}, "metrics.training.seed must be in [0, 2**32)"),
+    ],
+)
+def test_a_multiplier_file_with_metrics_of_the_wrong_types_is_one_line(
+    tmp_path, capsys, metrics, words
+):
+    from mbn.networks.multiplier import load_default, multiplier_to_dict
+
+    path = tmp_path / "mul.json"
+    data = multiplier_to_dict(load_default(3))
+    data["metrics"] = metrics
+    path.write_text(json.dumps(data))
+    assert main(["mul", "report", "--params", str(path), "--out", str(tmp_path / "m.png")]) == 2
+    _one_line(capsys, "mul.json", words)
+    assert not (tmp_path / "m.png").exists()
+
+
+def test_a_json_integer_of_thousands_of_digits_is_one_line(tmp_path, capsys):
+    path = tmp_path / "big.json"
+    path.write_text('{"kind": "mbn.controller.ctrnn", "format_version": ' + "9" * 5000 + "}")
+    argv = ["evaluate", "--controller", str(path), "--maze", "fig4", "--behavior", "right"]
+    assert main(argv) == 2
+    _one_line(capsys, "big.json", "invalid JSON (Exceeds the limit")

@@ -278,21 +278,28 @@ def _cmd_mul_eval(args: argparse.Namespace) -> int:
 def _cmd_mul_report(args: argparse.Namespace) -> int:
     import jax
 
-    from mbn.networks.multiplier import evaluate, load_default, shipped_metrics, validation_pairs
+    from mbn.networks.multiplier import (
+        evaluate,
+        load_default,
+        recorded_seed,
+        shipped_metrics,
+        validation_pairs,
+    )
     from mbn.viz.multiplier import plot_multiplier_error
 
     if args.params is None:
-        mul, recorded = load_default(), shipped_metrics()
+        mul = load_default()
+        recorded = recorded_seed({"metrics": shipped_metrics()}, "the shipped multiplier")
     else:
         from mbn.io import read_json
         from mbn.networks.multiplier import multiplier_from_dict
 
         data = read_json(args.params)
         mul = multiplier_from_dict(data, where=str(args.params))
-        recorded = data.get("metrics", {}) if isinstance(data, dict) else {}
+        recorded = recorded_seed(data, str(args.params))
     seed = args.seed
     if seed is None:
-        seed = int(recorded.get("training", {}).get("seed", 0))
+        seed = recorded if recorded is not None else 0
     # Same derivation of the validation key as in training: key(seed) -> split -> second half.
     _, k_val = jax.random.split(jax.random.key(seed))
     metrics = evaluate(mul, validation_pairs(k_val))

@@ -34,7 +34,15 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError
-from mbn.io import check_fields, expect_int, expect_number, expect_str, read_json, write_json_atomic
+from mbn.io import (
+    check_fields,
+    expect_int,
+    expect_number,
+    expect_object,
+    expect_str,
+    read_json,
+    write_json_atomic,
+)
 from mbn.networks.ctrnn import (
     CTRNN,
     Method,
@@ -265,6 +273,8 @@ def multiplier_from_dict(data: Any, *, where: str = "multiplier") -> Multiplier:
     optional = ["format_version", "mbn_version", "num_neurons", "inputs", "output_neuron"]
     optional += ["time_unit", "T_over_tau", "dt_over_tau", "method", "metrics"]
     check_fields(data, where, ["kind", "network"], optional)
+    if "metrics" in data:
+        expect_object(data["metrics"], f"{where}: metrics")
     net = CTRNN.from_dict(data["network"], where=f"{where}: network")
     if net.num_inputs != 2:
         raise MbnInputError(
@@ -278,6 +288,24 @@ def multiplier_from_dict(data: Any, *, where: str = "multiplier") -> Multiplier:
         raise MbnInputError(f"{where}: dt_over_tau must be in (0, 1], got {dt!r}")
     method = expect_str(data.get("method", "rk4"), f"{where}: method", ("euler", "rk4"))
     return Multiplier(net=net, output=output, dt_over_tau=dt, method=method)  # type: ignore[arg-type]
+
+
+def recorded_seed(data: dict[str, Any], where: str) -> int | None:
+    """The training seed a multiplier file records (``metrics.training.seed``), checked, or
+    None when it records none."""
+    metrics = data.get("metrics")
+    if metrics is None:
+        return None
+    training = expect_object(metrics, f"{where}: metrics").get("training")
+    if training is None:
+        return None
+    seed = expect_object(training, f"{where}: metrics.training").get("seed")
+    if seed is None:
+        return None
+    seed = expect_int(seed, f"{where}: metrics.training.seed")
+    if not 0 <= seed < 2**32:
+        raise MbnInputError(f"{where}: metrics.training.seed must be in [0, 2**32), got {seed}")
+    return seed
 
 
 def save_multiplier(path: str | Path, mul: Multiplier, metrics: dict | None = None) -> None:

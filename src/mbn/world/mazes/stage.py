@@ -242,7 +242,7 @@ class _Parser:
             f" got {tok.value!r}"
         )
 
-    def _body(self) -> tuple[Props, list[StageModel]]:
+    def _body(self, depth: int = 1) -> tuple[Props, list[StageModel]]:
         props: Props = {}
         children: list[StageModel] = []
         while True:
@@ -255,8 +255,10 @@ class _Parser:
                 )
             nxt = self._peek()
             if nxt is not None and nxt.kind == "punct" and nxt.value == "(":
+                if depth >= MAX_NESTING:
+                    raise MbnInputError(f"{tok.where}: models nested more than {MAX_NESTING} deep")
                 self.pos += 1
-                sub_props, sub_children = self._body()
+                sub_props, sub_children = self._body(depth + 1)
                 children.append(StageModel(tok.value, sub_props, sub_children, tok.where))
             else:
                 props[tok.value] = (self._value(tok), tok.where)
@@ -364,6 +366,9 @@ def _rect(frame: _Frame, cx: float, cy: float, sx: float, sy: float) -> Rect:
         sx, sy = sy, sx
     return (x - sx / 2, x + sx / 2, y - sy / 2, y + sy / 2)
 
+
+#: The deepest nesting of models read (Stage worlds nest a few levels: a robot in a world).
+MAX_NESTING = 64
 
 #: The largest bitmap floorplan read (pixels): a small compressed file can decode to gigapixels;
 #: Stage floorplans are a few thousand pixels a side.
