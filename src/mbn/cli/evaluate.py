@@ -143,6 +143,7 @@ def _heading(theta: float) -> str:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.trials import TrialSpec, run_trials, summary
+    from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_maze
 
     spec = TrialSpec(
@@ -153,7 +154,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         seconds=args.seconds,
         seed=args.seed,
     )
-    maze = load_maze(args.maze)
+    maze = as_grid_maze(load_maze(args.maze))  # TOML and Stage mazes on a lattice of corridors
     spec.check_maze(maze)
     controller_spec = read_controller_spec(args.controller)
     loaded = make_controller(
