@@ -96,6 +96,7 @@ def test_text_summary_of_an_mbn_on_tiles(files, capsys):
         "left",
         "--seconds",
         "2",
+        "--allow-unstable",  # its interpreter is built from the published weights
     )
     assert status == 0, err
     lines = out.strip().splitlines()
@@ -179,3 +180,15 @@ def test_evaluation_leaves_the_files_alone(files, capsys):
         run(capsys, "--controller", files / "im.json", *BASE, "--program", "up")
     run(capsys, "--controller", files / "mul.json", *BASE)
     assert {p.name: p.read_bytes() for p in files.iterdir()} == before
+
+
+def test_a_controller_beyond_its_step_stability_limit_is_refused_unless_allowed(files, capsys):
+    published = files / "published.json"
+    save_controller(published, CTRNNControllerSpec(published_rf(), behavior="right"))
+    base = ["--controller", published, *BASE]
+    status, _, err = run(capsys, *base)
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert "above the stability limit 0.771 ms" in err and "needs substeps >= 130" in err
+    status, out, err = run(capsys, *base, "--allow-unstable", "--seconds", "2", "--json")
+    assert status == 0, err
+    assert json.loads(out)["trials"] == 10

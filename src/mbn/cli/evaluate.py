@@ -96,6 +96,12 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="time limit of a trial in seconds (default 60)",
     )
     ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
+    ev.add_argument(
+        "--allow-unstable",
+        action="store_true",
+        help="run a controller whose network step is beyond its integrator's stability limit "
+        "(refused by default: e.g. the paper's published weights at 20 substeps)",
+    )
     ev.add_argument("--json", action="store_true", help="print one JSON object")
     ev.set_defaults(func=_cmd_evaluate, precision=ROBOT)
 
@@ -161,6 +167,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         controller_spec,
         _program_for(args, controller_spec.kind),
         where=str(args.controller),
+        check_stability=not args.allow_unstable,
     )
     verdict, _, _ = run_trials(
         maze,

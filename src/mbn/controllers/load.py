@@ -4,6 +4,7 @@ into a :class:`LoadedController` for :func:`mbn.experiments.trials.run_trials`;
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,10 +25,11 @@ from mbn.controllers.spec import (
     MBNControllerSpec,
 )
 from mbn.errors import MbnInputError
+from mbn.networks.ctrnn import CTRNN, Method, check_dt, max_stable_dt
 from mbn.world.engine import CameraConfig
 from mbn.world.sensors import SensorConfig
 
-__all__ = ["Controller", "LoadedController", "load_controller", "make_controller"]
+__all__ = ["Controller", "LoadedController", "check_step", "load_controller", "make_controller"]
 
 #: A controller for one robot: ``(state, observation) -> (state, (v, w))``.
 Controller = Callable[[Any, Any], tuple[Any, tuple[Array, Array]]]
@@ -139,17 +141,49 @@ def _interpreter_runner(
     return control, initial
 
 
+def check_step(spec: ControllerSpec, where: str = "controller") -> None:
+    """Refuse a controller whose network step (``dt / substeps``) is beyond the stability limit
+    of its integrator for its networks (:func:`mbn.networks.ctrnn.check_dt`): the integration
+    would not follow the network's dynamics. The message says how many substeps would do."""
+    im = spec.interpreter_spec if isinstance(spec, MBNControllerSpec) else spec
+    net = im.net if isinstance(im, CTRNNControllerSpec) else im.interpreter.net
+    method: Method = "rk4" if im.method == "rk4" else "euler"
+    nets: list[tuple[str, CTRNN, int, Method]] = [("network", net, im.substeps, method)]
+    if isinstance(spec, MBNControllerSpec):  # the program module runs Euler steps
+        nets.append(("program module", spec.program_module, spec.pm_substeps, "euler"))
+    for what, n, substeps, integrator in nets:
+        h = im.dt / substeps
+        try:
+            check_dt(n, h, integrator, on_unstable="raise")
+        except MbnInputError:
+            limit = max_stable_dt(n, integrator)
+            need = math.ceil(im.dt / limit)
+            raise MbnInputError(
+                f"{where}: its {what}'s step {h * 1000:.3g} ms (dt {im.dt:g} s / {substeps} "
+                f"substeps) is above the stability limit {limit * 1000:.3g} ms of its integrator; "
+                f"it needs substeps >= {need}"
+            ) from None
+
+
 def make_controller(
-    spec: ControllerSpec, program: str | None = None, *, where: str = "controller"
+    spec: ControllerSpec,
+    program: str | None = None,
+    *,
+    where: str = "controller",
+    check_stability: bool = True,
 ) -> LoadedController:
     """A :class:`LoadedController` for a spec.
 
     ``program``: for an interpreter, the name of the program to run (may be omitted when there
     is only one); for an MBN, None runs the whole MBN (program module and camera) and a name runs
     the interpreter alone with that stored program; for a plain CTRNN it must be None.
+    ``check_stability``: refuse a network step beyond the integrator's stability limit
+    (:func:`check_step`).
     """
     if not isinstance(spec, (CTRNNControllerSpec, InterpreterControllerSpec, MBNControllerSpec)):
         raise MbnInputError(f"{where}: not a controller spec: {type(spec).__name__}")
+    if check_stability:
+        check_step(spec, where)
     programs: dict[str, tuple[float, ...]] = {}
     chosen: str | None = None
     camera: CameraConfig | None = None
@@ -186,7 +220,11 @@ def make_controller(
     )
 
 
-def load_controller(path: str | Path, program: str | None = None) -> LoadedController:
+def load_controller(
+    path: str | Path, program: str | None = None, *, check_stability: bool = True
+) -> LoadedController:
     """Read a controller file and make it ready to run (see :func:`make_controller` for
-    ``program``). Errors are one line naming the file."""
-    return make_controller(read_controller_spec(path), program, where=str(path))
+    ``program`` and ``check_stability``). Errors are one line naming the file."""
+    return make_controller(
+        read_controller_spec(path), program, where=str(path), check_stability=check_stability
+    )
