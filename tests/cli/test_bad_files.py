@@ -173,3 +173,36 @@ def test_a_json_integer_of_thousands_of_digits_is_one_line(tmp_path, capsys):
     argv = ["evaluate", "--controller", str(path), "--maze", "fig4", "--behavior", "right"]
     assert main(argv) == 2
     _one_line(capsys, "big.json", "invalid JSON (Exceeds the limit")
+
+
+def test_only_mbn_warnings_reach_stderr_as_one_line(monkeypatch, capsys):
+    import argparse
+    import warnings
+
+    import numpy as np
+
+    import mbn.cli.main as cli
+    from mbn.errors import MbnWarning
+
+    def noisy(args: argparse.Namespace) -> int:
+        np.log(np.zeros(1))  # numpy: divide by zero
+        warnings.warn("a JAX-style note", UserWarning, stacklevel=1)
+        warnings.warn("the step is close to its limit", MbnWarning, stacklevel=1)
+        return 0
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(
+        cli,
+        "build_parser",
+        lambda: _Fixed(parser, argparse.Namespace(func=noisy, precision="float32")),
+    )
+    assert cli.main(["mazes"]) == 0
+    assert capsys.readouterr().err.strip() == "mbn: warning: the step is close to its limit"
+
+
+class _Fixed:
+    def __init__(self, parser, namespace):
+        self.parser, self.namespace = parser, namespace
+
+    def parse_args(self, argv):
+        return self.namespace
