@@ -86,3 +86,28 @@ def test_a_maze_that_is_not_a_grid_of_corridors_is_refused_saying_why(tmp_path, 
     with pytest.raises(MbnInputError) as exc:
         as_grid_maze(m)
     assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def _as_world(maze: Maze, path: Path) -> Path:
+    """``maze`` as a Player/Stage world: a box model per wall, a robot per start."""
+    lines = ["define wall model ( obstacle_return 1 )", ""]
+    for xa, xb, ya, yb in maze.walls.tolist():
+        pose = f"[ {(xa + xb) / 2!r} {(ya + yb) / 2!r} 0 0 ]"
+        lines.append(f"wall( pose {pose} size [ {xb - xa!r} {yb - ya!r} 0.5 ] )")
+    for k, (x, y, th) in enumerate(maze.starts.tolist()):
+        pose = f"[ {x!r} {y!r} 0 {math.degrees(th)!r} ]"
+        lines.append(f'position( name "r{k}" pose {pose} size [ 0.4 0.4 0.2 ] )')
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_mbn_evaluate_judges_a_stage_world_as_its_grid_twin(tmp_path, capsys):
+    drive = make_ctrnn(np.zeros((3, 3)), np.zeros((3, 3)), 0.5, bias=[0.0, 0.4, 3.0])
+    save_controller(tmp_path / "c.json", CTRNNControllerSpec(drive, behavior="right"))
+    world = _as_world(load_maze("fig4"), tmp_path / "fig4.world")
+    results = []
+    for maze in ("fig4", str(world)):
+        argv = ["evaluate", "--controller", str(tmp_path / "c.json"), "--maze", maze]
+        assert main([*argv, "--behavior", "right", "--repeats", "2", "--json"]) == 0
+        results.append(json.loads(capsys.readouterr().out))
+    assert results[0] == results[1] and results[0]["junctions"] > 0
