@@ -36,13 +36,16 @@ def _grid_maze(path: Path, n: int, open_room: bool = False) -> Path:
 
 
 def _peak(code: str) -> tuple[float, float]:
-    """Wall seconds and peak resident memory (MB) of ``code`` in a fresh Python."""
+    """Wall seconds and peak resident memory (MB, the process's own high-water mark: ``VmHWM``;
+    ``ru_maxrss`` can carry the parent's) of ``code`` in a fresh Python."""
     script = textwrap.dedent(
         """
-        import resource, sys, time
+        import time
         t = time.perf_counter()
         {code}
-        print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+        status = open("/proc/self/status").read()
+        hwm = [line for line in status.splitlines() if line.startswith("VmHWM:")][0]
+        print(time.perf_counter() - t, int(hwm.split()[1]) / 1024)
         """
     ).format(code=code)
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
