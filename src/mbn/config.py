@@ -19,7 +19,6 @@ field as a comment. The schema checks are those of :mod:`mbn.io`.
 from __future__ import annotations
 
 import dataclasses
-import math
 import re
 import tomllib
 import types
@@ -30,7 +29,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from mbn.errors import MbnInputError
-from mbn.io import integer_digits
+from mbn.io import expect_number, integer_digits
 
 __all__ = [
     "Settings",
@@ -102,16 +101,7 @@ def _check_scalar(value: Any, hint: Any, meta: Mapping[str, Any], where: str) ->
         if abs(value) > 2**53:
             raise MbnInputError(f"{where}: {integer_digits(value)}-digit integer is too large")
     elif hint is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise MbnInputError(f"{where}: expected a number, got {_clip(repr(value))}")
-        try:
-            value = float(value)
-        except OverflowError:
-            raise MbnInputError(
-                f"{where}: {len(str(abs(value)))}-digit number is too large"
-            ) from None
-        if not math.isfinite(value):
-            raise MbnInputError(f"{where}: expected a finite number, got {value!r}")
+        value = expect_number(value, where)
     elif hint is str:
         if not isinstance(value, str):
             raise MbnInputError(f"{where}: expected a string, got {value!r}")
