@@ -206,3 +206,45 @@ class _Fixed:
 
     def parse_args(self, argv):
         return self.namespace
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 64 kB file system (tmpfs), full but for a few kB, and a read-only one; skipped where
+    file systems cannot be mounted (not root, or no mount)."""
+    import shutil
+    import subprocess
+
+    if shutil.which("mount") is None:
+        pytest.skip("no mount command")
+    full, ro = tmp_path / "full", tmp_path / "ro"
+    full.mkdir()
+    ro.mkdir()
+    mounted = []
+    try:
+        for where, options in ((full, "size=64k"), (ro, "size=64k,ro")):
+            done = subprocess.run(
+                ["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(where)],
+                capture_output=True,
+            )
+            if done.returncode != 0:
+                pytest.skip("cannot mount a tmpfs here")
+            mounted.append(where)
+        (full / "filler").write_bytes(b"\0" * 60_000)
+        yield full, ro
+    finally:
+        for where in mounted:
+            subprocess.run(["umount", str(where)], capture_output=True)
+
+
+def test_a_full_disk_and_a_read_only_folder_are_one_line_each(tmp_path, capsys, small_disk):
+    full, ro = small_disk
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text("x1,x2\n" + "0.25,0.5\n" * 20_000)
+    assert main(["mul", "eval", "--pairs", str(pairs), "--out", str(full / "o.csv")]) == 2
+    _one_line(capsys, str(full / "o.csv"), "No space left on device")
+    assert sorted(p.name for p in full.iterdir()) == ["filler"]  # no half-written or temp file
+    assert main(["mul", "eval", "--pairs", str(pairs), "--out", str(ro / "o.csv")]) == 2
+    _one_line(capsys, str(ro / "o.csv"), "Read-only file system")
+    assert main(["reproduce", "--quick", "--out", str(ro / "run")]) == 2
+    _one_line(capsys, str(ro / "run"), "cannot write")
