@@ -34,6 +34,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.world.geometry import rect_segments
 from mbn.world.mazes.model import Maze
 from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
 
@@ -434,8 +435,6 @@ def _csr(
 
 
 def _compile_segments(mazes: list[Maze] | tuple[Maze, ...]) -> World:
-    from mbn.world.geometry import rect_segments
-
     ray_reach = SONAR_MAX_RANGE + _RING_RADIUS
     tol = 1e-6
     origins, cells, shapes, offsets = [], [], [], []
