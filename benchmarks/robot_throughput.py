@@ -4,7 +4,10 @@ One robot-step is 100 ms of simulated time for one robot: 10 sonars (the paper's
 collision test, the kinematics, and a 3-neuron CTRNN controller sub-stepped at h/tau = 0.05
 (tau = 0.5 s: 4 Euler sub-steps). Batches: 126 (one DE generation, 18 controllers x the 7
 crossroad mazes) and 4096 (robots spread over the 7 crossroads); and 4096 robots in a generated
-30 x 30-cell corridor maze. Prints one JSON line; compile time is measured apart from run time.
+30 x 30-cell corridor maze; and 4096 robots in a world that is not a grid (a 12 x 12-cell
+corridor maze stretched by sqrt(2) / 1.4, so that its walls share no lattice step: the engine's
+segment path).
+Prints one JSON line; compile time is measured apart from run time.
 
     python benchmarks/robot_throughput.py [--steps 200] [--repeats 3]
 """
@@ -13,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import time
@@ -64,6 +68,21 @@ def measure(mazes: list[Maze], batch: int, steps: int, repeats: int) -> dict:
     }
 
 
+def non_grid_maze() -> Maze:
+    """A 12 x 12-cell corridor maze stretched by sqrt(2) / 1.4: walls on no common step (the
+    engine's segment path)."""
+    base = corridor_maze(12, 12, seed=1, loops=0.1, starts=64)
+    k = math.sqrt(2) / 1.4
+    x0, x1, y0, y1 = base.bounds
+    return Maze(
+        "stretched",
+        walls=base.walls * k,
+        bounds=(x0 * k, x1 * k, y0 * k, y1 * k),
+        starts=base.starts * np.array([k, k, 1.0]),
+        outside_is_wall=True,
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=200)
@@ -78,6 +97,9 @@ def main() -> None:
         figures[str(batch)] = m["robot_steps_per_s"]
         compile_s[str(batch)] = m["compile_s"]
     big = measure([large], 4096, args.steps, args.repeats)
+    stretched = non_grid_maze()
+    assert compile_mazes([stretched]).mode == "segments"
+    odd = measure([stretched], 4096, args.steps, args.repeats)
     result = {
         "benchmark": "robot_throughput",
         "unit": "robot-steps/s (100 ms steps, 10 sonars, 3-neuron CTRNN x 4 sub-steps, float32)",
@@ -85,8 +107,11 @@ def main() -> None:
         "robot_steps_per_s": figures,
         "robot_steps_per_s_large_maze": big["robot_steps_per_s"],
         "large_over_crossroads": big["robot_steps_per_s"] / figures["4096"],
+        "robot_steps_per_s_non_grid": odd["robot_steps_per_s"],
+        "non_grid_over_crossroads": odd["robot_steps_per_s"] / figures["4096"],
         "compile_s": max(compile_s.values()),
-        "compile_s_by_batch": compile_s | {"large_4096": big["compile_s"]},
+        "compile_s_by_batch": compile_s
+        | {"large_4096": big["compile_s"], "non_grid_4096": odd["compile_s"]},
         "machine": {
             "platform": platform.platform(),
             "processor": platform.processor() or platform.machine(),

@@ -74,6 +74,67 @@ def test_drive_into_a_wall_stalls(tmp_path):
     assert y.max() + 0.21085 <= 8.4  # the front never passes the end wall
 
 
+def test_drive_in_chunks_equals_one_run(tmp_path, monkeypatch):
+    args = ["drive", "--maze", "fig4", "--start", "4.2,11.4,0", "--cmd", "0.5,0.3"]
+    one, chunked = tmp_path / "one.csv", tmp_path / "chunked.csv"
+    assert main([*args, "--seconds", "60", "--out", str(one)]) == 0  # one chunk of 600 moves
+    monkeypatch.setattr("mbn.cli.world._DRIVE_CHUNK", 77)
+    assert main([*args, "--seconds", "60", "--out", str(chunked)]) == 0
+    assert one.read_text() == chunked.read_text()
+    assert sum(int(r["stall"]) for r in _rows(one)) > 0
+
+
+# the TOML example of docs/mazes.md (its edges on a 0.1 m step: the segment path)
+DOCS_TOML = """\
+[[free]]
+xmin = 0.0
+xmax = 6.0
+ymin = 0.0
+ymax = 1.2
+[[wall]]
+xmin = 2.0
+xmax = 2.4
+ymin = 0.0
+ymax = 0.3
+[[tile]]
+x = 4.0
+y = 0.6
+colors = 2
+heading = 0
+[[start]]
+x = 0.6
+y = 0.6
+theta = 0
+"""
+
+
+def test_sonar_and_drive_in_a_world_that_is_not_a_grid(tmp_path):
+    from mbn.world.geometry import collides, rect_segments, sonar_ranges
+    from mbn.world.mazes.load import load_maze
+
+    maze_file = tmp_path / "corridor.toml"
+    maze_file.write_text(DOCS_TOML.replace("2.4", "2.43").replace("0.3", "0.31"))
+    rng = np.random.default_rng(0)
+    poses = np.stack(
+        [rng.uniform(0.5, 1.6, 50), rng.uniform(0.45, 0.75, 50), rng.uniform(-3, 3, 50)], -1
+    )
+    pfile = tmp_path / "poses.csv"
+    pfile.write_text("x,y,theta\n" + "".join(f"{x!r},{y!r},{t!r}\n" for x, y, t in poses.tolist()))
+    out = tmp_path / "ranges.csv"
+    assert main(["sonar", "--maze", str(maze_file), "--poses", str(pfile), "--out", str(out)]) == 0
+    ours = np.array([[float(r[f"s{i:02d}"]) for i in range(16)] for r in _rows(out)])
+    maze = load_maze(str(maze_file))
+    exact = np.asarray(sonar_ranges(poses, rect_segments(maze.solid_rects())))
+    np.testing.assert_allclose(ours, exact, rtol=0, atol=2e-5)
+    drive = tmp_path / "drive.csv"
+    args = ["drive", "--maze", str(maze_file), "--start", "0.6,0.45,0", "--cmd", "0.5,0"]
+    assert main([*args, "--seconds", "10", "--out", str(drive)]) == 0
+    rows = _rows(drive)
+    pose = np.array([[float(r[k]) for k in ("x", "y", "theta")] for r in rows])
+    assert int(rows[-1]["stall"]) == 1 and pose[:, 0].max() > 1.7  # stopped by the wall at 2 m
+    assert not np.asarray(collides(pose, maze.solid_rects())).any()
+
+
 @pytest.mark.parametrize(
     "args,message",
     [

@@ -23,6 +23,10 @@ EPILOG = """\
 """
 
 
+#: Moves per jitted chunk of ``mbn drive`` (the trajectory of one chunk is held in memory).
+_DRIVE_CHUNK = 20_000
+
+
 def _triple(text: str) -> tuple[float, float, float]:
     return numbers(text, 3)  # type: ignore[return-value]
 
@@ -191,23 +195,35 @@ def _cmd_drive(args: argparse.Namespace) -> int:
     def constant(state: Any, obs: Any) -> tuple[Any, tuple[Any, Any]]:
         return state, (jnp.asarray(v_cmd), jnp.asarray(w_cmd))
 
-    config = RolloutConfig(steps=steps + 1, dt=args.dt, record_every=1)
-    out = jax.jit(
+    # in chunks of at most _DRIVE_CHUNK moves, each from the last pose of the one before (the
+    # constant command has no state): memory stays bounded whatever the duration
+    chunk = min(steps, _DRIVE_CHUNK)
+    config = RolloutConfig(steps=chunk + 1, dt=args.dt, record_every=1)
+    run = jax.jit(
         lambda p: rollout(world, constant, jnp.zeros(1), p, jnp.zeros(1, jnp.int32), config)
-    )(jnp.asarray(start[None]))
-    tr = out.trajectory
-    assert tr is not None
-    pose = np.asarray(tr.pose[0])  # sample k: the pose after k moves
-    stalled = np.asarray(tr.stalled[0]).astype(int)
-    v = np.concatenate([[0.0], np.asarray(tr.v[0])[:-1]])  # the move that led to sample k
-    w = np.concatenate([[0.0], np.asarray(tr.w[0])[:-1]])
+    )
+    n_stalled = 0
+    here = jnp.asarray(start[None])
     with atomic_open(args.out) as handle:
         handle.write("step,t,x,y,theta,v,w,stall\n")
-        for k in range(steps + 1):
-            x, y, th = (repr(float(c)) for c in pose[k])
-            handle.write(
-                f"{k},{k * args.dt!r},{x},{y},{th},{float(v[k])!r},{float(w[k])!r},"
-                f"{int(stalled[k])}\n"
-            )
-    print(f"wrote {steps + 1} rows to {args.out} ({int(stalled.sum())} stalled moves)")
+        for base in range(0, steps, chunk):
+            tr = run(here).trajectory
+            assert tr is not None
+            pose = np.asarray(tr.pose[0])  # sample k: the pose after base + k moves
+            stalled = np.asarray(tr.stalled[0]).astype(int)
+            v = np.concatenate([[0.0], np.asarray(tr.v[0])[:-1]])  # the move that led to it
+            w = np.concatenate([[0.0], np.asarray(tr.w[0])[:-1]])
+            first = 0 if base == 0 else 1
+            last = min(chunk, steps - base)
+            n_stalled += int(stalled[1 : last + 1].sum())
+            lines = []
+            for k in range(first, last + 1):
+                x, y, th = (repr(float(c)) for c in pose[k])
+                lines.append(
+                    f"{base + k},{(base + k) * args.dt!r},{x},{y},{th},{float(v[k])!r},"
+                    f"{float(w[k])!r},{int(stalled[k])}\n"
+                )
+            handle.write("".join(lines))
+            here = jnp.asarray(pose[last][None])
+    print(f"wrote {steps + 1} rows to {args.out} ({n_stalled} stalled moves)")
     return 0

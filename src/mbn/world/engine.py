@@ -11,6 +11,12 @@ ray reaches (5 m plus the sonar ring's radius), is packed into a few 32-bit word
 gathers its cell's words once; the march then tests bits in registers. The cost of a robot step is
 therefore independent of the maze's size: a 30 x 30 maze costs what a crossroad costs.
 
+Worlds that are not grids (walls on a fine step or on none, far-apart walls, huge extents) would
+make that lattice enormous; :func:`uses_lattice` sends them to the *segment path* instead: a
+coarse uniform grid of culling cells, each listing the wall segments a ray from a robot in it can
+reach and the wall rectangles its body can touch, cast and tested exactly (the formulas of
+:mod:`mbn.world.geometry`). Its memory grows with the walls, not with the extent or a lattice.
+
 Everything here is pure JAX over a flat batch of robots; each robot carries the index of its maze.
 """
 
@@ -20,7 +26,7 @@ import math
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import partial
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -28,12 +34,17 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.world.geometry import rect_segments
 from mbn.world.mazes.model import Maze
 from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
 
 __all__ = [
     "CAMERA_POSITION",
+    "LATTICE_MAX_BYTES",
+    "LATTICE_MAX_WORDS",
     "MIN_LATTICE_CELL",
+    "SEGMENT_MAX_CELLS",
+    "SEGMENT_MIN_CELL",
     "CameraConfig",
     "CameraReading",
     "World",
@@ -44,12 +55,22 @@ __all__ = [
     "maze_constants",
     "see_tiles",
     "tile_under",
+    "uses_lattice",
     "window_words",
 ]
 
 #: Smallest lattice cell accepted when rasterising a maze given by rectangles (metres); a maze
 #: whose wall coordinates have no common divisor this large cannot be compiled.
 MIN_LATTICE_CELL = 0.05
+#: Lattice budget: a world takes the lattice path when its cells' windows need at most this many
+#: 32-bit words (cells of about 0.171 m or more) ...
+LATTICE_MAX_WORDS = 128
+#: ... and its packed window table at most this many bytes; otherwise the segment path.
+LATTICE_MAX_BYTES = 32 * 2**20
+#: Segment path: culling cells per maze at most (the cell grows with the extent) ...
+SEGMENT_MAX_CELLS = 65_536
+#: ... and at least this side (metres); grid mazes use their own cell.
+SEGMENT_MIN_CELL = 1.0
 #: Radius around the pose that holds every sonar origin and the body (metres).
 _RING_RADIUS = float(
     max(np.hypot(SONAR_POSES[:, 0], SONAR_POSES[:, 1]).max(), np.hypot(*BODY.T).max())
@@ -94,8 +115,17 @@ class CameraConfig:
         "tiles",
         "tile_colors",
         "outside_is_wall",
+        "segments",
+        "seg_start",
+        "seg_count",
+        "seg_flat",
+        "rects",
+        "rect_start",
+        "rect_count",
+        "rect_flat",
+        "row_solid",
     ],
-    meta_fields=["n_words", "n_march", "n_body"],
+    meta_fields=["n_words", "n_march", "n_body", "mode", "n_seg", "n_rect"],
 )
 @dataclass(frozen=True)
 class World:
@@ -108,6 +138,15 @@ class World:
     ``windows[k]`` packs the window of cell k (``nx * ny`` rows per maze, x-major, then one row for
     "outside the lattice"). Tiles: ``tiles[m, t] = (x, y, cos h, sin h, width, length)``,
     ``tile_colors[m, t]`` (0 = padding).
+
+    ``mode`` is ``"lattice"`` or ``"segments"`` (:func:`uses_lattice`). On the segment path
+    ``origin``, ``cell``, ``shape`` and ``offset`` describe each maze's grid of culling cells
+    (``half`` is 0 and ``windows`` a placeholder); row ``r`` (same layout as the lattice's rows)
+    lists the wall segments ``segments[seg_flat[seg_start[r] : seg_start[r] + seg_count[r]]]``
+    (``(x1, y1, x2, y2)``) that a ray from a robot in that cell can reach, and likewise the wall
+    rectangles ``rects`` (``(xmin, xmax, ymin, ymax)``) its body can touch; at most ``n_seg`` and
+    ``n_rect`` per row. ``row_solid[r]``: the row is the outside of a walled maze (solid).
+    On the lattice path these arrays are placeholders.
     """
 
     origin: Array
@@ -119,9 +158,28 @@ class World:
     tiles: Array
     tile_colors: Array
     outside_is_wall: Array
+    segments: Array
+    seg_start: Array
+    seg_count: Array
+    seg_flat: Array
+    rects: Array
+    rect_start: Array
+    rect_count: Array
+    rect_flat: Array
+    row_solid: Array
     n_words: int
     n_march: int
     n_body: int
+    mode: str = "lattice"
+    n_seg: int = 1
+    n_rect: int = 1
+
+    @property
+    def n_rows(self) -> int:
+        """Rows of the per-cell tables (every maze's cells plus one "outside" row each)."""
+        if self.mode == "segments":
+            return int(self.seg_start.shape[0])
+        return int(self.windows.shape[0])
 
 
 def _rational_gcd(values: list[float]) -> float | None:
@@ -162,12 +220,51 @@ def lattice_cell(maze: Maze) -> tuple[float, tuple[float, float]]:
     return g, (x0, y0)
 
 
-def _occupancy(maze: Maze, g: float, origin: tuple[float, float], margin: int) -> np.ndarray:
-    """Solid cells ``(nx, ny)`` (x index first) of the lattice over the bounds plus ``margin``
-    cells on every side."""
+def _lattice_size(maze: Maze, g: float, origin: tuple[float, float]) -> tuple[int, int]:
+    """Lattice cells ``(nx, ny)`` over the maze's bounds (without margin)."""
     x0, x1, y0, y1 = maze.bounds
     nx_in = round((x1 - origin[0]) / g) if maze.outside_is_wall else math.ceil((x1 - x0) / g)
     ny_in = round((y1 - origin[1]) / g) if maze.outside_is_wall else math.ceil((y1 - y0) / g)
+    return nx_in, ny_in
+
+
+def _window_half(g: float) -> int:
+    return math.ceil((SONAR_MAX_RANGE + _RING_RADIUS) / g)
+
+
+def uses_lattice(mazes: list[Maze] | tuple[Maze, ...]) -> bool:
+    """Whether :func:`compile_mazes` puts these mazes on the exact lattice (else the segment path).
+
+    Every maze must have a lattice (:func:`lattice_cell`; a grid maze always has its own), the
+    windows must fit :data:`LATTICE_MAX_WORDS` words and the window table
+    :data:`LATTICE_MAX_BYTES` bytes. Lists of grid mazes always do.
+    """
+    cells, words = 0, 1
+    for maze in mazes:
+        try:
+            g, origin = lattice_cell(maze)
+        except MbnInputError:
+            return False
+        half = _window_half(g)
+        words = max(words, math.ceil((2 * half + 1) ** 2 / 32))
+        if words > LATTICE_MAX_WORDS:
+            return False
+        nx, ny = _lattice_size(maze, g, origin)
+        margin = 0 if maze.outside_is_wall else half
+        cells += (nx + 2 * margin) * (ny + 2 * margin) + 1
+        if cells * words * 4 > LATTICE_MAX_BYTES and not _all_grids(mazes):
+            return False
+    return True
+
+
+def _all_grids(mazes: list[Maze] | tuple[Maze, ...]) -> bool:
+    return all(m.grid is not None and m.cell is not None for m in mazes)
+
+
+def _occupancy(maze: Maze, g: float, origin: tuple[float, float], margin: int) -> np.ndarray:
+    """Solid cells ``(nx, ny)`` (x index first) of the lattice over the bounds plus ``margin``
+    cells on every side."""
+    nx_in, ny_in = _lattice_size(maze, g, origin)
     nx, ny = nx_in + 2 * margin, ny_in + 2 * margin
     occ = np.full((nx, ny), bool(maze.outside_is_wall))
     occ[margin : margin + nx_in, margin : margin + ny_in] = False
@@ -189,20 +286,30 @@ def _pack_windows(occ: np.ndarray, half: int, n_words: int, outside: bool) -> np
     pad = np.full((nx + 2 * half, ny + 2 * half), outside)
     pad[half : half + nx, half : half + ny] = occ
     view = np.lib.stride_tricks.sliding_window_view(pad, (side, side))  # (nx, ny, side, side)
-    bits = np.zeros((nx * ny + 1, n_words * 32), dtype=np.uint64)
-    bits[:-1, : side * side] = view.reshape(nx * ny, side * side)
-    bits[-1, : side * side] = outside
     weights = np.uint64(1) << np.arange(32, dtype=np.uint64)
-    words = (bits.reshape(-1, n_words, 32) * weights).sum(-1)
-    return words.astype(np.uint32)
+    out = np.empty((nx * ny + 1, n_words), dtype=np.uint32)
+    # a few x-columns of cells at a time, so that the unpacked bits stay small (about 64 MiB)
+    step = max(1, (1 << 23) // max(1, ny * n_words * 32))
+    for i in range(0, nx, step):
+        cols = view[i : i + step]
+        bits = np.zeros((cols.shape[0] * ny, n_words * 32), dtype=np.uint64)
+        bits[:, : side * side] = cols.reshape(-1, side * side)
+        out[i * ny : (i + cols.shape[0]) * ny] = (bits.reshape(-1, n_words, 32) * weights).sum(-1)
+    last = np.zeros((1, n_words * 32), dtype=np.uint64)
+    last[:, : side * side] = outside
+    out[-1] = (last.reshape(-1, n_words, 32) * weights).sum(-1)[0]
+    return out
 
 
 def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
-    """Compile mazes for :func:`cast`, :func:`collides_cells` and the camera (NumPy, once)."""
+    """Compile mazes for :func:`cast`, :func:`collides_cells` and the camera (NumPy, once): on the
+    exact lattice when :func:`uses_lattice`, else on the segment path."""
     if not mazes:
         raise MbnInputError("compile_mazes needs at least one maze")
+    if not uses_lattice(mazes):
+        return _compile_segments(mazes)
     lattices = [lattice_cell(m) for m in mazes]
-    halves = [math.ceil((SONAR_MAX_RANGE + _RING_RADIUS) / g) for g, _ in lattices]
+    halves = [_window_half(g) for g, _ in lattices]
     n_words = max(math.ceil((2 * h + 1) ** 2 / 32) for h in halves)
     n_march = max(2 * (math.ceil(SONAR_MAX_RANGE / g) + 1) for g, _ in lattices)
     n_body = max(math.ceil(2 * _BODY_RADIUS / g) + 1 for g, _ in lattices)
@@ -217,15 +324,8 @@ def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         table = _pack_windows(occ, half, n_words, bool(maze.outside_is_wall))
         tables.append(table)
         offset += table.shape[0]
-    n_tiles = max(1, max(len(m.tiles) for m in mazes))
-    tiles = np.zeros((len(mazes), n_tiles, 6))
-    colors = np.zeros((len(mazes), n_tiles), dtype=np.int32)
-    for k, maze in enumerate(mazes):
-        for t, tile in enumerate(maze.tiles):
-            h = tile.heading
-            tiles[k, t] = (tile.x, tile.y, math.cos(h), math.sin(h), tile.width, tile.length)
-            colors[k, t] = tile.colors
     dtype = jnp.zeros(()).dtype  # float32, or float64 under jax_enable_x64
+    tiles, colors = _tile_arrays(mazes)
     return World(
         origin=jnp.asarray(np.array(origins), dtype),
         cell=jnp.asarray(np.array([g for g, _ in lattices]), dtype),
@@ -236,9 +336,174 @@ def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         tiles=jnp.asarray(tiles, dtype),
         tile_colors=jnp.asarray(colors),
         outside_is_wall=jnp.asarray(np.array([m.outside_is_wall for m in mazes])),
+        segments=jnp.zeros((1, 4), dtype),
+        seg_start=jnp.zeros((1,), jnp.int32),
+        seg_count=jnp.zeros((1,), jnp.int32),
+        seg_flat=jnp.zeros((1,), jnp.int32),
+        rects=jnp.zeros((1, 4), dtype),
+        rect_start=jnp.zeros((1,), jnp.int32),
+        rect_count=jnp.zeros((1,), jnp.int32),
+        rect_flat=jnp.zeros((1,), jnp.int32),
+        row_solid=jnp.zeros((1,), bool),
         n_words=n_words,
         n_march=n_march,
         n_body=n_body,
+    )
+
+
+def _tile_arrays(mazes: list[Maze] | tuple[Maze, ...]) -> tuple[np.ndarray, np.ndarray]:
+    n_tiles = max(1, max(len(m.tiles) for m in mazes))
+    tiles = np.zeros((len(mazes), n_tiles, 6))
+    colors = np.zeros((len(mazes), n_tiles), dtype=np.int32)
+    for k, maze in enumerate(mazes):
+        for t, tile in enumerate(maze.tiles):
+            h = tile.heading
+            tiles[k, t] = (tile.x, tile.y, math.cos(h), math.sin(h), tile.width, tile.length)
+            colors[k, t] = tile.colors
+    return tiles, colors
+
+
+# ---------------------------------------------------------------------------------------------
+# the segment path: culling cells listing the segments and rectangles within reach
+
+
+def _culling_grid(maze: Maze, reach: float) -> tuple[float, tuple[float, float], tuple[int, int]]:
+    """``(cell, origin, (nx, ny))`` of a maze's culling cells: a grid maze's own cells; otherwise
+    square cells of at least :data:`SEGMENT_MIN_CELL` over the bounds (grown by ``reach`` when the
+    outside is open), at most :data:`SEGMENT_MAX_CELLS` of them."""
+    x0, x1, y0, y1 = maze.bounds
+    if maze.grid is not None and maze.cell is not None:
+        c = float(maze.cell)
+        return c, (x0, y0), (max(1, round((x1 - x0) / c)), max(1, round((y1 - y0) / c)))
+    if not maze.outside_is_wall:
+        x0, x1, y0, y1 = x0 - reach, x1 + reach, y0 - reach, y1 + reach
+    w, h = x1 - x0, y1 - y0
+    c = max(SEGMENT_MIN_CELL, math.sqrt(w * h / SEGMENT_MAX_CELLS))
+    while math.ceil(w / c) * math.ceil(h / c) > SEGMENT_MAX_CELLS:
+        c *= 1.05
+    return c, (x0, y0), (max(1, math.ceil(w / c)), max(1, math.ceil(h / c)))
+
+
+def _cell_lists(
+    boxes: np.ndarray,
+    reach: float,
+    c: float,
+    origin: tuple[float, float],
+    shape: tuple[int, int],
+) -> tuple[np.ndarray, np.ndarray]:
+    """For each culling cell (rows ``i * ny + j``), the items whose bounding box
+    ``boxes (N, 4) = (xmin, xmax, ymin, ymax)`` lies within ``reach`` of the cell: ``(rows, items)``
+    pairs sorted by row."""
+    nx, ny = shape
+    ox, oy = origin
+    rows: list[np.ndarray] = []
+    items: list[np.ndarray] = []
+    for n, (bx0, bx1, by0, by1) in enumerate(boxes):
+        i0 = max(0, math.floor((bx0 - reach - ox) / c))
+        i1 = min(nx - 1, math.floor((bx1 + reach - ox) / c))
+        j0 = max(0, math.floor((by0 - reach - oy) / c))
+        j1 = min(ny - 1, math.floor((by1 + reach - oy) / c))
+        if i1 < i0 or j1 < j0:
+            continue
+        i = np.arange(i0, i1 + 1)[:, None]
+        j = np.arange(j0, j1 + 1)[None, :]
+        gx = np.maximum(0.0, np.maximum(ox + i * c - bx1, bx0 - (ox + (i + 1) * c)))
+        gy = np.maximum(0.0, np.maximum(oy + j * c - by1, by0 - (oy + (j + 1) * c)))
+        near = gx**2 + gy**2 <= reach**2
+        ii, jj = np.nonzero(near)
+        rows.append((ii + i0) * ny + (jj + j0))
+        items.append(np.full(len(ii), n))
+    if not rows:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    r, it = np.concatenate(rows), np.concatenate(items)
+    order = np.argsort(r, kind="stable")
+    return r[order], it[order]
+
+
+def _csr(
+    pairs: list[tuple[np.ndarray, np.ndarray]], n_rows: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """``(start, count, flat, k_max)`` from ``(global row, global item)`` pairs sorted by row;
+    ``flat`` is padded by ``k_max`` so that ``flat[start + arange(k_max)]`` stays in bounds."""
+    rows = np.concatenate([p[0] for p in pairs]) if pairs else np.zeros(0, np.int64)
+    items = np.concatenate([p[1] for p in pairs]) if pairs else np.zeros(0, np.int64)
+    count = np.bincount(rows, minlength=n_rows).astype(np.int32)
+    start = (np.cumsum(count) - count).astype(np.int32)
+    k_max = max(1, int(count.max()) if len(count) else 1)
+    flat = np.concatenate([items, np.zeros(k_max, np.int64)]).astype(np.int32)
+    return start, count, flat, k_max
+
+
+def _compile_segments(mazes: list[Maze] | tuple[Maze, ...]) -> World:
+    ray_reach = SONAR_MAX_RANGE + _RING_RADIUS
+    tol = 1e-6
+    origins, cells, shapes, offsets = [], [], [], []
+    segs, rects = [], []
+    seg_pairs: list[tuple[np.ndarray, np.ndarray]] = []
+    rect_pairs: list[tuple[np.ndarray, np.ndarray]] = []
+    solid: list[np.ndarray] = []
+    row0 = n_seg0 = n_rect0 = 0
+    for maze in mazes:
+        c, origin, shape = _culling_grid(maze, ray_reach + tol)
+        scale = max(1.0, *(abs(v) for v in maze.bounds))
+        reach_tol = tol + 1e-9 * scale
+        r = np.asarray(maze.solid_rects(), dtype=np.float64).reshape(-1, 4)
+        sg = rect_segments(r)
+        seg_boxes = np.stack(
+            [
+                np.minimum(sg[:, 0], sg[:, 2]),
+                np.maximum(sg[:, 0], sg[:, 2]),
+                np.minimum(sg[:, 1], sg[:, 3]),
+                np.maximum(sg[:, 1], sg[:, 3]),
+            ],
+            -1,
+        )
+        sr, si = _cell_lists(seg_boxes, ray_reach + reach_tol, c, origin, shape)
+        rr, ri = _cell_lists(r, _BODY_RADIUS + reach_tol, c, origin, shape)
+        seg_pairs.append((sr + row0, si + n_seg0))
+        rect_pairs.append((rr + row0, ri + n_rect0))
+        n_cells = shape[0] * shape[1]
+        row_solid = np.zeros(n_cells + 1, bool)
+        row_solid[-1] = bool(maze.outside_is_wall)
+        solid.append(row_solid)
+        origins.append(origin)
+        cells.append(c)
+        shapes.append(shape)
+        offsets.append(row0)
+        segs.append(sg)
+        rects.append(r)
+        row0 += n_cells + 1
+        n_seg0 += len(sg)
+        n_rect0 += len(r)
+    seg_start, seg_count, seg_flat, n_seg = _csr(seg_pairs, row0)
+    rect_start, rect_count, rect_flat, n_rect = _csr(rect_pairs, row0)
+    dtype = jnp.zeros(()).dtype
+    tiles, colors = _tile_arrays(mazes)
+    return World(
+        origin=jnp.asarray(np.array(origins), dtype),
+        cell=jnp.asarray(np.array(cells), dtype),
+        shape=jnp.asarray(np.array(shapes), jnp.int32),
+        half=jnp.zeros(len(mazes), jnp.int32),
+        offset=jnp.asarray(np.array(offsets), jnp.int32),
+        windows=jnp.zeros((1, 1), jnp.uint32),
+        tiles=jnp.asarray(tiles, dtype),
+        tile_colors=jnp.asarray(colors),
+        outside_is_wall=jnp.asarray(np.array([m.outside_is_wall for m in mazes])),
+        segments=jnp.asarray(np.concatenate([*segs, np.zeros((1, 4))]), dtype),
+        seg_start=jnp.asarray(seg_start),
+        seg_count=jnp.asarray(seg_count),
+        seg_flat=jnp.asarray(seg_flat),
+        rects=jnp.asarray(np.concatenate([*rects, np.zeros((1, 4))]), dtype),
+        rect_start=jnp.asarray(rect_start),
+        rect_count=jnp.asarray(rect_count),
+        rect_flat=jnp.asarray(rect_flat),
+        row_solid=jnp.asarray(np.concatenate(solid)),
+        n_words=1,
+        n_march=0,
+        n_body=0,
+        mode="segments",
+        n_seg=n_seg,
+        n_rect=n_rect,
     )
 
 
@@ -276,11 +541,14 @@ def _cell_of(mc: MazeConstants, x: Array, y: Array) -> tuple[Array, Array]:
 
 def window_words(world: World, mc: MazeConstants, x: Array, y: Array) -> tuple[Array, Array, Array]:
     """The packed window ``(..., n_words)`` of the cell holding ``(x, y)``, and that cell's
-    lattice indices ``(i, j)``."""
+    lattice indices ``(i, j)``. On the segment path: the culling cell's table row ``(..., 1)``
+    (int32) and the culling cell's indices."""
     i, j = _cell_of(mc, x, y)
     nx, ny = mc.shape[..., 0], mc.shape[..., 1]
     inside = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
     row = jnp.where(inside, mc.offset + i * ny + j, mc.offset + nx * ny)
+    if world.mode == "segments":
+        return row[..., None], i, j
     return world.windows[row], i, j
 
 
@@ -314,6 +582,8 @@ def cast(
     ray origins ``ox, oy`` and headings ``angle`` of shape ``(B, k)``, each origin within
     ``_RING_RADIUS`` of the robot's pose and in free space.
     """
+    if world.mode == "segments":
+        return _cast_segments(world, words, ox, oy, angle, max_range)
     cell = mc.cell[..., None]
     dx, dy = jnp.cos(angle), jnp.sin(angle)
     gx = (ox - mc.origin[..., 0:1]) / cell
@@ -346,6 +616,74 @@ def cast(
     return jnp.minimum(dist, max_range)
 
 
+def _gather(
+    start: Array, count: Array, flat: Array, table: Array, k: int, row: Array, dtype: Any
+) -> tuple[Array, Array]:
+    """The items ``(B, k, 4)`` listed for table rows ``row (B,)`` and which are real ``(B, k)``."""
+    slot = jnp.arange(k)
+    ids = flat[start[row][:, None] + slot]
+    return table[ids].astype(dtype), slot < count[row][:, None]
+
+
+def _cast_segments(
+    world: World, words: Array, ox: Array, oy: Array, angle: Array, max_range: float | Array
+) -> Array:
+    """:func:`cast` on the segment path: the exact caster of :func:`mbn.world.geometry.cast_rays`
+    over the segments listed for each robot's culling cell (``words[:, 0]``: its row)."""
+    row = words[:, 0]
+    seg, valid = _gather(
+        world.seg_start, world.seg_count, world.seg_flat, world.segments, world.n_seg, row, ox.dtype
+    )
+    dx, dy = jnp.cos(angle)[..., None], jnp.sin(angle)[..., None]  # (B, k, 1)
+    px, py = seg[:, None, :, 0], seg[:, None, :, 1]  # (B, 1, S)
+    ex, ey = seg[:, None, :, 2] - px, seg[:, None, :, 3] - py
+    wx, wy = px - ox[..., None], py - oy[..., None]
+    denom = dx * ey - dy * ex
+    ok = (jnp.abs(denom) > 1e-12) & valid[:, None, :]
+    safe = jnp.where(ok, denom, 1.0)
+    t = (wx * ey - wy * ex) / safe
+    s = (wx * dy - wy * dx) / safe
+    hit = ok & (t >= 0.0) & (s >= 0.0) & (s <= 1.0)
+    dist = jnp.min(jnp.where(hit, t, jnp.inf), axis=-1)
+    dist = jnp.where(world.row_solid[row][:, None], 0.0, dist)
+    return jnp.minimum(dist, max_range)
+
+
+def _collides_rects(world: World, words: Array, pose: Array) -> Array:
+    """:func:`collides_cells` on the segment path: the separating-axis test of
+    :func:`mbn.world.geometry.collides` against the rectangles listed for the pose's culling cell;
+    the outside of a walled maze is solid."""
+    row = words[:, 0]
+    r, valid = _gather(
+        world.rect_start,
+        world.rect_count,
+        world.rect_flat,
+        world.rects,
+        world.n_rect,
+        row,
+        pose.dtype,
+    )
+    th = pose[:, 2:3]
+    c, s = jnp.cos(th), jnp.sin(th)
+    bx = jnp.asarray(BODY[:, 0], pose.dtype)
+    by = jnp.asarray(BODY[:, 1], pose.dtype)
+    px = pose[:, 0:1] + c * bx - s * by  # (B, 8)
+    py = pose[:, 1:2] + s * bx + c * by
+    sep = (jnp.max(px, -1)[:, None] <= r[..., 0]) | (jnp.min(px, -1)[:, None] >= r[..., 1])
+    sep = sep | (jnp.max(py, -1)[:, None] <= r[..., 2]) | (jnp.min(py, -1)[:, None] >= r[..., 3])
+    cx = jnp.stack([r[..., 0], r[..., 1], r[..., 1], r[..., 0]], -1)  # (B, K, 4) corners
+    cy = jnp.stack([r[..., 2], r[..., 2], r[..., 3], r[..., 3]], -1)
+    for a in range(len(_AXES)):
+        ax, ay = float(_AXES[a, 0]), float(_AXES[a, 1])
+        nx, ny = c * ax - s * ay, s * ax + c * ay  # (B, 1) world-frame normal
+        proj_body = px * nx + py * ny  # (B, 8)
+        bmin = jnp.min(proj_body, -1, keepdims=True)
+        bmax = jnp.max(proj_body, -1, keepdims=True)
+        proj = cx * nx[..., None] + cy * ny[..., None]
+        sep = sep | (bmax <= jnp.min(proj, -1)) | (bmin >= jnp.max(proj, -1))
+    return jnp.any(valid & ~sep, axis=-1) | world.row_solid[row]
+
+
 # Body octagon projected on its own edge normals (robot frame): the separating axes of the SAT.
 def _body_axes() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     edges = np.roll(BODY, -1, axis=0) - BODY
@@ -370,8 +708,11 @@ def collides_cells(
 
     ``words, ci, cj`` describe the window of the cell holding the pose. Separating-axis test of the
     octagon against each solid cell under the body's bounding square (``n_body`` cells a side):
-    the two lattice axes and the octagon's edge normals.
+    the two lattice axes and the octagon's edge normals. On the segment path: against the wall
+    rectangles listed for the pose's culling cell.
     """
+    if world.mode == "segments":
+        return _collides_rects(world, words, pose)
     n = world.n_body
     d = jnp.arange(n)
     di = jnp.repeat(d, n)

@@ -438,7 +438,7 @@ def rollout(
         tiles=world.tiles.astype(dtype),
     )
     if junctions is None:
-        junctions = jnp.full((int(world.windows.shape[0]), 4, 2), -1, jnp.int8)
+        junctions = jnp.full((world.n_rows, 4, 2), -1, jnp.int8)
     scene = Scene(
         world=world,
         mc=maze_constants(world, maze_index),

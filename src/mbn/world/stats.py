@@ -83,7 +83,7 @@ def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
     N, E, S, W; right rule, left rule); -1 where the cell is not a decision cell."""
     from mbn.world.junctions import junction_tables
 
-    total = int(world.windows.shape[0])
+    total = world.n_rows
     out = np.full((total, 4, 2), -1, dtype=np.int8)
     shapes = np.asarray(world.shape)
     offsets = np.asarray(world.offset)

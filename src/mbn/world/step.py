@@ -73,7 +73,8 @@ T = TypeVar("T")
 class Place(NamedTuple):
     """Where robots are: ``pose (B, 3)`` = (x, y, theta) and the lattice cell holding (x, y) with
     its packed window of the cells around it (:func:`mbn.world.engine.window_words`):
-    ``words (B, n_words)`` uint32, cell indices ``ci``, ``cj (B,)`` int32."""
+    ``words (B, n_words)`` uint32, cell indices ``ci``, ``cj (B,)`` int32. On the engine's segment
+    path the cell is a culling cell and ``words (B, 1)`` its table row (int32)."""
 
     pose: Array
     words: Array
