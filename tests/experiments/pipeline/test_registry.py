@@ -106,6 +106,9 @@ class _Named(Stage):
         self.key_id = key_id  # type: ignore[misc]
         self.needs = needs  # type: ignore[misc]
 
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        return {}
+
 
 @pytest.mark.parametrize(
     ("stages", "message"),

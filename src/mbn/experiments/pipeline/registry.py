@@ -10,6 +10,7 @@ it but the bulky ``details``).
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Iterator, Sequence
 from typing import Any, ClassVar
 
@@ -19,7 +20,7 @@ from mbn.experiments.pipeline.context import StageContext
 __all__ = ["Registry", "Stage"]
 
 
-class Stage:
+class Stage(abc.ABC):
     """Base of the stages: set the class attributes, implement :meth:`run` and :meth:`summary`.
 
     Attributes:
@@ -38,8 +39,9 @@ class Stage:
     settings: ClassVar[type[Settings] | None] = None
     outputs: ClassVar[tuple[str, ...]] = ()
 
+    @abc.abstractmethod
     def run(self, ctx: StageContext) -> dict[str, Any]:
-        raise NotImplementedError
+        """Do the stage's work (writing through ``ctx.rundir``); return its data (JSON)."""
 
     def summary(self, data: dict[str, Any]) -> str:
         return "done"
