@@ -1,15 +1,22 @@
 """Robot throughput: robot-steps per second of batched, jitted episodes.
 
 One robot-step is 100 ms of simulated time for one robot: 10 sonars (the paper's), the
-collision test, the kinematics, and a 3-neuron CTRNN controller sub-stepped at h/tau = 0.05
-(tau = 0.5 s: 4 Euler sub-steps). Batches: 126 (one DE generation, 18 controllers x the 7
-crossroad mazes) and 4096 (robots spread over the 7 crossroads); and 4096 robots in a generated
-30 x 30-cell corridor maze; and 4096 robots in a world that is not a grid (a 12 x 12-cell
-corridor maze stretched by sqrt(2) / 1.4, so that its walls share no lattice step: the engine's
-segment path).
+collision test, the kinematics, and a controller. The world cases use a 3-neuron CTRNN
+sub-stepped at h/tau = 0.05 (tau = 0.5 s: 4 Euler sub-steps). Batches: 126 (one DE generation,
+18 controllers x the 7 crossroad mazes) and 4096 (robots spread over the 7 crossroads); and 4096
+robots in a generated 30 x 30-cell corridor maze; and 4096 robots in a world that is not a grid
+(a 12 x 12-cell corridor maze stretched by sqrt(2) / 1.4, so that its walls share no lattice
+step: the engine's segment path).
+
+The workload cases (``workload``) run what the experiment runs, built from controller files the
+way ``mbn evaluate`` and the test stage load them (``mbn.controllers.make_controller``): the
+3-neuron follower at ``NETWORK_SUBSTEPS`` (20 sub-steps of 5 ms), the 21-neuron interpreter of a
+follower with 3 programmable connections (6-neuron multipliers) running a program, and the whole
+MBN (program module, interpreter and camera) in ``fig4``, which has tiles; batches 126 and 4096.
+
 Prints one JSON line; compile time is measured apart from run time.
 
-    python benchmarks/robot_throughput.py [--steps 200] [--repeats 3]
+    python benchmarks/robot_throughput.py [--steps 200] [--repeats 3] [--only workload|world]
 """
 
 from __future__ import annotations
@@ -26,9 +33,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from mbn.control.ctrnn import ctrnn_controller, initial_state, substeps_for
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    make_controller,
+)
 from mbn.networks.ctrnn import make_ctrnn
+from mbn.networks.multiplier import load_default
+from mbn.networks.programmable import build_interpreter, differing_connections
 from mbn.world.engine import compile_mazes
-from mbn.world.mazes.builtin import CROSSROAD_KINDS, crossroad
+from mbn.world.mazes.builtin import CROSSROAD_KINDS, builtin_maze, crossroad
 from mbn.world.mazes.generate import corridor_maze
 from mbn.world.mazes.model import Maze
 from mbn.world.rollout import RolloutConfig, junction_arrays, rollout
@@ -68,6 +83,86 @@ def measure(mazes: list[Maze], batch: int, steps: int, repeats: int) -> dict:
     }
 
 
+def measure_loaded(mazes: list[Maze], batch: int, steps: int, repeats: int, loaded) -> dict:
+    """Like :func:`measure` for a controller made from a spec (``make_controller``)."""
+    world = compile_mazes(mazes)
+    junctions = junction_arrays(mazes, world)
+    maze_index = np.arange(batch) % len(mazes)
+    poses = np.stack([mazes[m].starts[i % len(mazes[m].starts)] for i, m in enumerate(maze_index)])
+    config = RolloutConfig(steps=steps, sensors=loaded.sensors, camera=loaded.camera)
+    run = jax.jit(
+        lambda state, p, m: rollout(
+            world, loaded.controller, state, p, m, config, junctions=junctions
+        )
+    )
+    args = (loaded.initial_state(batch), jnp.asarray(poses, jnp.float32), jnp.asarray(maze_index))
+    start = time.perf_counter()
+    out = jax.block_until_ready(run(*args))
+    compile_s = time.perf_counter() - start
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = jax.block_until_ready(run(*args))
+        best = min(best, time.perf_counter() - start)
+    return {
+        "robot_steps_per_s": batch * steps / best,
+        "compile_s": compile_s,
+        "run_s": best,
+        "stall_fraction": float(np.mean(out.stats.stall_fraction)),
+    }
+
+
+def workload_specs() -> dict:
+    """The experiment's three controllers, float32: a follower (genes in +-20, the evolution's
+    bound), the interpreter of it with the 3 connections where a left-follower differs
+    programmable (the paper's W_23, WE_21, WE_22), and an MBN with a program module."""
+    rng = np.random.default_rng(0)
+    f32 = np.float32
+    rf = make_ctrnn(rng.uniform(-20, 20, (3, 3)), rng.uniform(-20, 20, (3, 3)), 0.5, dtype=f32)
+    W, WE = np.array(rf.W), np.array(rf.WE)
+    W[1, 2] += 8.0
+    WE[1, 0] -= 6.0
+    WE[1, 1] += 5.0
+    lf = make_ctrnn(W, WE, 0.5, dtype=f32)
+    interp = build_interpreter(rf, differing_connections(rf, lf, margin=0.0), load_default(6))
+    programs = {
+        "right": np.asarray(interp.program_of(rf), float).tolist(),
+        "left": np.asarray(interp.program_of(lf), float).tolist(),
+    }
+    im = InterpreterControllerSpec(interpreter=interp, programs=programs)
+    pm = make_ctrnn(
+        rng.uniform(-10, 10, (3, 3)),
+        rng.uniform(-10, 10, (3, 2)),
+        0.5,
+        bias=rng.uniform(-10, 10, 3),
+        dtype=f32,
+    )
+    return {
+        "follower": CTRNNControllerSpec(net=rf),
+        "interpreter": im,
+        "mbn": MBNControllerSpec(interpreter_spec=im, program_module=pm, program_neurons=(0, 1, 2)),
+        "neurons": int(interp.num_neurons),
+    }
+
+
+def workload(steps: int, repeats: int) -> dict:
+    """Robot-steps/s of the experiment's controllers (see the module's docstring)."""
+    specs = workload_specs()
+    crossroads = [crossroad(kind) for kind in CROSSROAD_KINDS]
+    fig4 = [builtin_maze("fig4")]
+    out: dict = {"interpreter_neurons": specs["neurons"]}
+    compile_s: dict = {}
+    for name, mazes in (("follower", crossroads), ("interpreter", crossroads), ("mbn", fig4)):
+        program = "left" if name == "interpreter" else None
+        loaded = make_controller(specs[name], program, check_stability=False)
+        for batch in (126, 4096):
+            m = measure_loaded(mazes, batch, steps, repeats, loaded)
+            out[f"{name}_{batch}"] = m["robot_steps_per_s"]
+            compile_s[f"{name}_{batch}"] = m["compile_s"]
+    out["compile_s"] = compile_s
+    return out
+
+
 def non_grid_maze() -> Maze:
     """A 12 x 12-cell corridor maze stretched by sqrt(2) / 1.4: walls on no common step (the
     engine's segment path)."""
@@ -83,11 +178,37 @@ def non_grid_maze() -> Maze:
     )
 
 
+def machine() -> dict:
+    return {
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "device": str(jax.devices()[0]),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--only", choices=("workload", "world"), default=None, help="run one group of cases"
+    )
     args = parser.parse_args()
+    if args.only == "workload":
+        print(
+            json.dumps(
+                {
+                    "benchmark": "robot_throughput",
+                    "unit": "robot-steps/s (100 ms steps, 10 sonars, float32)",
+                    "num_steps": args.steps,
+                    "workload": workload(args.steps, args.repeats),
+                    "machine": machine(),
+                    "versions": {"jax": jax.__version__, "numpy": np.__version__},
+                }
+            )
+        )
+        return
     crossroads = [crossroad(kind) for kind in CROSSROAD_KINDS]
     large = corridor_maze(30, 30, seed=0, loops=0.1, starts=64)
     figures: dict = {}
@@ -102,6 +223,7 @@ def main() -> None:
     odd = measure([stretched], 4096, args.steps, args.repeats)
     result = {
         "benchmark": "robot_throughput",
+        "workload": {} if args.only == "world" else workload(args.steps, args.repeats),
         "unit": "robot-steps/s (100 ms steps, 10 sonars, 3-neuron CTRNN x 4 sub-steps, float32)",
         "num_steps": args.steps,
         "robot_steps_per_s": figures,
@@ -112,12 +234,7 @@ def main() -> None:
         "compile_s": max(compile_s.values()),
         "compile_s_by_batch": compile_s
         | {"large_4096": big["compile_s"], "non_grid_4096": odd["compile_s"]},
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(),
-            "device": str(jax.devices()[0]),
-        },
+        "machine": machine(),
         "versions": {"jax": jax.__version__, "numpy": np.__version__},
     }
     print(json.dumps(result))
