@@ -42,7 +42,7 @@ from mbn.controllers import (
 from mbn.networks.ctrnn import make_ctrnn
 from mbn.networks.multiplier import load_default
 from mbn.networks.programmable import build_interpreter, differing_connections
-from mbn.world.engine import compile_mazes
+from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.mazes.builtin import CROSSROAD_KINDS, builtin_maze, crossroad
 from mbn.world.mazes.generate import corridor_maze
 from mbn.world.mazes.model import Maze
@@ -115,7 +115,8 @@ def measure_loaded(mazes: list[Maze], batch: int, steps: int, repeats: int, load
 def workload_specs() -> dict:
     """The experiment's three controllers, float32: a follower (genes in +-20, the evolution's
     bound), the interpreter of it with the 3 connections where a left-follower differs
-    programmable (the paper's W_23, WE_21, WE_22), and an MBN with a program module."""
+    programmable (the paper's W_23, WE_21, WE_22), and an MBN with a program module and the
+    camera the experiment trains it with (0.8 m)."""
     rng = np.random.default_rng(0)
     f32 = np.float32
     rf = make_ctrnn(rng.uniform(-20, 20, (3, 3)), rng.uniform(-20, 20, (3, 3)), 0.5, dtype=f32)
@@ -140,7 +141,12 @@ def workload_specs() -> dict:
     return {
         "follower": CTRNNControllerSpec(net=rf),
         "interpreter": im,
-        "mbn": MBNControllerSpec(interpreter_spec=im, program_module=pm, program_neurons=(0, 1, 2)),
+        "mbn": MBNControllerSpec(
+            interpreter_spec=im,
+            program_module=pm,
+            program_neurons=(0, 1, 2),
+            camera=CameraConfig(range=0.8),
+        ),
         "neurons": int(interp.num_neurons),
     }
 

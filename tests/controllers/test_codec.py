@@ -28,7 +28,7 @@ from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import make_ctrnn
 from mbn.networks.multiplier import load_default, multiplier_to_dict
 from mbn.networks.programmable import build_interpreter, differing_connections
-from mbn.world.rollout import Observation
+from mbn.world.rollout import Observation, map_controller
 from mbn.world.sensors import PAPER_SONARS, SensorConfig
 
 K = 3  # programmable connections of the test interpreter
@@ -109,10 +109,10 @@ _INTERPRETERS: dict = {}  # the test interpreter's controllers, by program (comp
 
 def _drive(loaded, cameras, n=2):
     """(v, w) of ``n`` robots over steps with the given camera readings (fixed sonar inputs)."""
-    if loaded.controller not in _STEPS:
-        _STEPS[loaded.controller] = jax.jit(jax.vmap(loaded.controller))
-    step = _STEPS[loaded.controller]
     state = loaded.initial_state(n)
+    if loaded.controller not in _STEPS:
+        _STEPS[loaded.controller] = jax.jit(map_controller(loaded.controller, state))
+    step = _STEPS[loaded.controller]
     out = []
     for c in cameras:
         state, (v, w) = step(state, _obs(n, camera=c))

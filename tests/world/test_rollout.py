@@ -7,13 +7,16 @@ import math
 from pathlib import Path
 
 import jax
+import jax.experimental
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mbn.control.ctrnn import ctrnn_controller, initial_state
+from mbn import paper
+from mbn.control.ctrnn import CTRNNState, ctrnn_controller, initial_state
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import make_ctrnn
+from mbn.precision import scope
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.geometry import collides
 from mbn.world.junctions import junction_sequence
@@ -22,6 +25,8 @@ from mbn.world.mazes.model import Maze
 from mbn.world.rollout import (
     EXIT_NAMES,
     RolloutConfig,
+    Shared,
+    concatenate_states,
     junction_arrays,
     rollout,
 )
@@ -292,3 +297,79 @@ def test_episode_batch_is_every_controller_times_every_start():
     assert c1.tolist() == [0, 0, 1, 1] and m1.tolist() == [0, 1, 0, 1]
     with pytest.raises(MbnInputError, match="n_controllers"):
         episode_batch(mazes, 0)
+
+
+def _interpreter_net():
+    from mbn.networks.multiplier import load_default
+    from mbn.networks.programmable import build_interpreter, differing_connections
+
+    rng = np.random.default_rng(4)
+    rf = make_ctrnn(rng.uniform(-8, 8, (3, 3)), rng.uniform(-8, 8, (3, 3)), 0.5)
+    W, WE = np.array(rf.W), np.array(rf.WE)
+    W[1, 2] += 4.0
+    WE[1, 0] -= 3.0
+    lf = make_ctrnn(W, WE, 0.5)
+    return build_interpreter(rf, differing_connections(rf, lf, margin=0.0), load_default(6)).net
+
+
+@pytest.mark.parametrize("kind", ["follower", "interpreter"])
+def test_a_shared_network_drives_as_a_batched_copy_of_it(kind):
+    """A network held once for the batch (:class:`Shared`) gives the episodes that a copy of it
+    per robot gives (float64: the same up to the order of the sums)."""
+    with scope("float64"):
+        if kind == "follower":
+            net = make_ctrnn(np.array(paper.W_RF) / 20, np.array(paper.WE_RF) / 20, 0.5)
+        else:
+            net = _interpreter_net()
+        n_in = net.num_inputs
+        ctrl = ctrnn_controller(
+            substeps=20, inputs=lambda obs: jnp.concatenate([obs.inputs, jnp.full(n_in - 3, 0.3)])
+        )
+        mazes = [crossroad(k) for k in ("L", "SR", "LSR")]
+        world = compile_mazes(mazes)
+        poses = jnp.asarray(np.stack([mazes[i % 3].starts[0] for i in range(6)]))
+        mi = jnp.asarray(np.arange(6) % 3)
+        y = jnp.zeros((6, net.num_neurons))
+        cfg = RolloutConfig(steps=120)
+        go = jax.jit(lambda s: rollout(world, ctrl, s, poses, mi, cfg))
+        shared = go(CTRNNState(Shared(net), y))
+        copies = go(CTRNNState(jax.tree.map(lambda a: jnp.broadcast_to(a, (6, *a.shape)), net), y))
+        np.testing.assert_allclose(
+            np.asarray(shared.stats.final_pose), np.asarray(copies.stats.final_pose), atol=1e-9
+        )
+        assert isinstance(shared.controller_state.net, Shared)
+        np.testing.assert_allclose(
+            np.asarray(shared.controller_state.y), np.asarray(copies.controller_state.y), atol=1e-9
+        )
+
+
+def test_concatenated_states_keep_one_shared_network_and_batch_different_ones():
+    a = make_ctrnn(np.eye(3), np.zeros((3, 3)), 0.5)
+    b = make_ctrnn(2 * np.eye(3), np.zeros((3, 3)), 0.5)
+    y2, y3 = jnp.zeros((2, 3)), jnp.ones((3, 3))
+    same = concatenate_states([CTRNNState(Shared(a), y2), CTRNNState(Shared(a), y3)], [2, 3])
+    assert isinstance(same.net, Shared) and same.y.shape == (5, 3)
+    mixed = concatenate_states([CTRNNState(Shared(a), y2), CTRNNState(Shared(b), y3)], [2, 3])
+    assert not isinstance(mixed.net, Shared)
+    assert mixed.net.W.shape == (5, 3, 3)
+    np.testing.assert_array_equal(
+        np.asarray(mixed.net.W[:2]), np.broadcast_to(np.eye(3), (2, 3, 3))
+    )
+    np.testing.assert_array_equal(
+        np.asarray(mixed.net.W[2:]), np.broadcast_to(2 * np.eye(3), (3, 3, 3))
+    )
+    with pytest.raises(MbnInputError):
+        concatenate_states([CTRNNState(Shared(a), y2)], [2, 3])
+
+
+def test_a_recorded_controller_state_leaves_out_the_shared_network():
+    net = make_ctrnn(np.array(paper.W_RF) / 20, np.array(paper.WE_RF) / 20, 0.5, dtype=np.float32)
+    maze = crossroad("LSR")
+    world = compile_mazes([maze])
+    poses = jnp.asarray(np.stack([maze.starts[0]] * 2), jnp.float32)
+    cfg = RolloutConfig(steps=20, record_every=5, record_controller=True)
+    out = jax.jit(lambda s: rollout(world, ctrnn_controller(), s, poses, jnp.zeros(2, int), cfg))(
+        CTRNNState(Shared(net), jnp.zeros((2, 3), jnp.float32))
+    )
+    assert out.trajectory.controller.net is None
+    assert out.trajectory.controller.y.shape == (2, 4, 3)

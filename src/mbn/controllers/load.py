@@ -10,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import jax
 import jax.numpy as jnp
 from jax import Array
 
@@ -27,16 +26,13 @@ from mbn.controllers.spec import (
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import Method, check_dt, max_stable_dt
 from mbn.world.engine import CameraConfig
+from mbn.world.rollout import Shared
 from mbn.world.sensors import SensorConfig
 
 __all__ = ["Controller", "LoadedController", "check_step", "load_controller", "make_controller"]
 
 #: A controller for one robot: ``(state, observation) -> (state, (v, w))``.
 Controller = Callable[[Any, Any], tuple[Any, tuple[Array, Array]]]
-
-
-def _batched(tree: Any, n: int) -> Any:
-    return jax.tree.map(lambda a: jnp.broadcast_to(a, (n, *a.shape)), tree)
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +42,9 @@ class LoadedController:
     Attributes:
         kind: the file's kind (:data:`KINDS`).
         controller: ``(state, obs) -> (state, (v, w))`` for one robot.
-        initial_state: ``n -> `` the batched initial state of ``n`` robots (potentials at 0).
+        initial_state: ``n -> `` the batched initial state of ``n`` robots (potentials at 0;
+            the networks are :class:`mbn.world.rollout.Shared` by the batch: map the controller
+            over it with :func:`mbn.world.rollout.map_controller`, as the rollout does).
         sensors: the sonars to cast and their normalisation.
         dt: the robot step (s).
         needs_camera: whether the controller reads the camera (the whole MBN).
@@ -94,7 +92,7 @@ def _ctrnn_runner(spec: CTRNNControllerSpec) -> tuple[Controller, Callable[[int]
     )
 
     def initial(n: int) -> CTRNNState:
-        return CTRNNState(_batched(net, n), jnp.zeros((n, net.num_neurons), net.dtype))
+        return CTRNNState(Shared(net), jnp.zeros((n, net.num_neurons), net.dtype))
 
     return control, initial
 
@@ -113,9 +111,9 @@ def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], An
 
     def initial(n: int) -> MBNControllerState:
         return MBNControllerState(
-            _batched(pm, n),
+            Shared(pm),
             jnp.zeros((n, pm.num_neurons), pm.dtype),
-            _batched(im, n),
+            Shared(im),
             jnp.zeros((n, im.num_neurons), im.dtype),
         )
 
@@ -133,7 +131,7 @@ def _interpreter_runner(
 
     def initial(n: int) -> ProgrammedState:
         return ProgrammedState(
-            _batched(net, n),
+            Shared(net),
             jnp.zeros((n, net.num_neurons), net.dtype),
             jnp.broadcast_to(values, (n, values.shape[0])),
         )

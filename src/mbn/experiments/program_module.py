@@ -33,7 +33,7 @@ from mbn.experiments.evolve import tile_fitness
 from mbn.networks.ctrnn import CTRNN
 from mbn.paper import DEFAULT_TAU
 from mbn.world.engine import CameraConfig
-from mbn.world.rollout import EpisodeStats, rollout
+from mbn.world.rollout import EpisodeStats, Shared, rollout
 
 __all__ = [
     "MBNState",
@@ -103,9 +103,10 @@ def mbn_controller(
     )
 
 
-def _broadcast(tree: Any, n: int, dtype: Any) -> Any:
-    """``n`` copies of a network (a leading batch axis) in ``dtype``, without copying memory."""
-    return jax.tree.map(lambda a: jnp.broadcast_to(a.astype(dtype), (n, *a.shape)), tree)
+def _shared(tree: Any, dtype: Any) -> Shared:
+    """A network every robot of the batch shares (:class:`mbn.world.rollout.Shared`), in
+    ``dtype``."""
+    return Shared(jax.tree.map(lambda a: jnp.asarray(a).astype(dtype), tree))
 
 
 def _run(
@@ -121,7 +122,7 @@ def _run(
     n = p * e
     pm = genome.network(jnp.repeat(population, e, 0))
     dtype = population.dtype
-    im_b = _broadcast(im, n, dtype)
+    im_b = _shared(im, dtype)
     state = MBNState(
         pm,
         jnp.zeros((n, genome.programs), dtype),
@@ -406,7 +407,7 @@ def pm_memory_fitness(
         p, dtype = population.shape[0], population.dtype
         n = p * e
         y0 = prime(genome.network(population), inputs, dt, pm_substeps)[:, jnp.asarray(which)]
-        im_b = _broadcast(im, n, dtype)
+        im_b = _shared(im, dtype)
         state: Any = MBNState(
             genome.network(jnp.repeat(population, e, 0)),
             y0.reshape(n, k),
@@ -414,8 +415,8 @@ def pm_memory_fitness(
             jnp.zeros((n, im.num_neurons), dtype),
         )
         if shadow:
-            r_net = _broadcast(refs, n, dtype)
-            r_y = jnp.zeros((n, 2, r_net.W.shape[-1]), dtype)
+            r_net = _shared(refs, dtype)
+            r_y = jnp.zeros((n, 2, refs.W.shape[-1]), dtype)
             state = ShadowedState(state, CTRNNState(r_net, r_y), jnp.zeros((n, 2), dtype))
         result = rollout(
             world,

@@ -30,7 +30,14 @@ from mbn.errors import MbnInputError
 from mbn.experiments.starts import JITTER, mark_starts
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.mazes.model import Maze
-from mbn.world.rollout import EpisodeStats, RolloutConfig, RolloutResult, junction_arrays, rollout
+from mbn.world.rollout import (
+    EpisodeStats,
+    RolloutConfig,
+    RolloutResult,
+    concatenate_states,
+    junction_arrays,
+    rollout,
+)
 from mbn.world.sensors import SensorConfig
 
 __all__ = [
@@ -255,7 +262,7 @@ def run_trial_groups(
         states.append(g.initial_state(len(p)))
         slices[g.name] = slice(offset, offset + len(p))
         offset += len(p)
-    state = jax.tree.map(lambda *a: jnp.concatenate(a, 0), *states)
+    state = concatenate_states(states, [len(p) for p in poses])
     world = compile_mazes(mazes)
     junctions = junction_arrays(mazes, world)
     config = RolloutConfig(

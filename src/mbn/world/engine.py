@@ -49,9 +49,11 @@ __all__ = [
     "CameraReading",
     "World",
     "cast",
+    "cast_along",
     "collides_cells",
     "compile_mazes",
     "lattice_cell",
+    "march_steps",
     "maze_constants",
     "see_tiles",
     "tile_under",
@@ -125,7 +127,15 @@ class CameraConfig:
         "rect_flat",
         "row_solid",
     ],
-    meta_fields=["n_words", "n_march", "n_body", "mode", "n_seg", "n_rect"],
+    meta_fields=[
+        "n_words",
+        "n_march",
+        "n_body",
+        "mode",
+        "n_seg",
+        "n_rect",
+        "min_cell",
+    ],
 )
 @dataclass(frozen=True)
 class World:
@@ -147,6 +157,9 @@ class World:
     rectangles ``rects`` (``(xmin, xmax, ymin, ymax)``) its body can touch; at most ``n_seg`` and
     ``n_rect`` per row. ``row_solid[r]``: the row is the outside of a walled maze (solid).
     On the lattice path these arrays are placeholders.
+
+    ``min_cell`` (static): the smallest lattice cell (0 on the segment path): a ray of length
+    ``r`` crosses at most ``2 (ceil(r / min_cell) + 1)`` cells (:func:`march_steps`).
     """
 
     origin: Array
@@ -173,6 +186,7 @@ class World:
     mode: str = "lattice"
     n_seg: int = 1
     n_rect: int = 1
+    min_cell: float = 0.0
 
     @property
     def n_rows(self) -> int:
@@ -348,6 +362,7 @@ def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         n_words=n_words,
         n_march=n_march,
         n_body=n_body,
+        min_cell=float(min(g for g, _ in lattices)),
     )
 
 
@@ -582,10 +597,37 @@ def cast(
     ray origins ``ox, oy`` and headings ``angle`` of shape ``(B, k)``, each origin within
     ``_RING_RADIUS`` of the robot's pose and in free space.
     """
+    return cast_along(world, mc, words, ci, cj, ox, oy, jnp.cos(angle), jnp.sin(angle), max_range)
+
+
+def march_steps(world: World, max_range: float) -> int:
+    """Lattice steps a ray of length ``max_range`` needs (at most the world's ``n_march``, the
+    sonars' range)."""
+    if world.min_cell <= 0:
+        return world.n_march
+    return min(world.n_march, 2 * (math.ceil(max_range / world.min_cell) + 1))
+
+
+def cast_along(
+    world: World,
+    mc: MazeConstants,
+    words: Array,
+    ci: Array,
+    cj: Array,
+    ox: Array,
+    oy: Array,
+    dx: Array,
+    dy: Array,
+    max_range: float | Array = SONAR_MAX_RANGE,
+    *,
+    steps: int | None = None,
+) -> Array:
+    """:func:`cast` along unit directions ``(dx, dy)`` instead of headings; ``steps`` (static)
+    marches at most that many lattice steps (:func:`march_steps` of a shorter range than the
+    sonars'; default the world's ``n_march``)."""
     if world.mode == "segments":
-        return _cast_segments(world, words, ox, oy, angle, max_range)
+        return _cast_segments(world, words, ox, oy, dx, dy, max_range)
     cell = mc.cell[..., None]
-    dx, dy = jnp.cos(angle), jnp.sin(angle)
     gx = (ox - mc.origin[..., 0:1]) / cell
     gy = (oy - mc.origin[..., 1:2]) / cell
     fi, fj = jnp.floor(gx), jnp.floor(gy)
@@ -603,7 +645,7 @@ def cast(
     sj = jnp.where(dy > 0, 1, -1)
     dist = jnp.full(ox.shape, max_range, ox.dtype)
     done = jnp.zeros(ox.shape, bool)
-    for _ in range(world.n_march):
+    for _ in range(world.n_march if steps is None else min(steps, world.n_march)):
         step_x = tx < ty
         t = jnp.minimum(tx, ty)
         li = jnp.where(step_x, li + si, li)
@@ -626,7 +668,13 @@ def _gather(
 
 
 def _cast_segments(
-    world: World, words: Array, ox: Array, oy: Array, angle: Array, max_range: float | Array
+    world: World,
+    words: Array,
+    ox: Array,
+    oy: Array,
+    dx: Array,
+    dy: Array,
+    max_range: float | Array,
 ) -> Array:
     """:func:`cast` on the segment path: the exact caster of :func:`mbn.world.geometry.cast_rays`
     over the segments listed for each robot's culling cell (``words[:, 0]``: its row)."""
@@ -634,7 +682,7 @@ def _cast_segments(
     seg, valid = _gather(
         world.seg_start, world.seg_count, world.seg_flat, world.segments, world.n_seg, row, ox.dtype
     )
-    dx, dy = jnp.cos(angle)[..., None], jnp.sin(angle)[..., None]  # (B, k, 1)
+    dx, dy = dx[..., None], dy[..., None]  # (B, k, 1)
     px, py = seg[:, None, :, 0], seg[:, None, :, 1]  # (B, 1, S)
     ex, ey = seg[:, None, :, 2] - px, seg[:, None, :, 3] - py
     wx, wy = px - ox[..., None], py - oy[..., None]
@@ -787,10 +835,21 @@ def see_tiles(
     py = tiles[..., 1:2] + u * tiles[..., 4:5] * tiles[..., 2:3]
     vx, vy = px - camx[:, None, None], py - camy[:, None, None]
     dist = jnp.hypot(vx, vy)
-    ang = jnp.arctan2(vy, vx)
-    rel = jnp.arctan2(jnp.sin(ang - th[:, None, None]), jnp.cos(ang - th[:, None, None]))
+    # unit direction to each sample and the cosine of its angle off the camera's axis: the
+    # field-of-view test and the occlusion rays need no angle (the bearings do; XLA drops them
+    # where they are not used, as in the rollout)
+    inv = 1.0 / jnp.maximum(dist, 1e-9)
+    ux, uy = vx * inv, vy * inv
+    cos_off = ux * c[:, None, None] + uy * s[:, None, None]
     b, t, k = px.shape
-    free = cast(
+    in_view = (
+        (colors[..., None] > 0)
+        & (cos_off >= math.cos(math.radians(camera.fov_deg) / 2))
+        & (dist <= camera.range)
+    )
+    steps = march_steps(world, camera.range)
+    centre_dist = jnp.hypot(tiles[..., 0] - camx[:, None], tiles[..., 1] - camy[:, None])
+    free = cast_along(
         world,
         mc,
         words,
@@ -798,15 +857,13 @@ def see_tiles(
         cj,
         jnp.broadcast_to(camx[:, None], (b, t * k)),
         jnp.broadcast_to(camy[:, None], (b, t * k)),
-        ang.reshape(b, t * k),
+        ux.reshape(b, t * k),
+        uy.reshape(b, t * k),
         camera.range,
+        steps=steps,
     ).reshape(b, t, k)
-    seen = (
-        (colors[..., None] > 0)
-        & (jnp.abs(rel) <= math.radians(camera.fov_deg) / 2)
-        & (dist <= camera.range)
-        & (free >= dist - 1e-4)
-    )
+    seen = in_view & (free >= dist - 1e-4)
+    rel = jnp.arctan2(uy * c[:, None, None] - ux * s[:, None, None], cos_off)
     left = u < 0  # first half of the samples: blob 0 of a two-colour tile
     two = (colors == 2)[..., None]
     blob0 = jnp.where(two, seen & left, seen)
@@ -820,7 +877,6 @@ def see_tiles(
 
     bearing = jnp.stack([mean_bearing(blob0), mean_bearing(blob1)], -1)
     blobs = jnp.sum(visible, axis=(-1, -2))
-    centre_dist = jnp.hypot(tiles[..., 0] - camx[:, None], tiles[..., 1] - camy[:, None])
     any_vis = vis0 | vis1
     nearest_t = jnp.argmin(jnp.where(any_vis, centre_dist, jnp.inf), axis=-1)
     nearest = jnp.where(

@@ -18,7 +18,10 @@ One robot step (default 100 ms, as Stage's ``interval_sim``), written once in
 The steps run in one ``lax.scan`` over a :class:`Carry`; the step is pipelined (see
 :func:`one_step`). The controller is written for ONE robot; the rollout vmaps it over the batch,
 so its state may be any pytree (weights included, so that a batch of genomes is just a batch of
-states).
+states). A part of the state every robot of the batch shares — the weights of a fixed-weight
+interpreter, say — is wrapped in :class:`Shared` and held once instead of once per robot: the
+controller then multiplies a batch of states by one matrix instead of a batch of matrices
+(:func:`map_controller`).
 """
 
 from __future__ import annotations
@@ -61,13 +64,92 @@ __all__ = [
     "Observation",
     "RolloutConfig",
     "RolloutResult",
+    "Shared",
     "Trajectory",
+    "concatenate_states",
     "episode_batch",
     "junction_arrays",
+    "map_controller",
     "rollout",
+    "strip_shared",
 ]
 
 Controller = Callable[[Any, "Observation"], tuple[Any, tuple[Array, Array]]]
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class Shared:
+    """A part of a batched controller state that every robot of the batch shares, without a
+    batch axis (e.g. ``CTRNNState(Shared(net), y)`` with ``y`` of shape ``(B, n)``).
+
+    The rollout maps the controller over the batch with the shared part held
+    (:func:`map_controller`); the controller itself sees the plain value and must return it
+    unchanged. Shared parts are not recorded in trajectories (:func:`strip_shared`).
+    """
+
+    value: Any
+
+
+def _is_shared(x: Any) -> bool:
+    return isinstance(x, Shared)
+
+
+def _unshare(tree: Any) -> Any:
+    return jax.tree.map(lambda x: x.value if _is_shared(x) else x, tree, is_leaf=_is_shared)
+
+
+def _reshare(like: Any, tree: Any) -> Any:
+    return jax.tree.map(
+        lambda a, b: Shared(b) if _is_shared(a) else b, like, tree, is_leaf=_is_shared
+    )
+
+
+def strip_shared(tree: Any) -> Any:
+    """``tree`` with its :class:`Shared` parts replaced by None (what a trajectory records)."""
+    return jax.tree.map(lambda x: None if _is_shared(x) else x, tree, is_leaf=_is_shared)
+
+
+def map_controller(controller: Controller, state: Any) -> Controller:
+    """``controller`` (written for one robot) mapped over a batch of states shaped like
+    ``state``: batched leaves along their first axis, :class:`Shared` parts held for all."""
+    axes = jax.tree.map(lambda x: None if _is_shared(x) else 0, state, is_leaf=_is_shared)
+
+    def one(s: Any, obs: Any) -> tuple[Any, tuple[Array, Array]]:
+        new, vw = controller(_unshare(s), obs)
+        return _reshare(s, new), vw
+
+    return jax.vmap(one, in_axes=(axes, 0), out_axes=(axes, 0))
+
+
+def concatenate_states(states: list[Any], sizes: list[int]) -> Any:
+    """Batched controller states of ``sizes[k]`` robots each, one after the other. A
+    :class:`Shared` part stays shared when every state holds the same value, and is given a batch
+    axis (each copy broadcast to its state's size) when they differ."""
+    if len(states) != len(sizes) or not states:
+        raise MbnInputError("concatenate_states: need one size per state, and a state")
+
+    def join(*parts: Any) -> Any:
+        if not _is_shared(parts[0]):
+            return jnp.concatenate(parts, 0)
+        values = [p.value for p in parts]
+        first = jax.tree.leaves(values[0])
+        if all(
+            all(
+                np.array_equal(np.asarray(a), np.asarray(b))
+                for a, b in zip(first, jax.tree.leaves(v), strict=True)
+            )
+            for v in values[1:]
+        ):
+            return parts[0]
+        return jax.tree.map(
+            lambda *a: jnp.concatenate(
+                [jnp.broadcast_to(x, (n, *x.shape)) for x, n in zip(a, sizes, strict=True)], 0
+            ),
+            *values,
+        )
+
+    return jax.tree.map(join, *states, is_leaf=_is_shared)
 
 
 class Observation(NamedTuple):
@@ -122,7 +204,8 @@ class RolloutConfig:
 class Trajectory(NamedTuple):
     """Samples every ``record_every`` steps: ``t (n,)``; per robot ``pose (B, n, 3)`` (before the
     step's move), ``ranges (B, n, k)``, ``camera``, ``blobs``, ``tile``, ``v``, ``w`` (applied),
-    ``stalled``, and ``controller`` (the controller state pytree, if recorded)."""
+    ``stalled``, and ``controller`` (the controller state pytree, if recorded, without its
+    :class:`Shared` parts)."""
 
     t: Array
     pose: Array
@@ -315,7 +398,7 @@ def one_step(scene: Scene, carry: Carry, step: Array) -> tuple[Carry, tuple[Any,
         carry.stalled,
     )
     if cfg.record_controller:
-        record = (*record, carry.ctrl)
+        record = (*record, strip_shared(carry.ctrl))
     return new, record
 
 
@@ -413,7 +496,8 @@ def rollout(
     Args:
         world: compiled mazes (:func:`mbn.world.engine.compile_mazes`).
         controller: ``(state, observation) -> (state, (v, w))`` for one robot.
-        controller_state: initial states, a pytree whose leaves have the batch as leading axis.
+        controller_state: initial states, a pytree whose leaves have the batch as leading axis,
+            except its :class:`Shared` parts (held once for the whole batch).
         poses: start poses ``(B, 3)``.
         maze_index: ``(B,)`` index of each robot's maze in ``world``.
         config: steps, step size, sensors, camera, noise, recording.
@@ -445,7 +529,7 @@ def rollout(
         maze_index=maze_index,
         junctions=junctions,
         config=config,
-        controller=jax.vmap(controller),
+        controller=map_controller(controller, controller_state),
         key=key,
     )
     carry, trajectory = run_steps(scene, start_carry(scene, poses, controller_state))

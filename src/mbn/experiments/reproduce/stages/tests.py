@@ -236,7 +236,9 @@ def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> in
     changes = (np.diff(tile, axis=1) != 0).sum(1) + 100 * np.asarray(verdicts["mbn"]["success"])
     b = int(np.argmax(changes))
     pick = lambda tree: jax.tree.map(lambda a: np.asarray(a[b]), tree)  # noqa: E731
-    pm, pm_y, im, im_y = (pick(x) for x in traj.controller)
+    # the networks are shared by the batch and not recorded: they are the file's
+    pm_y, im_y = pick(traj.controller.pm_y), pick(traj.controller.im_y)
+    pm, im = spec.program_module, spec.interpreter_spec.interpreter.net
     n0 = spec.interpreter_spec.interpreter.num_original
     ctx.rundir.save_record(
         "mbn_recording",
