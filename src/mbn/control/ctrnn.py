@@ -13,13 +13,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate, rk4_step
+
+if TYPE_CHECKING:
+    from mbn.world.rollout import Shared
 
 __all__ = [
     "NETWORK_SUBSTEPS",
@@ -62,7 +65,7 @@ class MotorMap:
 class CTRNNState(NamedTuple):
     """A CTRNN controller's state: the network (weights, tau, ...) and its potentials ``y``."""
 
-    net: CTRNN
+    net: CTRNN | Shared
     y: Array
 
 
@@ -103,9 +106,10 @@ def ctrnn_controller(
     def control(state: CTRNNState, obs: Any) -> tuple[CTRNNState, tuple[Array, Array]]:
         u = read(obs)
         y = state.y
+        net = cast(CTRNN, state.net)  # the rollout hands a controller plain networks
         for _ in range(substeps):
-            y = stepper(state.net, y, u, h)
-        rate = firing_rate(state.net, y)
+            y = stepper(net, y, u, h)
+        rate = firing_rate(net, y)
         v = motor.v_max * rate[..., motor.speed_neuron]
         w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)
         return CTRNNState(state.net, y), (v, w)
@@ -117,7 +121,7 @@ class ProgrammedState(NamedTuple):
     """An interpreter controller's state: the fixed-weight network, its potentials, and the
     program fed to its program inputs (``(K,)`` in [0, 1])."""
 
-    net: CTRNN
+    net: CTRNN | Shared
     y: Array
     program: Array
 

@@ -4,7 +4,7 @@ the program of the interpreter (IM), which drives the robot (paper section 3.2).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import jax.numpy as jnp
 from jax import Array
@@ -13,6 +13,9 @@ from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap, ProgrammedState, inter
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate
 
+if TYPE_CHECKING:
+    from mbn.world.rollout import Shared
+
 __all__ = ["MBNControllerState", "make_mbn_controller"]
 
 
@@ -20,9 +23,9 @@ class MBNControllerState(NamedTuple):
     """The MBN's state for one robot: the program module (network and potentials) and the
     interpreter (network and potentials)."""
 
-    pm: CTRNN
+    pm: CTRNN | Shared
     pm_y: Array
-    im: CTRNN
+    im: CTRNN | Shared
     im_y: Array
 
 
@@ -54,9 +57,10 @@ def make_mbn_controller(
         dtype = state.pm_y.dtype
         camera = jnp.stack([obs.camera == 1, obs.camera == 2], axis=-1).astype(dtype)
         y = state.pm_y
+        pm = cast(CTRNN, state.pm)  # the rollout hands a controller plain networks
         for _ in range(pm_substeps):
-            y = euler_step(state.pm, y, camera, h)
-        program = firing_rate(state.pm, y)[..., index]
+            y = euler_step(pm, y, camera, h)
+        program = firing_rate(pm, y)[..., index]
         im_state, vw = interpret(ProgrammedState(state.im, state.im_y, program), obs)
         return MBNControllerState(state.pm, y, state.im, im_state.y), vw
 
