@@ -61,7 +61,7 @@ def de_bands(
         ax.xaxis.get_major_locator().set_params(integer=True)
         ax.set_xlabel("generation")
         ax.set_ylabel("best fitness")
-        ax.legend(loc="lower right", fontsize=8)
+        ax.legend(loc="best", fontsize=8)
     for ax in axes[len(names) :]:
         ax.set_visible(False)
     save_png(fig, path)

@@ -22,8 +22,13 @@ def _trials(name: str) -> int:
 
 
 def fake_run(
-    out: Path, seed: int, config: dict, successes: dict[str, int], agree: dict[str, int],
-    claims: dict[str, bool], curve: list[float],
+    out: Path,
+    seed: int,
+    config: dict,
+    successes: dict[str, int],
+    agree: dict[str, int],
+    claims: dict[str, bool],
+    curve: list[float],
 ) -> Path:
     """A finished seed folder: every test passes all its trials unless ``successes`` says
     otherwise; the agreement tables likewise; DE curves ``curve`` (+ seed) for rf, lf, pm."""
@@ -51,8 +56,9 @@ def fake_run(
             for c, ok in claims.items()
         ],
     }
-    (folder / "run.json").write_text(json.dumps({"kind": "mbn.reproduce", "seed": seed,
-                                                 "config": config}))
+    (folder / "run.json").write_text(
+        json.dumps({"kind": "mbn.reproduce", "seed": seed, "config": config})
+    )
     (folder / "results.json").write_text(json.dumps(results))
     (folder / "report.html").write_text("<html></html>")
     for name in ("rf", "lf", "pm"):

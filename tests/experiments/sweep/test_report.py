@@ -37,8 +37,9 @@ def folder(tmp_path, quick_config, monkeypatch):
     )
     curve = [0.0, 1.0, 2.0, 3.0]
     fake_run(out, 0, config, {}, {}, {"claim A": True, "claim B": True}, curve)
-    fake_run(out, 1, config, {"lf_jitter": 150, "mbn": 9}, {}, {"claim A": True, "claim B": False},
-             curve)
+    fake_run(
+        out, 1, config, {"lf_jitter": 150, "mbn": 9}, {}, {"claim A": True, "claim B": False}, curve
+    )
     fake_run(out, 2, config, {}, {"im_lf_jitter": 190}, {"claim A": True, "claim B": False}, curve)
     return out
 
@@ -50,8 +51,11 @@ def test_summary_of_a_fake_folder(folder):
     assert s["per_seed"]["1"]["missed"] == ["mbn", "lf_jitter"]
     assert s["per_seed"]["2"]["missed"] == ["agreement_im_lf_jitter"]
     lf = s["tests"]["lf_jitter"]
-    assert lf["pooled"] == {"successes": 550, "trials": 600, "wilson95": pytest.approx(
-        [0.89181, 0.93622], abs=5e-5)}
+    assert lf["pooled"] == {
+        "successes": 550,
+        "trials": 600,
+        "wilson95": pytest.approx([0.89181, 0.93622], abs=5e-5),
+    }
     assert lf["median"] == pytest.approx(1.0) and lf["min"] == pytest.approx(0.75)
     assert s["targets"]["lf_jitter"]["seeds_meeting"] == 2
     on_disk = json.loads((folder / "sweep.json").read_text())

@@ -103,8 +103,9 @@ def test_every_seed_is_a_run_folder_and_a_rerun_skips_them(tmp_path):
     def no_executor():
         raise AssertionError("a finished sweep started an executor")
 
-    again = run_sweep(tmp_path / "s", SweepSettings((0, 1, 2), TOY.config()), no_executor,
-                      experiment=TOY)
+    again = run_sweep(
+        tmp_path / "s", SweepSettings((0, 1, 2), TOY.config()), no_executor, experiment=TOY
+    )
     assert CALLS == [] and again["skipped"] == [0, 1, 2]
     assert _files(tmp_path / "s" / "seed-1") == before
 

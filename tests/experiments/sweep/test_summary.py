@@ -63,8 +63,11 @@ def _results(**overrides):
         f"im_{r}_jitter": {"trials": 200, "same_branches": overrides.get(f"agree_{r}", 200)}
         for r in ("rf", "lf")
     }
-    return {"tests": tests, "stages": {"tests": {"agreement": agreement}},
-            "claims": [{"claim": "c1", "pass": overrides.get("c1", True), "criterion": "x"}]}
+    return {
+        "tests": tests,
+        "stages": {"tests": {"agreement": agreement}},
+        "claims": [{"claim": "c1", "pass": overrides.get("c1", True), "criterion": "x"}],
+    }
 
 
 def test_seed_verdict_names_each_missed_target():
@@ -75,7 +78,12 @@ def test_seed_verdict_names_each_missed_target():
 
 
 def test_summarize_pools_trials_and_counts_seeds_and_claims():
-    runs = {0: _results(), 1: _results(rf_jitter=180, c1=False), 2: _results(rf_jitter=199), 3: None}
+    runs = {
+        0: _results(),
+        1: _results(rf_jitter=180, c1=False),
+        2: _results(rf_jitter=199),
+        3: None,
+    }
     s = summarize(runs, {3: "RuntimeError: boom"})
     assert s["finished"] == 3 and s["failed"] == [3] and s["meet_every_target"] == 2
     t = s["tests"]["rf_jitter"]

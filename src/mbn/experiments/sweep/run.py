@@ -22,6 +22,7 @@ import json
 import os
 import socket
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -149,8 +150,12 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
         base = _nearest_existing(out)
         if not base.is_dir():
             raise MbnInputError(f"--out {out}: {base} is a file, not a folder")
-        if not os.access(base, os.W_OK | os.X_OK):
-            raise MbnInputError(f"--out {out}: cannot write in {base} (permission denied)")
+        try:  # a real try, as check_writable does: permissions, read-only or odd file systems
+            os.rmdir(tempfile.mkdtemp(prefix=".mbn-sweep.", dir=base))
+        except OSError as exc:
+            raise MbnInputError(
+                f"--out {out}: cannot write in {base} ({exc.strerror or exc})"
+            ) from None
         return None
     check_writable(out / SWEEP_FILE, "--out")
     if not (out / SWEEP_FILE).exists():
