@@ -1,5 +1,5 @@
 """The ``mbn`` command line: one module per command group (``networks``, ``world``,
-``evaluate``, ``reproduce``), each adding its sub-parsers with ``set_defaults(func=...,
+``evaluate``, ``reproduce``, ``sweep``), each adding its sub-parsers with ``set_defaults(func=...,
 precision=..., writes=...)``; :func:`main` parses, checks that an output file can be written
 before any work, runs the command in its precision (:func:`mbn.precision.scope`) and turns every
 bad input and every system error into one line and exit status 2.
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from mbn import __version__
-from mbn.cli import evaluate, networks, reproduce, world
+from mbn.cli import evaluate, networks, reproduce, sweep, world
 from mbn.errors import MbnInputError, MbnWarning
 from mbn.io import check_writable
 from mbn.precision import scope
@@ -40,7 +40,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mbn",
         description="Programmable fixed-weight CTRNNs and the Multiple Behavior Network "
         "(Montone, Donnarumma & Prevete, ICANNGA 2011).",
-        epilog="examples:\n" + networks.EPILOG + world.EPILOG + reproduce.EPILOG + evaluate.EPILOG,
+        epilog="examples:\n"
+        + networks.EPILOG
+        + world.EPILOG
+        + reproduce.EPILOG
+        + sweep.EPILOG
+        + evaluate.EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mbn {__version__}")
@@ -49,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     world.add_commands(sub, _Parser)
     evaluate.add_commands(sub, _Parser)
     reproduce.add_commands(sub, _Parser)
+    sweep.add_commands(sub, _Parser)
     return parser
 
 

@@ -10,7 +10,7 @@ from typing import Any
 from mbn.cli.args import seed
 from mbn.precision import ROBOT
 
-__all__ = ["EPILOG", "add_commands"]
+__all__ = ["EPILOG", "add_commands", "effective_config"]
 
 EPILOG = """\
   mbn reproduce --out runs/full                the paper's whole experiment and its report
@@ -94,15 +94,25 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     rep.set_defaults(func=run_reproduce, precision=ROBOT)
 
 
-def run_reproduce(args: argparse.Namespace) -> int:
+def effective_config(config_file: Path | None, quick: bool, retrain: bool = False) -> Any:
+    """The effective config of a reproduction: the defaults, then the ``--quick`` preset, then
+    the settings file, then ``--retrain`` (``mbn sweep`` builds every seed's config here too)."""
     from mbn.config import read_toml
-    from mbn.experiments.pipeline.runner import replace_section, run_experiment
+    from mbn.experiments.pipeline.runner import replace_section
     from mbn.experiments.reproduce import REPRODUCE
 
-    document = read_toml(args.config) if args.config is not None else None
-    config = REPRODUCE.config(quick=args.quick, document=document)
-    if args.retrain:
+    document = read_toml(config_file) if config_file is not None else None
+    config = REPRODUCE.config(quick=quick, document=document)
+    if retrain:
         config = replace_section(config, config["multiplier"].replace(retrain=True))
+    return config
+
+
+def run_reproduce(args: argparse.Namespace) -> int:
+    from mbn.experiments.pipeline.runner import run_experiment
+    from mbn.experiments.reproduce import REPRODUCE
+
+    config = effective_config(args.config, args.quick, args.retrain)
     if args.print_config:
         header = (
             "mbn reproduce: the effective config"

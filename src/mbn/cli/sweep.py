@@ -1,0 +1,137 @@
+"""``mbn sweep``: one reproduction per seed as a Ray task, resumable, and its report."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from mbn.cli.args import positive_int
+from mbn.errors import MbnInputError
+from mbn.precision import ROBOT
+
+__all__ = ["EPILOG", "add_commands", "seed_list"]
+
+EPILOG = """\
+  mbn sweep --seeds 0-9 --out runs/sweep        10 seeds on a local Ray, one per core
+  mbn sweep --summarize --out runs/sweep        rebuild the sweep's report from its folder
+"""
+
+_SWEEP_EPILOG = """\
+Each seed K runs `mbn reproduce --seed K` into DIR/seed-K (a normal run folder: `mbn evaluate`
+loads its controllers) as one Ray task asking for --cpus-per-run CPUs, its XLA and BLAS threads
+pinned to that many. Without --address a local Ray is started with one CPU per core of this
+machine; with one, the sweep joins that cluster (`ray start --head` on one machine, `ray start
+--address HEAD:6379` on the others; DIR must be on a file system every machine sees at the same
+path).
+
+Run the same command again to continue: finished seeds are skipped, interrupted ones resume from
+their checkpoints; a seed that crashed is reported (sweep.json) and the others finish. An --out
+holding a sweep with other --seeds, --quick or --config is refused.
+
+outputs in DIR: seed-K/ (one per seed), sweep.json (settings, each seed's state, the statistics),
+sweep.md, sweep.html (self-contained), figures/
+
+examples:
+  mbn sweep --seeds 0-9 --out runs/sweep
+  mbn sweep --seeds 0,2,5-7 --quick --out runs/q
+  mbn sweep --seeds 0-99 --out /shared/sweep --address head-node:6379
+  mbn sweep --summarize --out runs/sweep
+"""
+
+
+def seed_list(text: str) -> tuple[int, ...]:
+    """An argument type: the seeds of ``0-9``, ``3`` or ``0,2,5-7``."""
+    from mbn.experiments.sweep.seeds import parse_seeds
+
+    try:
+        return parse_seeds(text)
+    except MbnInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--seeds ")) from None
+
+
+def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add ``sweep`` to the ``mbn`` sub-parsers."""
+    sw = sub.add_parser(
+        "sweep",
+        help="one reproduction per seed on Ray, and statistics over the seeds",
+        description="Run `mbn reproduce` once per seed, each run a Ray task (local or on a "
+        "cluster), resumable; then a report over the seeds: per test how many seeds meet its "
+        "target, the spread of success rates, Wilson intervals, DE curves and the claims.",
+        epilog=_SWEEP_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sw.add_argument(
+        "--seeds",
+        type=seed_list,
+        default=None,
+        metavar="SEEDS",
+        help="the seeds: 0-9, 3 or 0,2,5-7 (at most 1000); required unless --summarize",
+    )
+    sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="the sweep folder")
+    sw.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="settings file for every run (as `mbn reproduce --config`)",
+    )
+    sw.add_argument("--quick", action="store_true", help="quick runs (as `mbn reproduce --quick`)")
+    sw.add_argument(
+        "--address",
+        default=None,
+        metavar="ADDR",
+        help="join the Ray cluster at HOST:PORT (default: start a local Ray on this machine)",
+    )
+    sw.add_argument(
+        "--cpus-per-run",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="CPUs (and XLA/BLAS threads) per run (default 1)",
+    )
+    sw.add_argument(
+        "--summarize",
+        action="store_true",
+        help="only rebuild sweep.json's statistics and the report from the folder (runs nothing)",
+    )
+    sw.add_argument("--quiet", action="store_true", help="no progress table, only the summary")
+    sw.set_defaults(func=run_sweep_command, precision=ROBOT)
+
+
+def run_sweep_command(args: argparse.Namespace) -> int:
+    from mbn.experiments.sweep.report import summarize_folder, summary_line
+
+    if args.summarize:
+        if args.seeds is not None or args.config is not None or args.quick:
+            raise MbnInputError(
+                "--summarize reads the settings from DIR/sweep.json: pass --out alone"
+            )
+        data = summarize_folder(args.out)
+        print(summary_line(data) + f"; report: {args.out / 'sweep.html'}")
+        return 0
+    if args.seeds is None:
+        raise MbnInputError("--seeds is required (e.g. --seeds 0-9), unless --summarize")
+    from mbn.cli.reproduce import effective_config
+    from mbn.experiments.reproduce import STAGES
+    from mbn.experiments.sweep.monitor import SweepMonitor
+    from mbn.experiments.sweep.run import RayExecutor, SweepSettings, run_sweep
+
+    settings = SweepSettings(tuple(args.seeds), effective_config(args.config, args.quick))
+    monitor = None
+    if not args.quiet:
+        monitor = SweepMonitor(
+            args.out, settings.seeds, STAGES.names, live=sys.stdout.isatty(), stream=sys.stdout
+        )
+    data = run_sweep(
+        args.out,
+        settings,
+        lambda: RayExecutor(args.address, args.cpus_per_run),
+        monitor=monitor,
+        finish=summarize_folder,
+    )
+    if data.get("skipped"):
+        print(f"{len(data['skipped'])} of {len(settings.seeds)} seeds were finished before: kept")
+    print(summary_line(data) + f"; report: {args.out / 'sweep.html'}")
+    return 0

@@ -1,0 +1,285 @@
+"""The report of a sweep: ``sweep.json``'s summary, ``sweep.md`` and a self-contained
+``sweep.html`` (figures embedded), rendered from the sweep folder alone (each seed's
+``results.json``, ``stages/`` and ``checkpoints/``); it never simulates, so ``mbn sweep
+--summarize`` rebuilds it at any time.
+
+The DE curves are read where the stages record them: ``stages/rf.json``, ``lf.json`` and
+``pm.json`` (``history.best``: the kept RF restart's), and for the LF search the chosen triple's
+checkpoint ``checkpoints/lf_search_NN.npz`` (its history of best and mean fitness).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.pipeline.rundir import RunDir
+from mbn.experiments.reproduce.protocol import TEST_NAMES
+from mbn.experiments.reproduce.stages.lf_search import search_checkpoint
+from mbn.experiments.sweep.run import (
+    SWEEP_FILE,
+    read_sweep,
+    seed_dir,
+    seed_state,
+    write_sweep,
+)
+from mbn.experiments.sweep.seeds import format_seeds
+from mbn.experiments.sweep.summary import summarize
+from mbn.experiments.sweep.targets import TARGETS
+from mbn.io import read_json
+from mbn.viz.sweep import de_bands, rate_boxes
+
+__all__ = ["DE_STAGES", "TITLE", "de_curves", "summarize_folder", "summary_line"]
+
+TITLE = "mbn sweep: the reproduction over seeds"
+
+#: The stages whose DE best-fitness curves the report draws, and their titles.
+DE_STAGES = {
+    "rf": "RF (12 genes)",
+    "lf_search": "LF search (the chosen triple)",
+    "lf": "LF (3 genes)",
+    "pm": "PM (program module)",
+}
+
+
+def de_curves(out: Path, seeds: list[int]) -> dict[str, dict[int, list[float]]]:
+    """``stage -> seed -> best fitness per generation`` of the finished seeds, as recorded in
+    their folders (stages without a record are left out)."""
+    curves: dict[str, dict[int, list[float]]] = {name: {} for name in DE_STAGES}
+    for s in seeds:
+        rundir = RunDir(seed_dir(out, s))
+        for name in ("rf", "lf", "pm"):
+            if rundir.stage_done(name):
+                h = rundir.read_stage(name).get("history")
+                if isinstance(h, dict) and h.get("best"):
+                    curves[name][s] = [float(x) for x in h["best"]]
+        if rundir.stage_done("lf_search"):
+            index = rundir.read_stage("lf_search").get("chosen_index")
+            if isinstance(index, int) and rundir.checkpoint_file(search_checkpoint(index)).exists():
+                try:
+                    cp = rundir.load_checkpoint(search_checkpoint(index))
+                except MbnInputError:
+                    continue
+                curves["lf_search"][s] = [b for b, _ in cp.history]
+    return {k: v for k, v in curves.items() if v}
+
+
+def _pct(x: float | None) -> str:
+    return "–" if x is None or x != x else f"{x:.1%}"
+
+
+def _clock(seconds: float | None) -> str:
+    if seconds is None:
+        return "–"
+    m, s = divmod(round(seconds), 60)
+    h, m = divmod(m, 60)
+    return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
+
+
+def summary_line(data: dict[str, Any]) -> str:
+    """The sweep in one line: seeds meeting every target, failures named, wall time."""
+    summ = data["summary"]
+    n = len(summ["seeds"])
+    line = f"sweep: {summ['meet_every_target']}/{n} seeds meet every target"
+    failed = [(s, data["runs"].get(str(s), {}).get("error")) for s in summ["failed"]]
+    if failed:
+        first = "; ".join(f"seed {s}: {e}" for s, e in failed[:3])
+        more = f"; {len(failed) - 3} more" if len(failed) > 3 else ""
+        line += f", {len(failed)} failed ({first}{more})"
+    missing = [s for s, v in summ["per_seed"].items() if v["state"] == "missing"]
+    if missing:
+        line += f", {len(missing)} not run"
+    if data.get("seconds") is not None:
+        line += f", {_clock(data['seconds'])}"
+    return line
+
+
+def _sections(out: Path, data: dict[str, Any], images: list[tuple[str, str]]) -> list[Section]:
+    summ = data["summary"]
+    settings = data["settings"]
+    seeds = summ["seeds"]
+    n = len(seeds)
+    secs: list[Section] = []
+    quick = " This is a **quick** sweep: tiny budgets, not the paper's figures." * bool(
+        settings["quick"]
+    )
+    secs.append(
+        Section(
+            "Sweep",
+            [
+                f"{n} seeds ({format_seeds(seeds)}), each a full `mbn reproduce` run in "
+                f"`seed-K/`; {summ['finished']} finished, {len(summ['failed'])} failed. "
+                f"**{summ['meet_every_target']} of {n} seeds meet every target.**" + quick,
+                summary_line(data) + ".",
+            ],
+        )
+    )
+    target_of = {t.test: t for t in TARGETS if t.source == "tests"}
+    rows, status = [], []
+    for name in TEST_NAMES:
+        t = summ["tests"][name]
+        tg = target_of.get(name)
+        met = summ["targets"][tg.name]["seeds_meeting"] if tg else None
+        lo, hi = t["pooled"]["wilson95"]
+        rows.append(
+            [
+                name,
+                tg.label if tg else "–",
+                "–" if met is None else f"{met}/{summ['finished']}",
+                f"{_pct(t['median'])} [{_pct(t['q1'])}, {_pct(t['q3'])}]",
+                _pct(t["min"]),
+                f"{t['pooled']['successes']}/{t['pooled']['trials']}",
+                f"[{_pct(lo)}, {_pct(hi)}]",
+            ]
+        )
+        status.append(None if met is None else met == summ["finished"] and met > 0)
+    for tg in TARGETS:
+        if tg.source != "agreement":
+            continue
+        a = summ["targets"][tg.name]
+        lo, hi = a["pooled"]["wilson95"]
+        rows.append(
+            [
+                f"agreement {tg.test}",
+                tg.label,
+                f"{a['seeds_meeting']}/{summ['finished']}",
+                f"{_pct(a['median'])} [{_pct(a['q1'])}, {_pct(a['q3'])}]",
+                _pct(a["min"]),
+                f"{a['pooled']['hits']}/{a['pooled']['trials']}",
+                f"[{_pct(lo)}, {_pct(hi)}]",
+            ]
+        )
+        status.append(a["seeds_meeting"] == summ["finished"] and a["seeds_meeting"] > 0)
+    secs.append(
+        Section(
+            "Tests over seeds",
+            [
+                "Per test: its per-run target, how many seeds meet it, the success rates over "
+                "the seeds (median [interquartile range], min), and the trials of every seed "
+                "pooled with a Wilson 95 % interval. The targets (`mbn.experiments.sweep."
+                "targets`): the paper protocol in every trial for RF, LF, the IM with each "
+                "program and the MBN; at least 95 % on the jittered starts and on the held-out "
+                "maze for each; the interpreter takes its network's exits in at least 98 % of "
+                "the jittered trials. The published weights have no target.",
+            ],
+            table=(
+                ["test", "target", "seeds meeting", "median [IQR]", "min", "pooled", "Wilson 95 %"],
+                rows,
+            ),
+            status=status,
+        )
+    )
+    rows, status = [], []
+    for s in seeds:
+        v = summ["per_seed"][str(s)]
+        run = data["runs"].get(str(s), {})
+        if v["state"] == "done":
+            rows.append(
+                [
+                    str(s),
+                    "done",
+                    ", ".join(v["missed"]) or "none",
+                    _clock(run.get("seconds")),
+                    "yes" if v["meets_all"] else "no",
+                ]
+            )
+            status.append(v["meets_all"])
+        else:
+            rows.append(
+                [str(s), v["state"], v.get("error") or "–", _clock(run.get("seconds")), "no"]
+            )
+            status.append(False)
+    secs.append(
+        Section(
+            "Seeds",
+            [
+                "Each seed's run folder is `seed-K/` (its own `report.html`). Targets missed are "
+                "named; a run that crashed shows its error."
+            ],
+            table=(
+                ["seed", "run", "targets missed (or error)", "time", "meets every target"],
+                rows,
+            ),
+            status=status,
+        )
+    )
+    claims = summ["claims"]
+    secs.append(
+        Section(
+            "Claims over runs",
+            [
+                f"Each claim of the claims table, and in how many of the {summ['finished']} "
+                "finished runs it holds (each run judges it by the criterion shown)."
+            ],
+            table=(
+                ["claim", "criterion", "runs reproducing it"],
+                [[c["claim"], c["criterion"], f"{c['hold']} of {c['runs']}"] for c in claims],
+            ),
+            status=[c["hold"] == c["runs"] for c in claims],
+        )
+    )
+    secs.append(Section("Figures", [], images=images))
+    return secs
+
+
+def summarize_folder(out: Path) -> dict[str, Any]:
+    """Summarize the sweep in ``out`` from its folder alone: the statistics into
+    ``sweep.json`` (``summary``), the figures into ``figures/``, ``sweep.md`` and
+    ``sweep.html``. Returns ``sweep.json``."""
+    out = Path(out)
+    data = read_sweep(out)
+    from mbn.experiments.reproduce import REPRODUCE
+
+    settings = data["settings"]
+    seeds = [int(s) for s in settings.get("seeds", [])]
+    config = REPRODUCE.config_from_dict(settings.get("config"), str(out / SWEEP_FILE))
+    runs: dict[int, dict[str, Any] | None] = {}
+    for s in seeds:
+        done = seed_state(out, s, config) == "done"
+        runs[s] = read_json(seed_dir(out, s) / "results.json") if done else None
+    errors = {
+        s: str(data["runs"][str(s)].get("error"))
+        for s in seeds
+        if runs[s] is None and data.get("runs", {}).get(str(s), {}).get("state") == "failed"
+    }
+    summ = summarize(runs, errors)
+    data["summary"] = summ
+    finished = [s for s in seeds if runs[s] is not None]
+    images: list[tuple[str, str]] = []
+    (out / "figures").mkdir(exist_ok=True)
+    if finished:
+        curves = de_curves(out, finished)
+        if curves:
+            de_bands(curves, DE_STAGES, out / "figures" / "sweep_de.png")
+            images.append(
+                (
+                    "figures/sweep_de.png",
+                    "DE best fitness per generation: min–max and interquartile bands "
+                    "over the seeds, the median run drawn",
+                )
+            )
+        rates = {n: summ["tests"][n]["rates"] for n in TEST_NAMES}
+        thresholds = {t.test: float(t.threshold) for t in TARGETS if t.source == "tests"}
+        for t in TARGETS:
+            if t.source == "agreement":
+                rates[f"agree {t.test}"] = summ["targets"][t.name]["rates"]
+                thresholds[f"agree {t.test}"] = float(t.threshold)
+        followers = ("rf", "lf", "im_rf", "im_lf", "mbn", "published_rf", "published_lf")
+        groups = [
+            ("Paper protocol", list(followers)),
+            ("Jittered starts", [f"{n}_jitter" for n in followers]),
+            ("Held-out maze", [f"{n}_heldout" for n in followers]),
+            ("Interpreter agreement (jittered)", [k for k in rates if k.startswith("agree ")]),
+        ]
+        rate_boxes(rates, thresholds, out / "figures" / "sweep_rates.png", groups)
+        images.append(
+            (
+                "figures/sweep_rates.png",
+                "Per-seed success rates of each test (dots: seeds; red: the target)",
+            )
+        )
+    write_sweep(out, data)
+    write_document(out, "sweep", TITLE, _sections(out, data, images))
+    return data

@@ -1,0 +1,510 @@
+"""A sweep: one reproduction per seed, each ``DIR/seed-K`` a plain run folder written by the
+pipeline's :func:`~mbn.experiments.pipeline.runner.run_experiment`, each run a Ray task.
+
+``DIR/sweep.json`` records the sweep's settings (the seeds, ``quick`` and the whole effective
+config) and what became of each seed (done, failed with its one-line error, how long it took and
+the thread settings its worker saw); a folder holding a sweep with other settings is refused.
+
+Resume: a seed whose ``results.json`` is complete (and whose report was written) is skipped; a
+seed folder with a ``run.json`` is resumed from its checkpoints (``--resume`` of ``mbn
+reproduce``); any other seed starts afresh. Every seed writes its own folder only, and
+``sweep.json`` is rewritten atomically after each seed that ends, so a killed sweep loses no
+finished seed.
+
+Threads: each task asks Ray for ``cpus_per_run`` CPUs and runs in a worker whose environment
+(set by Ray before the worker process starts, so before JAX is imported there) limits XLA and the
+BLAS libraries to that many threads (:func:`thread_env`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+from mbn import __version__
+from mbn.errors import MbnInputError
+from mbn.io import atomic_open, check_writable, json_text, read_json
+
+if TYPE_CHECKING:
+    from mbn.experiments.pipeline.runconfig import RunConfig
+    from mbn.experiments.pipeline.runner import Experiment
+
+__all__ = [
+    "INSTALL_HINT",
+    "SWEEP_FILE",
+    "SWEEP_KIND",
+    "InlineExecutor",
+    "RayExecutor",
+    "SweepSettings",
+    "check_sweep_dir",
+    "read_sweep",
+    "run_seed",
+    "run_sweep",
+    "seed_dir",
+    "seed_state",
+    "thread_env",
+    "write_sweep",
+]
+
+SWEEP_KIND = "mbn.sweep"
+SWEEP_FILE = "sweep.json"
+#: How to get Ray (printed when it is missing).
+INSTALL_HINT = "mbn sweep needs Ray, which is not installed: pip install 'mbn[sweep]'"
+#: Seconds to wait for a Ray cluster's address to answer before giving up.
+CONNECT_TIMEOUT_S = 5.0
+#: The environment variables that pin a task's threads (:func:`thread_env`).
+THREAD_VARIABLES = ("XLA_FLAGS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def seed_dir(out: Path, seed: int) -> Path:
+    """The run folder of ``seed`` in the sweep folder ``out``."""
+    return Path(out) / f"seed-{seed}"
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """What a sweep's results depend on: its seeds and the effective config of every run."""
+
+    seeds: tuple[int, ...]
+    config: RunConfig
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "seeds": list(self.seeds),
+            "quick": self.config.quick,
+            "config": self.config.to_dict(),
+        }
+
+
+def thread_env(cpus: int, base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """The environment of a task given ``cpus`` CPUs: XLA's intra-op pool of that size (and
+    Eigen's own threading off for one CPU) and OpenMP/OpenBLAS/MKL at that many threads.
+    ``base``'s ``XLA_FLAGS`` (the caller's own flags) are kept in front."""
+    flags = f"intra_op_parallelism_threads={cpus}"
+    if cpus == 1:
+        flags = "--xla_cpu_multi_thread_eigen=false " + flags
+    own = (base or {}).get("XLA_FLAGS", "").strip()
+    return {
+        "XLA_FLAGS": f"{own} {flags}".strip(),
+        "OMP_NUM_THREADS": str(cpus),
+        "OPENBLAS_NUM_THREADS": str(cpus),
+        "MKL_NUM_THREADS": str(cpus),
+    }
+
+
+# -- the sweep folder ----------------------------------------------------------------------------
+
+
+def _first_difference(old: Any, new: Any, path: str = "") -> str:
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in [*old, *(k for k in new if k not in old)]:
+            if old.get(key) != new.get(key):
+                return _first_difference(
+                    old.get(key), new.get(key), f"{path}.{key}" if path else key
+                )
+    return f"{path or 'settings'}: {json.dumps(old)} then, {json.dumps(new)} now"
+
+
+def read_sweep(out: Path) -> dict[str, Any]:
+    """``DIR/sweep.json`` (one line naming the file when it is missing or not a sweep)."""
+    path = Path(out) / SWEEP_FILE
+    if not path.exists():
+        raise MbnInputError(f"--out {out}: no sweep there ({SWEEP_FILE} is missing)")
+    data = read_json(path)
+    if not isinstance(data, dict) or data.get("kind") != SWEEP_KIND:
+        raise MbnInputError(f"{path}: not a sweep file (kind {SWEEP_KIND!r} expected)")
+    if not isinstance(data.get("settings"), dict):
+        raise MbnInputError(f"{path}: settings: missing")
+    return data
+
+
+def write_sweep(out: Path, data: dict[str, Any]) -> None:
+    """``DIR/sweep.json``, atomically (values that are not finite become ``null``)."""
+    with atomic_open(Path(out) / SWEEP_FILE) as handle:
+        handle.write(json_text(data, indent=2) + "\n")
+
+
+def _nearest_existing(path: Path) -> Path:
+    p = path.absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None:
+    """Refuse, touching nothing, an ``--out`` the sweep cannot use: a file, a folder that cannot
+    be written, a folder holding other files and no sweep, or one holding a sweep with other
+    settings (naming the first that differs). Returns the ``sweep.json`` found, if any."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise MbnInputError(f"--out {out}: is a file, not a folder")
+    if not out.exists():
+        base = _nearest_existing(out)
+        if not base.is_dir():
+            raise MbnInputError(f"--out {out}: {base} is a file, not a folder")
+        try:  # a real try, as check_writable does: permissions, read-only or odd file systems
+            os.rmdir(tempfile.mkdtemp(prefix=".mbn-sweep.", dir=base))
+        except OSError as exc:
+            raise MbnInputError(
+                f"--out {out}: cannot write in {base} ({exc.strerror or exc})"
+            ) from None
+        return None
+    check_writable(out / SWEEP_FILE, "--out")
+    if not (out / SWEEP_FILE).exists():
+        if any(out.iterdir()):
+            raise MbnInputError(
+                f"--out {out}: the folder holds other files and no sweep ({SWEEP_FILE}); choose "
+                "an empty or new folder"
+            )
+        return None
+    old = read_sweep(out)
+    mine = settings.to_dict()
+    if old["settings"] != mine:
+        diff = _first_difference(old["settings"], mine)
+        raise MbnInputError(
+            f"{out / SWEEP_FILE}: the folder holds a sweep with other settings ({diff}); use "
+            "another --out or the same --seeds, --quick and --config"
+        )
+    return old
+
+
+def seed_state(out: Path, seed: int, config: RunConfig) -> str:
+    """``"done"`` (a complete ``results.json`` of this seed and config, and its report),
+    ``"resume"`` (a ``run.json``: an interrupted run) or ``"new"``."""
+    folder = seed_dir(out, seed)
+    results = folder / "results.json"
+    if results.exists() and (folder / "report.html").exists():
+        try:
+            data = read_json(results)
+        except MbnInputError:
+            data = None
+        if (
+            isinstance(data, dict)
+            and data.get("seed") == seed
+            and data.get("config") == config.to_dict()
+            and "tests" in data
+            and "claims" in data
+        ):
+            return "done"
+    return "resume" if (folder / "run.json").exists() else "new"
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception as one line (its type unless it is an input error, its message's first
+    line, at most 300 characters)."""
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    if not isinstance(exc, MbnInputError):
+        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+# -- one seed (the body of a task) -----------------------------------------------------------------
+
+
+def run_seed(
+    out: str,
+    seed: int,
+    config: RunConfig,
+    resume: bool,
+    experiment: Experiment | None = None,
+) -> dict[str, Any]:
+    """Run (or resume) the reproduction of ``seed`` into ``out/seed-K``, as ``mbn reproduce
+    --seed K --out out/seed-K [--resume]`` does; never raises: a crash is returned as
+    ``{"state": "failed", "error": one line}``."""
+    t0 = time.perf_counter()
+    worker = {
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+        "jax_imported_before": "jax" in sys.modules,
+        "env": {k: os.environ.get(k) for k in THREAD_VARIABLES},
+    }
+    notices: list[str] = []
+    try:
+        from mbn.experiments.pipeline.runner import run_experiment
+        from mbn.precision import ROBOT, scope
+
+        if experiment is None:
+            from mbn.experiments.reproduce import REPRODUCE
+
+            experiment = REPRODUCE
+        with scope(ROBOT):  # as the command line runs `mbn reproduce`
+            run_experiment(
+                experiment,
+                seed_dir(Path(out), seed),
+                seed=seed,
+                config=config,
+                resume=resume,
+                progress=False,
+                log=lambda m: notices.append(m) if m.startswith("notice") else None,
+            )
+        state, error = "done", None
+    except Exception as exc:  # a crash of one seed is reported, the others go on
+        state, error = "failed", one_line(exc)
+    return {
+        "seed": seed,
+        "state": state,
+        "error": error,
+        "seconds": round(time.perf_counter() - t0, 2),
+        "worker": worker,
+        "notices": notices,
+    }
+
+
+# -- executors -------------------------------------------------------------------------------------
+
+
+class Executor(Protocol):
+    def submit(self, seed: int, args: tuple[Any, ...]) -> Any: ...
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> list[Any]: ...
+
+    def result(self, handle: Any) -> dict[str, Any]: ...
+
+    def close(self) -> None: ...
+
+
+class InlineExecutor:
+    """Runs each seed in this process, one after the other (no Ray; tests and debugging)."""
+
+    def __init__(self, task: Callable[..., dict[str, Any]] = run_seed) -> None:
+        self.task = task
+        self._results: dict[int, dict[str, Any]] = {}
+        self._args: dict[int, tuple[Any, ...]] = {}
+
+    def submit(self, seed: int, args: tuple[Any, ...]) -> int:
+        self._args[seed] = args
+        return seed
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> list[Any]:
+        if not handles:
+            return []
+        h = handles[0]
+        self._results[h] = self.task(*self._args.pop(h))
+        return [h]
+
+    def result(self, handle: Any) -> dict[str, Any]:
+        return self._results.pop(handle)
+
+    def close(self) -> None:
+        pass
+
+
+def _probe(address: str, timeout: float) -> None:
+    """Fail fast on an address nothing answers at (one line)."""
+    if address == "auto":
+        return
+    hostport = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise MbnInputError(f"--address {address!r}: expected HOST:PORT (e.g. head-node:6379)")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise MbnInputError(
+            f"--address {address}: no Ray cluster answers there ({reason} after at most "
+            f"{timeout:g} s); start one with `ray start --head` on that machine"
+        ) from None
+
+
+def import_ray() -> Any:
+    """The ``ray`` module, or one line saying how to install it."""
+    try:
+        import ray
+    except ImportError:
+        raise MbnInputError(INSTALL_HINT) from None
+    return ray
+
+
+class RayExecutor:
+    """One Ray task per seed, each asking for ``cpus_per_run`` CPUs, its threads pinned.
+
+    Without ``address``, a local Ray is started on this machine with as many CPUs as it has
+    cores; with one, the sweep joins that cluster (whose workers must see ``--out`` at the same
+    path: a shared file system).
+    """
+
+    def __init__(
+        self,
+        address: str | None,
+        cpus_per_run: int,
+        task: Callable[..., dict[str, Any]] = run_seed,
+        connect_timeout: float = CONNECT_TIMEOUT_S,
+    ) -> None:
+        ray = import_ray()
+        self.ray = ray
+        if address is not None:
+            _probe(address, connect_timeout)
+        kw: dict[str, Any] = {
+            "log_to_driver": False,
+            "logging_level": "ERROR",
+            "ignore_reinit_error": True,
+        }
+        try:
+            if address is None:
+                ray.init(num_cpus=os.cpu_count() or 1, include_dashboard=False, **kw)
+            else:
+                ray.init(address=address, **kw)
+        except Exception as exc:  # Ray's own errors: still one line
+            raise MbnInputError(
+                f"--address {address or '(local)'}: cannot start or join Ray ({one_line(exc)})"
+            ) from None
+        total = int(ray.cluster_resources().get("CPU", 0))
+        if cpus_per_run > total:
+            ray.shutdown()
+            raise MbnInputError(
+                f"--cpus-per-run {cpus_per_run}: the Ray cluster has only {total} CPUs"
+            )
+        self.cpus = total
+        self._remote = ray.remote(task).options(
+            num_cpus=cpus_per_run,
+            max_retries=0,
+            runtime_env={"env_vars": thread_env(cpus_per_run, os.environ)},
+        )
+        self._seed: dict[Any, int] = {}
+
+    def submit(self, seed: int, args: tuple[Any, ...]) -> Any:
+        ref = self._remote.remote(*args)
+        self._seed[ref] = seed
+        return ref
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> list[Any]:
+        if not handles:
+            return []
+        done, _ = self.ray.wait(list(handles), num_returns=len(handles), timeout=timeout)
+        return list(done)
+
+    def result(self, handle: Any) -> dict[str, Any]:
+        seed = self._seed.pop(handle)
+        try:
+            return dict(self.ray.get(handle))
+        except Exception as exc:  # the worker died (killed, out of memory): a failed seed
+            cause = getattr(exc, "cause", None) or exc
+            return {"seed": seed, "state": "failed", "error": one_line(cause), "seconds": None}
+
+    def close(self) -> None:
+        self.ray.shutdown()
+
+
+# -- the sweep -------------------------------------------------------------------------------------
+
+
+class Monitor(Protocol):
+    def __enter__(self) -> Monitor: ...
+
+    def __exit__(self, *exc: Any) -> None: ...
+
+    def mark(self, seed: int, state: str, error: str | None = None) -> None: ...
+
+    def poll(self) -> None: ...
+
+
+class _Silent:
+    def __enter__(self) -> _Silent:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        pass
+
+    def mark(self, seed: int, state: str, error: str | None = None) -> None:
+        pass
+
+    def poll(self) -> None:
+        pass
+
+
+def run_sweep(
+    out: Path,
+    settings: SweepSettings,
+    executor: Callable[[], Executor],
+    *,
+    monitor: Monitor | None = None,
+    experiment: Experiment | None = None,
+    poll_s: float = 1.0,
+    finish: Callable[[Path], Any] | None = None,
+) -> dict[str, Any]:
+    """Run every seed of ``settings`` not yet done into ``out``; returns ``sweep.json``.
+
+    ``executor`` makes the executor (called only when some seed is left to run, after the folder
+    was checked: Ray is neither needed nor started for a finished sweep); ``finish`` (the
+    summary and report) runs at the end on the folder.
+    """
+    out = Path(out)
+    t0 = time.perf_counter()
+    check_sweep_dir(out, settings)
+    states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
+    todo = [s for s in settings.seeds if states[s] != "done"]
+    ex = executor() if todo else None
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        if ex is not None:
+            ex.close()
+        raise MbnInputError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
+    old = read_sweep(out) if (out / SWEEP_FILE).exists() else {}
+    runs: dict[str, Any] = {}
+    for s in settings.seeds:
+        before = old.get("runs", {}).get(str(s), {})
+        if states[s] == "done":
+            runs[str(s)] = {**before, "state": "done", "error": None}
+            runs[str(s)].setdefault("seconds", None)
+        else:
+            runs[str(s)] = {
+                "state": "waiting",
+                "error": None,
+                "seconds": None,
+                "resumed": states[s] == "resume",
+            }
+    data: dict[str, Any] = {
+        "kind": SWEEP_KIND,
+        "mbn_version": __version__,
+        "settings": settings.to_dict(),
+        "runs": runs,
+        "skipped": [s for s in settings.seeds if states[s] == "done"],
+    }
+    write_sweep(out, data)
+    mon = monitor or _Silent()
+    try:
+        with mon:
+            for s in settings.seeds:
+                mon.mark(s, "done" if states[s] == "done" else "waiting")
+            handles = []
+            if ex is not None:
+                for s in todo:
+                    args = (str(out), s, settings.config, states[s] == "resume")
+                    handles.append(ex.submit(s, (*args, experiment) if experiment else args))
+                    mon.mark(s, "queued")
+            while handles:
+                done = ex.wait(handles, poll_s) if ex is not None else []
+                for h in done:
+                    handles.remove(h)
+                    r = ex.result(h) if ex is not None else {}
+                    s = int(r["seed"])
+                    runs[str(s)] = {
+                        "state": r["state"],
+                        "error": r.get("error"),
+                        "seconds": r.get("seconds"),
+                        "resumed": states[s] == "resume",
+                        **({"worker": r["worker"]} if "worker" in r else {}),
+                        **({"notices": r["notices"]} if r.get("notices") else {}),
+                    }
+                    write_sweep(out, data)  # a finished seed is recorded at once
+                    mon.mark(s, r["state"], r.get("error"))
+                mon.poll()
+    finally:
+        if ex is not None:
+            ex.close()
+    data["seconds"] = round(time.perf_counter() - t0, 1)
+    write_sweep(out, data)
+    if finish is not None:
+        finish(out)
+    return read_sweep(out)

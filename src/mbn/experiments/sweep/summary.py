@@ -1,0 +1,150 @@
+"""Statistics over the seeds of a sweep, from each seed's ``results.json`` alone.
+
+* per test: the seeds whose run meets its target (:mod:`~mbn.experiments.sweep.targets`), the
+  distribution of the per-seed success rates (median, quartiles, min, max) and the pooled trials
+  with a Wilson 95 % interval;
+* per seed: which targets it misses (named), or the one-line error of a run that crashed;
+* per claim of the claims table: in how many runs it holds.
+
+Quartiles are NumPy's default (linear interpolation between order statistics, "type 7"). The
+Wilson score interval of ``k`` successes in ``n`` trials at ``z`` = 1.96 is
+``(p + z²/2n ± z sqrt(p(1-p)/n + z²/4n²)) / (1 + z²/n)`` with ``p = k/n``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from mbn.experiments.reproduce.protocol import TEST_NAMES
+from mbn.experiments.sweep.targets import TARGETS, measure, meets
+
+__all__ = ["Z95", "describe", "seed_verdict", "summarize", "wilson_interval"]
+
+#: The standard normal quantile of a two-sided 95 % interval.
+Z95 = 1.959963984540054
+
+
+def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
+    """The Wilson score interval of ``successes`` in ``trials`` (``(nan, nan)`` without
+    trials)."""
+    if trials <= 0:
+        return math.nan, math.nan
+    if not 0 <= successes <= trials:
+        raise ValueError(f"successes {successes} not in [0, {trials}]")
+    n, p = float(trials), successes / trials
+    denom = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def describe(values: Sequence[float]) -> dict[str, float]:
+    """Median, quartiles, min and max of ``values`` (NaN for an empty list)."""
+    a = np.asarray(values, dtype=float)
+    if a.size == 0:
+        return dict.fromkeys(("median", "q1", "q3", "min", "max"), math.nan)
+    q1, med, q3 = np.percentile(a, [25, 50, 75])
+    return {
+        "median": float(med),
+        "q1": float(q1),
+        "q3": float(q3),
+        "min": float(a.min()),
+        "max": float(a.max()),
+    }
+
+
+def seed_verdict(results: Mapping[str, Any]) -> dict[str, Any]:
+    """One run's targets: ``{"meets_all", "missed": [names], "targets": {name: {...}}}``."""
+    per: dict[str, Any] = {}
+    missed = []
+    for t in TARGETS:
+        hits, trials = measure(t, dict(results))
+        ok = meets(t, hits, trials)
+        per[t.name] = {"hits": hits, "trials": trials, "meets": ok}
+        if not ok:
+            missed.append(t.name)
+    return {"meets_all": not missed, "missed": missed, "targets": per}
+
+
+def summarize(
+    runs: Mapping[int, Mapping[str, Any] | None], errors: Mapping[int, str] | None = None
+) -> dict[str, Any]:
+    """The statistics of a sweep.
+
+    Args:
+        runs: ``seed -> results.json`` of every seed (``None``: the seed has no finished run).
+        errors: ``seed -> one-line error`` of the seeds whose run crashed.
+
+    Returns:
+        ``{"seeds", "finished", "failed", "meet_every_target", "per_seed", "tests", "targets",
+        "claims"}`` (plain JSON).
+    """
+    errors = dict(errors or {})
+    seeds = list(runs)
+    finished = {s: r for s, r in runs.items() if r is not None}
+    per_seed: dict[str, Any] = {}
+    for s in seeds:
+        r = runs[s]
+        if r is None:
+            per_seed[str(s)] = {
+                "state": "failed" if s in errors else "missing",
+                "error": errors.get(s),
+            }
+        else:
+            v = seed_verdict(r)
+            per_seed[str(s)] = {"state": "done", "meets_all": v["meets_all"], "missed": v["missed"]}
+    tests: dict[str, Any] = {}
+    for name in TEST_NAMES:
+        rates, succ, trials = [], 0, 0
+        for r in finished.values():
+            t = r["tests"][name]
+            rates.append(float(t["success_rate"]))
+            succ += int(t["successes"])
+            trials += int(t["trials"])
+        lo, hi = wilson_interval(succ, trials)
+        tests[name] = {
+            "rates": rates,
+            **describe(rates),
+            "pooled": {"successes": succ, "trials": trials, "wilson95": [lo, hi]},
+        }
+    targets: dict[str, Any] = {}
+    for t in TARGETS:
+        measured = [measure(t, dict(r)) for r in finished.values()]
+        hits = sum(h for h, _ in measured)
+        trials = sum(n for _, n in measured)
+        targets[t.name] = {
+            "test": t.test,
+            "source": t.source,
+            "threshold": float(t.threshold),
+            "what": t.what,
+            "seeds_meeting": sum(meets(t, h, n) for h, n in measured),
+            "rates": [h / n if n else math.nan for h, n in measured],
+            **describe([h / n for h, n in measured if n]),
+            "pooled": {
+                "hits": hits,
+                "trials": trials,
+                "wilson95": list(wilson_interval(hits, trials)),
+            },
+        }
+    claims: dict[str, dict[str, Any]] = {}
+    for r in finished.values():
+        for c in r.get("claims", []):
+            entry = claims.setdefault(
+                c["claim"], {"runs": 0, "hold": 0, "criterion": c["criterion"]}
+            )
+            entry["runs"] += 1
+            entry["hold"] += int(bool(c["pass"]))
+    return {
+        "seeds": seeds,
+        "finished": len(finished),
+        "failed": sorted(s for s in errors if runs.get(s) is None),
+        "meet_every_target": sum(bool(v.get("meets_all")) for v in per_seed.values()),
+        "per_seed": per_seed,
+        "tests": tests,
+        "targets": targets,
+        "claims": [{"claim": k, **v} for k, v in claims.items()],
+    }

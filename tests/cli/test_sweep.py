@@ -1,0 +1,158 @@
+"""``mbn sweep`` on the command line: bad input is one line and exit status 2 with nothing
+touched, Ray missing says how to install it, and (CI) a tiny sweep of 2 quick seeds on a local
+Ray, end to end, then rerun."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+
+from mbn.cli.main import main
+
+
+def _run(capsys, *argv):
+    code = main(["sweep", *argv])
+    err = capsys.readouterr().err.strip()
+    return code, err
+
+
+@pytest.mark.parametrize(
+    ("seeds", "says"),
+    [
+        ("5-2", "runs backwards"),
+        ("a-b", "not a seed or a range"),
+        ("", "empty"),
+        ("-1", "seeds are >= 0"),
+        ("0-1000", "more than 1000 seeds"),
+    ],
+)
+def test_bad_seeds(capsys, tmp_path, seeds, says):
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--seeds", seeds, "--out", str(tmp_path / "s")])
+    err = capsys.readouterr().err.strip()
+    assert exc.value.code == 2
+    assert says in err and "--seeds" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "s").exists()
+
+
+def test_out_is_a_file(capsys, tmp_path):
+    (tmp_path / "f").write_text("keep")
+    code, err = _run(capsys, "--seeds", "0", "--out", str(tmp_path / "f"), "--quick")
+    assert code == 2 and err == f"mbn: error: --out {tmp_path / 'f'}: is a file, not a folder"
+    assert (tmp_path / "f").read_text() == "keep"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
+def test_out_not_writable(capsys, tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        code, err = _run(capsys, "--seeds", "0", "--out", str(ro / "s"), "--quick")
+    finally:
+        ro.chmod(0o755)
+    assert code == 2 and "cannot write" in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs /proc")
+def test_out_where_nothing_can_be_created(capsys):
+    code, err = _run(capsys, "--seeds", "0", "--out", "/proc/self/sweep", "--quick")
+    assert code == 2 and err.startswith("mbn: error: --out /proc/self/sweep: cannot write in")
+    assert len(err.splitlines()) == 1
+
+
+def test_out_holding_another_sweep(capsys, tmp_path, monkeypatch):
+    from mbn.experiments.reproduce import REPRODUCE
+    from mbn.experiments.sweep.run import SWEEP_KIND
+
+    out = tmp_path / "s"
+    out.mkdir()
+    config = REPRODUCE.config(quick=True).to_dict()
+    text = json.dumps(
+        {"kind": SWEEP_KIND, "settings": {"seeds": [0, 1], "quick": True, "config": config}}
+    )
+    (out / "sweep.json").write_text(text)
+    code, err = _run(capsys, "--seeds", "0-2", "--out", str(out), "--quick")
+    assert code == 2 and "holds a sweep with other settings (seeds: [0, 1] then" in err
+    code, err = _run(capsys, "--seeds", "0-1", "--out", str(out))
+    assert code == 2 and "other settings (quick: true then, false now)" in err
+    assert (out / "sweep.json").read_text() == text and os.listdir(out) == ["sweep.json"]
+
+
+def test_ray_missing_says_how_to_install_it(capsys, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    code, err = _run(capsys, "--seeds", "0-1", "--out", str(tmp_path / "s"), "--quick")
+    assert code == 2
+    assert (
+        err == "mbn: error: mbn sweep needs Ray, which is not installed: pip install 'mbn[sweep]'"
+    )
+    assert not (tmp_path / "s").exists()
+
+
+def test_unreachable_address_fails_fast(capsys, tmp_path):
+    pytest.importorskip("ray")
+    with socket.socket() as sock:  # a port nothing listens on
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    t0 = time.perf_counter()
+    code, err = _run(
+        capsys, "--seeds", "0", "--out", str(tmp_path / "s"), "--address", f"127.0.0.1:{port}"
+    )
+    assert time.perf_counter() - t0 < 10
+    assert code == 2 and f"--address 127.0.0.1:{port}: no Ray cluster answers there" in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "s").exists()
+    code, err = _run(capsys, "--seeds", "0", "--out", str(tmp_path / "s"), "--address", "nohost")
+    assert code == 2 and "expected HOST:PORT" in err
+
+
+def test_seeds_required_unless_summarize(capsys, tmp_path):
+    code, err = _run(capsys, "--out", str(tmp_path / "s"))
+    assert code == 2 and "--seeds is required" in err
+    code, err = _run(capsys, "--summarize", "--out", str(tmp_path / "s"))
+    assert code == 2 and "no sweep there" in err
+
+
+def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
+    """CI: 2 quick seeds on a local Ray through the command line, then the same command."""
+    pytest.importorskip("ray")
+    out = tmp_path / "sweep"
+    cmd = [sys.executable, "-m", "mbn", "sweep", "--seeds", "0-1", "--quick", "--out", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "sweep: " in proc.stdout and "seeds meet every target" in proc.stdout
+    for s in (0, 1):
+        folder = out / f"seed-{s}"
+        for f in (
+            "results.json",
+            "report.html",
+            "run.json",
+            "controllers/mbn.json",
+            "stages/tests.json",
+        ):
+            assert (folder / f).is_file(), f"seed {s}: {f}"
+        assert json.loads((folder / "results.json").read_text())["seed"] == s
+    for f in ("sweep.json", "sweep.md", "sweep.html"):
+        assert (out / f).is_file()
+    data = json.loads((out / "sweep.json").read_text())
+    assert data["settings"]["seeds"] == [0, 1] and data["settings"]["quick"] is True
+    assert data["summary"]["finished"] == 2
+    for s in ("0", "1"):
+        run = data["runs"][s]
+        assert run["state"] == "done"
+        env = run["worker"]["env"]  # what the Ray worker saw: threads pinned to 1
+        assert "intra_op_parallelism_threads=1" in env["XLA_FLAGS"]
+        assert "--xla_cpu_multi_thread_eigen=false" in env["XLA_FLAGS"]
+        assert env["OMP_NUM_THREADS"] == env["OPENBLAS_NUM_THREADS"] == "1"
+    results = {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in (0, 1)}
+    t0 = time.perf_counter()
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "2 of 2 seeds were finished before: kept" in again.stdout
+    assert time.perf_counter() - t0 < 60  # no Ray, no stage: only the report
+    assert {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in (0, 1)} == results

@@ -1,0 +1,163 @@
+"""Scheduling and resume of a sweep, in this process (InlineExecutor) over a toy experiment run
+by the real pipeline: finished seeds are skipped, interrupted ones resume from their stages, a
+crash of one seed is reported while the others finish, a sweep with other settings is refused."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import numpy as np
+import pytest
+
+from mbn.config import Settings, setting
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline import Experiment, Registry, RunDir, Stage, StageContext
+from mbn.experiments.sweep.run import (
+    InlineExecutor,
+    SweepSettings,
+    check_sweep_dir,
+    run_seed,
+    run_sweep,
+    seed_dir,
+    seed_state,
+)
+
+CALLS: list[tuple[str, int]] = []
+CRASH: dict[str, set[int]] = {"draw": set(), "total": set()}
+
+
+@dataclass(frozen=True)
+class DrawSettings(Settings):
+    section = "draw"
+    draws: int = setting(4, doc="numbers drawn", low=1)
+
+
+class Draw(Stage):
+    name, key_id, settings = "draw", 1, DrawSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        CALLS.append((self.name, ctx.seed))
+        if ctx.seed in CRASH["draw"]:
+            raise RuntimeError(f"draw exploded for seed {ctx.seed}\nsecond line")
+        x = np.asarray(jax.random.uniform(ctx.key, (ctx.settings.draws,)), dtype=float)
+        return {"values": x.tolist()}
+
+
+class Total(Stage):
+    name, key_id, needs = "total", 2, ("draw",)
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        CALLS.append((self.name, ctx.seed))
+        if ctx.seed in CRASH["total"]:
+            raise KeyboardInterrupt if ctx.seed < 0 else RuntimeError("total: interrupted")
+        return {"total": float(sum(ctx.read("draw")["values"]))}
+
+
+def _report(rundir: RunDir) -> None:
+    (rundir.root / "report.html").write_text("<html>toy</html>")
+
+
+TOY = Experiment(
+    name="toy",
+    kind="mbn.toy",
+    registry=Registry([Draw(), Total()]),
+    results=lambda rundir, stages, config: {"tests": {}, "claims": []},
+    report=_report,
+)
+
+
+@pytest.fixture(autouse=True)
+def _fresh():
+    CALLS.clear()
+    CRASH["draw"].clear()
+    CRASH["total"].clear()
+
+
+def _sweep(out, seeds, config=None):
+    settings = SweepSettings(tuple(seeds), config or TOY.config())
+    return run_sweep(out, settings, lambda: InlineExecutor(run_seed), experiment=TOY)
+
+
+def _files(folder):
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name != "timings.json"
+    }
+
+
+def test_every_seed_is_a_run_folder_and_a_rerun_skips_them(tmp_path):
+    data = _sweep(tmp_path / "s", [0, 1, 2])
+    assert {k: v["state"] for k, v in data["runs"].items()} == dict.fromkeys("012", "done")
+    for s in (0, 1, 2):
+        r = json.loads((seed_dir(tmp_path / "s", s) / "results.json").read_text())
+        assert r["seed"] == s
+    assert data["settings"]["seeds"] == [0, 1, 2]
+    assert len(CALLS) == 6
+    before = _files(tmp_path / "s" / "seed-1")
+    CALLS.clear()
+
+    def no_executor():
+        raise AssertionError("a finished sweep started an executor")
+
+    again = run_sweep(
+        tmp_path / "s", SweepSettings((0, 1, 2), TOY.config()), no_executor, experiment=TOY
+    )
+    assert CALLS == [] and again["skipped"] == [0, 1, 2]
+    assert _files(tmp_path / "s" / "seed-1") == before
+
+
+def test_one_crashing_seed_is_reported_and_the_others_finish(tmp_path):
+    CRASH["draw"].add(1)
+    data = _sweep(tmp_path / "s", [0, 1, 2])
+    runs = data["runs"]
+    assert runs["0"]["state"] == runs["2"]["state"] == "done"
+    assert runs["1"]["state"] == "failed"
+    assert runs["1"]["error"] == "RuntimeError: draw exploded for seed 1"
+    assert seed_state(tmp_path / "s", 1, TOY.config()) == "resume"
+    CRASH["draw"].clear()
+    CALLS.clear()
+    data = _sweep(tmp_path / "s", [0, 1, 2])  # the same command again: only seed 1 runs
+    assert CALLS == [("draw", 1), ("total", 1)]
+    assert data["runs"]["1"]["state"] == "done" and data["runs"]["1"]["resumed"] is True
+
+
+def test_an_interrupted_seed_resumes_and_ends_as_an_uninterrupted_one(tmp_path):
+    CRASH["total"].add(2)
+    _sweep(tmp_path / "a", [2, 3])
+    assert seed_state(tmp_path / "a", 2, TOY.config()) == "resume"
+    CRASH["total"].clear()
+    CALLS.clear()
+    _sweep(tmp_path / "a", [2, 3])
+    assert CALLS == [("total", 2)]  # draw was done: resumed, not redone
+    _sweep(tmp_path / "b", [2, 3])
+    for s in (2, 3):
+        assert _files(seed_dir(tmp_path / "a", s)) == _files(seed_dir(tmp_path / "b", s))
+
+
+def test_a_sweep_with_other_settings_is_refused_and_left_alone(tmp_path):
+    _sweep(tmp_path / "s", [0, 1])
+    before = _files(tmp_path / "s")
+    with pytest.raises(MbnInputError, match=r"other settings \(seeds: \[0, 1\] then, \[0, 1, 2\]"):
+        _sweep(tmp_path / "s", [0, 1, 2])
+    other = TOY.config(quick=True)
+    with pytest.raises(MbnInputError, match="other settings"):
+        _sweep(tmp_path / "s", [0, 1], other)
+    assert _files(tmp_path / "s") == before
+
+
+def test_out_that_is_a_file_or_holds_other_files_is_refused(tmp_path):
+    settings = SweepSettings((0,), TOY.config())
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(MbnInputError, match="is a file"):
+        check_sweep_dir(tmp_path / "f", settings)
+    with pytest.raises(MbnInputError, match="is a file"):
+        check_sweep_dir(tmp_path / "f" / "sub", settings)
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "notes.txt").write_text("mine")
+    with pytest.raises(MbnInputError, match="holds other files and no sweep"):
+        check_sweep_dir(tmp_path / "d", settings)
+    assert (tmp_path / "d" / "notes.txt").read_text() == "mine"

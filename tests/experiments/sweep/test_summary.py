@@ -1,0 +1,95 @@
+"""The statistics of a sweep: Wilson intervals, quartiles, the targets."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from scipy.stats import binomtest
+
+from mbn.experiments.sweep.summary import describe, seed_verdict, summarize, wilson_interval
+from mbn.experiments.sweep.targets import TARGETS, meets
+
+
+def test_wilson_interval_known_values():
+    # 0 of 10: the upper bound is z^2 / (n + z^2) = 0.2775 (a textbook value)
+    lo, hi = wilson_interval(0, 10)
+    assert lo == 0.0
+    assert hi == pytest.approx(0.27753, abs=5e-5)
+    # 81 of 263 (Wilson's own kind of example): 0.2553 .. 0.3662
+    lo, hi = wilson_interval(81, 263)
+    assert (lo, hi) == pytest.approx((0.25527, 0.36624), abs=5e-5)
+    assert wilson_interval(10, 10)[1] == pytest.approx(1.0, abs=1e-12)
+
+
+@pytest.mark.parametrize(("k", "n"), [(0, 1), (3, 7), (190, 200), (1999, 2040), (50, 50)])
+def test_wilson_interval_matches_scipy(k, n):
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    assert wilson_interval(k, n) == pytest.approx((ci.low, ci.high), abs=1e-9)
+
+
+def test_wilson_interval_without_trials_is_nan():
+    assert all(math.isnan(x) for x in wilson_interval(0, 0))
+
+
+def test_describe_median_and_quartiles():
+    d = describe([1.0, 2.0, 3.0, 4.0])
+    assert d == pytest.approx({"median": 2.5, "q1": 1.75, "q3": 3.25, "min": 1.0, "max": 4.0})
+    d = describe([0.9, 0.5, 1.0])
+    assert d["median"] == pytest.approx(0.9) and d["min"] == pytest.approx(0.5)
+    assert math.isnan(describe([])["median"])
+
+
+def test_targets_are_compared_exactly():
+    jitter = next(t for t in TARGETS if t.name == "rf_jitter")
+    paper = next(t for t in TARGETS if t.name == "rf")
+    agree = next(t for t in TARGETS if t.name == "agreement_im_lf_jitter")
+    assert meets(jitter, 190, 200) and not meets(jitter, 189, 200)
+    assert meets(paper, 10, 10) and not meets(paper, 9, 10)
+    assert meets(agree, 196, 200) and not meets(agree, 195, 200)
+    assert not meets(jitter, 0, 0)
+    assert len(TARGETS) == 17
+
+
+def _results(**overrides):
+    from mbn.experiments.reproduce.protocol import TEST_NAMES
+
+    tests = {}
+    for name in TEST_NAMES:
+        n = 200 if name.endswith("_jitter") else 10
+        k = overrides.get(name, n)
+        tests[name] = {"trials": n, "successes": k, "success_rate": k / n}
+    agreement = {
+        f"im_{r}_jitter": {"trials": 200, "same_branches": overrides.get(f"agree_{r}", 200)}
+        for r in ("rf", "lf")
+    }
+    return {
+        "tests": tests,
+        "stages": {"tests": {"agreement": agreement}},
+        "claims": [{"claim": "c1", "pass": overrides.get("c1", True), "criterion": "x"}],
+    }
+
+
+def test_seed_verdict_names_each_missed_target():
+    v = seed_verdict(_results(lf_jitter=189, mbn=9, agree_rf=195))
+    assert v["meets_all"] is False
+    assert v["missed"] == ["mbn", "lf_jitter", "agreement_im_rf_jitter"]
+    assert seed_verdict(_results())["meets_all"] is True
+
+
+def test_summarize_pools_trials_and_counts_seeds_and_claims():
+    runs = {
+        0: _results(),
+        1: _results(rf_jitter=180, c1=False),
+        2: _results(rf_jitter=199),
+        3: None,
+    }
+    s = summarize(runs, {3: "RuntimeError: boom"})
+    assert s["finished"] == 3 and s["failed"] == [3] and s["meet_every_target"] == 2
+    t = s["tests"]["rf_jitter"]
+    assert t["pooled"]["successes"] == 200 + 180 + 199 and t["pooled"]["trials"] == 600
+    assert t["median"] == pytest.approx(0.995) and t["min"] == pytest.approx(0.9)
+    assert s["targets"]["rf_jitter"]["seeds_meeting"] == 2
+    assert s["per_seed"]["1"]["missed"] == ["rf_jitter"]
+    assert s["per_seed"]["3"] == {"state": "failed", "error": "RuntimeError: boom"}
+    assert s["claims"] == [{"claim": "c1", "runs": 3, "hold": 2, "criterion": "x"}]
