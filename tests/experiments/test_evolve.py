@@ -80,3 +80,30 @@ def test_bad_perturbation_settings_are_refused() -> None:
         perturbations(jax.random.key(0), 2, 3, -0.1)
     with pytest.raises(MbnInputError, match="3 genes for genomes of 2"):
         robust_fitness(_sphere, jnp.zeros((2, 3)))(jnp.ones((5, 2)))
+
+
+def test_a_population_evaluated_in_parts_at_once_gets_the_values_of_one_call():
+    """split_fitness (the run's --threads) changes how a population is evaluated, not what:
+    the values equal those of one call bit for bit, for any number of parts."""
+    from mbn.experiments.crossroads import CrossroadTask
+    from mbn.experiments.evolve import (
+        Genome,
+        crossroad_fitness,
+        perturbations,
+        robust_fitness,
+        split_fitness,
+    )
+
+    genome = Genome()
+    task = CrossroadTask(rule="right", variants=2, seconds=6.0, seed=1)
+    fitness = robust_fitness(
+        crossroad_fitness(genome, task), perturbations(jax.random.key(0), 2, genome.size, 0.3)
+    )
+    population = jnp.asarray(
+        np.random.default_rng(0).uniform(-20, 20, (7, genome.size)), jnp.float32
+    )
+    whole = np.asarray(fitness(population))
+    assert np.unique(whole).size > 3  # the genomes differ, so a shuffled result would show
+    for workers in (1, 2, 3, 7, 9):
+        parted = np.asarray(split_fitness(fitness, workers)(population))
+        np.testing.assert_array_equal(parted, whole)

@@ -84,3 +84,13 @@ def number_in(high: float, unit: str = "") -> Callable[[str], float]:
 
     parse.__name__ = "number"
     return parse
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it)."""
+    import os
+
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import seed
+from mbn.cli.args import available_cores, int_in, seed
 from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "add_commands", "effective_config"]
@@ -90,6 +90,14 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
     rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
+    rep.add_argument(
+        "--threads",
+        type=int_in(1, 256),
+        default=available_cores(),
+        metavar="N",
+        help="evaluate each DE population in N parts at once (default: the cores this process "
+        f"may use, here {available_cores()}); the results do not depend on it",
+    )
     # The stages run in the config's precision ([run] precision); this is the default's.
     rep.set_defaults(func=run_reproduce, precision=ROBOT)
 
@@ -132,6 +140,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
         force=args.force,
         progress=not args.quiet and sys.stderr.isatty(),
         log=(lambda _m: None) if args.quiet else print,
+        workers=args.threads,
     )
     if not args.quiet:
         held = sum(c["pass"] for c in results["claims"])

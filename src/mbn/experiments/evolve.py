@@ -10,7 +10,9 @@ one would.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,6 +49,7 @@ __all__ = [
     "perturbations",
     "robust_fitness",
     "set_connections",
+    "split_fitness",
     "start",
 ]
 
@@ -213,6 +216,26 @@ def robust_fitness(fitness: Callable[[Array], Array], noise: Array) -> Callable[
         return values.reshape(copies + 1, p).mean(0)
 
     return averaged
+
+
+def split_fitness(
+    fitness: Callable[[Array], Array], workers: int, pool: Executor | None = None
+) -> Callable[[Array], Array]:
+    """``fitness`` of a population computed in ``workers`` parts at once (threads): each
+    genome's fitness depends on its own episodes only, and XLA runs one computation on about one
+    core, so parts evaluated side by side use every core. The values are those of one call (a
+    test compares them bit for bit). ``workers <= 1``: ``fitness`` itself."""
+    if workers <= 1:
+        return fitness
+    executor = pool or ThreadPoolExecutor(workers, thread_name_prefix="mbn-fitness")
+
+    def parted(population: Array) -> Array:
+        p = int(population.shape[0])
+        bounds = np.linspace(0, p, min(workers, p) + 1).round().astype(int)
+        parts = [executor.submit(fitness, population[a:b]) for a, b in itertools.pairwise(bounds)]
+        return jnp.concatenate([jnp.asarray(f.result()) for f in parts])
+
+    return parted
 
 
 def set_connections(

@@ -4,6 +4,7 @@ it needs, progress bars, and DE checkpointed after every generation."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -49,6 +50,8 @@ class StageContext:
         needs: the stages it reads.
         progress: progress bars (silent when disabled).
         log: prints a notice (one line).
+        workers: populations are evaluated in this many parts at once
+            (:func:`mbn.experiments.evolve.split_fitness`; the results do not depend on it).
     """
 
     rundir: RunDir
@@ -61,6 +64,7 @@ class StageContext:
     needs: tuple[str, ...]
     progress: Progress
     log: Callable[[str], None] = print
+    workers: int = 1
 
     @property
     def key(self) -> jax.Array:
@@ -116,7 +120,23 @@ class StageContext:
         """DE for ``generations`` generations, checkpointed after each one in
         ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
         at random unless ``population`` is given; generation ``g`` draws from
-        ``fold_in(key, g)``."""
+        ``fold_in(key, g)``. Populations are evaluated in ``workers`` parts at once."""
+        from mbn.experiments.evolve import split_fitness
+
+        with ThreadPoolExecutor(max(1, self.workers), thread_name_prefix="mbn-fitness") as pool:
+            parted = split_fitness(fitness, self.workers, pool)
+            return self._evolve(name, config, parted, key, generations, description, population)
+
+    def _evolve(
+        self,
+        name: str,
+        config: DEConfig,
+        fitness: Callable[[jax.Array], jax.Array],
+        key: jax.Array,
+        generations: int,
+        description: str,
+        population: np.ndarray | None,
+    ) -> DEResult:
         from mbn.experiments.evolve import generation, start
 
         cp = self._resumable(name, config)

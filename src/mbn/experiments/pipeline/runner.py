@@ -251,6 +251,7 @@ def _context(
     stage: Stage,
     progress: Progress,
     log: Callable[[str], None] = print,
+    workers: int = 1,
 ) -> StageContext:
     return StageContext(
         rundir=rundir,
@@ -263,6 +264,7 @@ def _context(
         needs=tuple(stage.needs),
         progress=progress,
         log=log,
+        workers=workers,
     )
 
 
@@ -274,6 +276,7 @@ def run_stage(
     seed: int,
     config: RunConfig,
     progress: Progress | None = None,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Run one stage against a run folder whose ``needs`` are done; writes ``stages/NAME.json``
     and returns the stage's data."""
@@ -285,7 +288,10 @@ def run_stage(
         )
     rundir.create()
     with scope(config["run"].precision):
-        data = stage.run(_context(experiment, rundir, seed, config, stage, progress or Progress()))
+        ctx = _context(
+            experiment, rundir, seed, config, stage, progress or Progress(), print, workers
+        )
+        data = stage.run(ctx)
     rundir.write_stage(name, data)
     return data
 
@@ -320,10 +326,12 @@ def run_experiment(
     progress: bool = False,
     log: Callable[[str], None] = print,
     stages: Sequence[str] | None = None,
+    workers: int = 1,
 ) -> dict[str, Any]:
     """Every stage not yet done (all, or those named in ``stages`` and what they need), then
     ``results.json`` and the report; returns the results (or, for a partial run, the data of
-    the stages run)."""
+    the stages run). ``workers``: populations are evaluated in that many parts at once (threads;
+    the results do not depend on it)."""
     rundir = RunDir(Path(out))
     prepare(experiment, rundir, seed, config, resume=resume, force=force)
     timings = rundir.read_timings()
@@ -347,7 +355,7 @@ def run_experiment(
                     continue
                 log(f"notice: stage {stage.name}: {missing[0]} is missing; running it again")
             t0 = time.perf_counter()
-            data = stage.run(_context(experiment, rundir, seed, config, stage, bars, log))
+            data = stage.run(_context(experiment, rundir, seed, config, stage, bars, log, workers))
             rundir.write_stage(stage.name, data)
             timings[stage.name] = round(time.perf_counter() - t0, 2)
             rundir.write_timings(timings)

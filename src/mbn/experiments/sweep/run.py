@@ -61,7 +61,15 @@ INSTALL_HINT = "mbn sweep needs Ray, which is not installed: pip install 'mbn[sw
 #: Seconds to wait for a Ray cluster's address to answer before giving up.
 CONNECT_TIMEOUT_S = 5.0
 #: The environment variables that pin a task's threads (:func:`thread_env`).
-THREAD_VARIABLES = ("XLA_FLAGS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+#: The variable that tells a task's run how many parts to evaluate its populations in.
+WORKERS_VARIABLE = "MBN_FITNESS_WORKERS"
+THREAD_VARIABLES = (
+    "XLA_FLAGS",
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    WORKERS_VARIABLE,
+)
 
 
 def seed_dir(out: Path, seed: int) -> Path:
@@ -86,7 +94,9 @@ class SweepSettings:
 
 def thread_env(cpus: int, base: Mapping[str, str] | None = None) -> dict[str, str]:
     """The environment of a task given ``cpus`` CPUs: XLA's intra-op pool of that size (and
-    Eigen's own threading off for one CPU) and OpenMP/OpenBLAS/MKL at that many threads.
+    Eigen's own threading off for one CPU), OpenMP/OpenBLAS/MKL at that many threads, and the
+    run's DE populations evaluated in that many parts at once (``WORKERS_VARIABLE``, as
+    ``mbn reproduce --threads``).
     ``base``'s ``XLA_FLAGS`` (the caller's own flags) are kept in front."""
     flags = f"intra_op_parallelism_threads={cpus}"
     if cpus == 1:
@@ -97,6 +107,7 @@ def thread_env(cpus: int, base: Mapping[str, str] | None = None) -> dict[str, st
         "OMP_NUM_THREADS": str(cpus),
         "OPENBLAS_NUM_THREADS": str(cpus),
         "MKL_NUM_THREADS": str(cpus),
+        WORKERS_VARIABLE: str(cpus),
     }
 
 
@@ -242,6 +253,7 @@ def run_seed(
                 seed=seed,
                 config=config,
                 resume=resume,
+                workers=max(1, int(os.environ.get(WORKERS_VARIABLE, "1"))),
                 progress=False,
                 log=lambda m: notices.append(m) if m.startswith("notice") else None,
             )
