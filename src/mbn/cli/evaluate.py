@@ -217,13 +217,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         )
     print(
         f"  total: {result['successes']}/{result['trials']} successes "
-        f"({result['success_rate']:.1%}), {result['timed_out']} timed out, "
+        f"({result['success_rate']:.1%}), {result['timed_out']} timed out"
+        + (" (raise --seconds)" if result["timed_out"] else "")
+        + ", "
         f"{result['correct_junctions']}/{result['junctions']} "
         f"correct junctions, mean stall fraction {result['mean_stall_fraction']:.4f}"
     )
-    if result["timed_out"]:
-        print(
-            f"  {result['timed_out']} trial(s) ended at the time limit before their "
-            f"judged junction {args.junctions} without a wrong exit or a stall: raise --seconds"
-        )
     return 0
