@@ -23,9 +23,11 @@ KEYS = {
     "trials",
     "successes",
     "success_rate",
+    "timed_out",
     "junctions",
     "correct_junctions",
     "mean_stall_fraction",
+    "seconds",
 }
 
 
@@ -81,6 +83,26 @@ def test_json_summary_of_a_ctrnn_controller(files, capsys):
     assert 0 < result["junctions"] <= 3 * result["trials"]
     assert 0 <= result["correct_junctions"] <= result["junctions"]
     assert 0.0 <= result["mean_stall_fraction"] <= 1.0
+    assert result["seconds"] == 10.0
+    assert 0 <= result["timed_out"] <= result["trials"] - result["successes"]
+
+
+def test_the_default_time_limit_comes_from_the_maze_and_time_outs_are_counted(files, capsys):
+    common = ("--controller", files / "straight.json", "--maze", "fig4", "--behavior", "right")
+    status, out, err = run(capsys, *common, "--json")
+    assert status == 0, err
+    assert json.loads(out)["seconds"] == 90.0  # fig4: 1.5 x 17.4 m at 0.3 m/s, to 10 s
+    # in 3 s a robot passes no junction and stalls nowhere: every trial timed out
+    status, out, err = run(capsys, *common, "--seconds", "3", "--json")
+    result = json.loads(out)
+    assert result["timed_out"] == result["trials"] == 10 and result["junctions"] == 0
+    status, out, err = run(capsys, *common, "--seconds", "3")
+    lines = out.strip().splitlines()
+    assert ", 3 s" in lines[0] and "from the maze" not in lines[0]
+    assert "10 timed out (raise --seconds)" in lines[-1] and lines[-1].strip().startswith("total")
+    assert all("1 timed out" in line for line in lines[1:-1])
+    status, out, err = run(capsys, *common, "--seconds", "3", "--junctions", "1")
+    assert "1 timed out" in out
 
 
 def test_text_summary_of_an_mbn_on_tiles(files, capsys):

@@ -337,6 +337,30 @@ MBN_CASES = [
     (_set("program_module", _DELETE), r"missing field 'program_module'"),
     (_set("program_module", "camera", "range", -1.0), r"camera range must be in \(0, "),
     (_set("program_module", "camera", "zoom", 2.0), r"unknown field\(s\) 'zoom'"),
+    (
+        _set("program_module", "initial", {"rule": "up", "potentials": [0.0] * 3}),
+        r"program_module.initial: rule must be right or left, got 'up'",
+    ),
+    (
+        _set("program_module", "initial", {"rule": "right", "potentials": [0.0] * 2}),
+        r"program_module.initial.potentials: the program module has 3 neurons, got 2",
+    ),
+    (
+        _set("program_module", "initial", {"rule": "right", "potentials": [0.0, "a", 0.0]}),
+        r"program_module.initial.potentials: expected",
+    ),
+    (
+        _set("program_module", "initial", {"rule": "left", "potentials": [0.0] * 3, "x": 1}),
+        r"program_module.initial: unknown field\(s\) 'x'",
+    ),
+    (
+        _set(
+            "program_module",
+            "initial",
+            {"rule": "right", "potentials": [0.0] * 3, "program": [0.9, 0.9, 0.9]},
+        ),
+        r"program_module.initial.program \[0.9, 0.9, 0.9\] is not what its potentials send",
+    ),
 ]
 
 
@@ -437,3 +461,108 @@ def test_a_weight_finite_in_json_but_too_large_for_float32_is_refused_by_name(tm
         load_controller(path)
     assert "network.W: a value of magnitude 1e+39 is too large for float32" in str(exc.value)
     assert "NaN" not in str(exc.value) and str(path) in str(exc.value)
+
+
+# --------------------------------------------------------------------------------------------
+# The MBN's initial state (program_module.initial)
+# --------------------------------------------------------------------------------------------
+
+
+def _latch_pm(programs):
+    """A program module with one bistable memory neuron (0: a one-colour tile switches it on, a
+    two-colour tile off) and three output neurons that send the right program when it is on and
+    the left program when it is off; at rest (potentials 0) it is off: the left program."""
+    right, left = np.asarray(programs["right"]), np.asarray(programs["left"])
+    logit = lambda p: np.log(p / (1 - p))  # noqa: E731
+    W = np.zeros((K + 1, K + 1))
+    W[0, 0] = 20.0
+    W[1:, 0] = logit(right) - logit(left)
+    WE = np.zeros((K + 1, 2))
+    WE[0] = [40.0, -40.0]
+    bias = np.concatenate([[-10.0], logit(left)])
+    return make_ctrnn(W, WE, 0.2, bias=bias)
+
+
+@pytest.fixture(scope="module")
+def started_mbn(interpreter_spec):
+    """An MBN whose PM starts in the state it latches after a one-colour tile (rule right), and
+    the same MBN without ``initial`` (a file written before the field)."""
+    from mbn.controllers import PMInitial
+    from mbn.experiments.program_module import latch_after_tile
+
+    pm = _latch_pm(interpreter_spec.programs)
+    latch = latch_after_tile(pm, 1, (1, 2, 3))
+    assert latch is not None
+    np.testing.assert_allclose(latch.program, interpreter_spec.programs["right"], atol=1e-3)
+    at_rest = MBNControllerSpec(interpreter_spec, pm, (1, 2, 3))
+    import dataclasses
+
+    started = dataclasses.replace(at_rest, initial=PMInitial("right", tuple(latch.potentials)))
+    return started, at_rest
+
+
+def test_mbn_initial_round_trip_and_files_without_it_start_at_rest(tmp_path, started_mbn):
+    started, at_rest = started_mbn
+    path = tmp_path / "mbn.json"
+    save_controller(path, started)
+    data = json.loads(path.read_text())
+    initial = data["program_module"]["initial"]
+    assert initial["rule"] == "right" and len(initial["potentials"]) == K + 1
+    np.testing.assert_allclose(
+        initial["program"], started.interpreter_spec.programs["right"], atol=1e-3
+    )
+    loaded = load_controller(path)
+    assert loaded.initial_rule == "right"
+    y = np.asarray(loaded.initial_state(2).pm_y)
+    np.testing.assert_allclose(y, np.tile(started.initial.potentials, (2, 1)), rtol=1e-6)
+    # the interpreter alone has no initial rule
+    assert load_controller(path, program="left").initial_rule is None
+    # an older file, without the field: potentials 0, no rule
+    del data["program_module"]["initial"]
+    path.write_text(json.dumps(data))
+    old = load_controller(path)
+    assert old.initial_rule is None and old.spec.initial is None
+    assert np.all(np.asarray(old.initial_state(2).pm_y) == 0)
+    save_controller(tmp_path / "again.json", at_rest)
+    assert "initial" not in json.loads((tmp_path / "again.json").read_text())["program_module"]
+
+
+def test_an_mbn_started_as_rf_drives_as_the_interpreter_with_rfs_program_before_a_tile(
+    started_mbn, interpreter_spec
+):
+    """Before its camera first sees a tile, the MBN started in its one-colour state sends the
+    same motor commands as the interpreter with the right program; at rest it does not (its PM
+    then sends the left program)."""
+    from mbn.experiments.trials import TrialSpec, run_trials
+    from mbn.world.engine import CameraConfig
+    from mbn.world.mazes.builtin import builtin_maze
+
+    started, at_rest = started_mbn
+    maze = builtin_maze("fig4")
+    spec = TrialSpec(behavior="tiles", seconds=20.0)
+
+    def drive(loaded):
+        _, result, _ = run_trials(
+            maze,
+            spec,
+            loaded.controller,
+            loaded.initial_state,
+            dt=loaded.dt,
+            sensors=loaded.sensors,
+            camera=CameraConfig(range=0.8),  # the camera the reproduced MBNs read
+            record_every=1,
+        )
+        t = result.trajectory
+        return np.asarray(t.v), np.asarray(t.w), np.asarray(t.camera)
+
+    v_im, w_im, _ = drive(make_controller(interpreter_spec, "right"))
+    v, w, camera = drive(make_controller(started))
+    v_rest, w_rest, camera_rest = drive(make_controller(at_rest))
+    seen = np.where(camera.any(1), camera.argmax(1), camera.shape[1])  # first step with a tile
+    before = np.arange(camera.shape[1])[None, :] < seen[:, None]
+    assert before.sum() >= 1000  # robot-steps before a tile is in view
+    motor = lambda a, b, c, d: np.maximum(np.abs(a - b), np.abs(c - d))[before]  # noqa: E731
+    assert motor(v, v_im, w, w_im).max() <= 1e-3
+    seen_rest = np.where(camera_rest.any(1), camera_rest.argmax(1), camera_rest.shape[1])
+    before = np.arange(camera.shape[1])[None, :] < np.minimum(seen, seen_rest)[:, None]
+    assert motor(v_rest, v_im, w_rest, w_im).max() > 0.05

@@ -10,20 +10,45 @@ import pytest
 
 from mbn.errors import MbnInputError
 from mbn.experiments.trials import (
+    MIN_SECONDS,
     TrialGroup,
     TrialSpec,
     judge,
+    longest_route,
+    route_seconds,
     run_trial_groups,
     run_trials,
     summary,
     trial_starts,
 )
+from mbn.world.junctions import rule_route
 from mbn.world.mazes.builtin import builtin_maze, crossroad
+from mbn.world.mazes.grid_text import parse_maze_text
 from mbn.world.mazes.model import Maze
 
 from .test_crossroads import stats
 
 R, S, L, BACK = 1, 2, 3, 0
+
+#: Corridors of 7.2 m between junctions: 2 x 2 blocks of 5 x 5 wall cells.
+LONG_MAZE = """\
+name = long
+###############
+#...>.......<.#
+#.#####.#####.#
+#.#####.#####.#
+#v#####^#####.#
+#.#####.#####.#
+#.#####.#####.#
+#.............#
+#.#####.#####.#
+#.#####.#####^#
+#.#####v#####.#
+#.#####.#####.#
+#.#####.#####.#
+#.>...........#
+###############
+"""
 
 
 def passes(exits, right, left, tiles=None, n=None, stall=0.0, out_step=100, stalls=0):
@@ -71,6 +96,7 @@ def test_judging_tiles_follows_the_tile_in_force():
 def test_summary_counts():
     v = {
         "success": np.array([True, False]),
+        "timed_out": np.array([False, True]),
         "correct": np.array([3, 1]),
         "judged": np.array([3, 2]),
         "stall": np.array([0.0, 0.1]),
@@ -79,10 +105,64 @@ def test_summary_counts():
         "trials": 2,
         "successes": 1,
         "success_rate": 0.5,
+        "timed_out": 1,
         "junctions": 5,
         "correct_junctions": 4,
         "mean_stall_fraction": pytest.approx(0.05),
     }
+
+
+def test_trials_that_run_out_of_time_are_timed_out_not_failed_by_the_controller():
+    spec = TrialSpec(behavior="right")
+    # two correct junctions, then the time ran out: timed out
+    short = judge(passes([R, S], right=[R, S], left=[L, S]), spec)
+    assert short["success"].tolist() == [False] and short["timed_out"].tolist() == [True]
+    # no junction at all and no stall: timed out too
+    none = judge(passes([], right=[], left=[]), spec)
+    assert none["timed_out"].tolist() == [True] and none["judged"].tolist() == [0]
+    # a wrong exit before the time ran out: a failure, not a time-out
+    wrong = judge(passes([R, L], right=[R, S], left=[L, L]), spec)
+    assert wrong["timed_out"].tolist() == [False]
+    # stalled in 3 % of the whole trial (the third junction never came): a stall failure
+    stalled = judge(passes([R, S], right=[R, S], left=[L, S], stall=0.03), spec)
+    assert stalled["timed_out"].tolist() == [False]
+    # a success is never timed out; nor is a trial whose J junctions came with a wrong exit
+    ok = judge(passes([R, S, R], right=[R, S, R], left=[L, S, L]), spec)
+    assert ok["success"].tolist() == [True] and ok["timed_out"].tolist() == [False]
+    # with initial none only the passes after the first tile count
+    tiles = TrialSpec(behavior="tiles", initial="none")
+    s = passes([L, R, R], right=[R, R, R], left=[L, L, L], tiles=[0, 1, 1])
+    v = judge(s, tiles)
+    assert v["judged"].tolist() == [2] and v["timed_out"].tolist() == [True]
+    assert summary(v)["timed_out"] == 1
+
+
+def test_route_lengths_and_the_derived_time_limit():
+    fig4 = builtin_maze("fig4")
+    right = TrialSpec(behavior="right")
+    # fig4's longest route through 3 junctions: 14.5 cells (docs: "about 17 m")
+    assert longest_route(fig4, right) == pytest.approx(14.5 * 1.2)
+    assert route_seconds(fig4, right) == 90.0  # 1.5 x 17.4 m / 0.3 m/s = 87 s, to 10 s
+    # one junction: from the mark to the first decision cell and out of it
+    assert longest_route(fig4, TrialSpec(behavior="right", junctions=1)) < 17.4
+    assert route_seconds(fig4, TrialSpec(behavior="right", junctions=1)) == MIN_SECONDS
+    # tiles with no rule before the first: the junctions count from it, a longer route
+    tiles = TrialSpec(behavior="tiles", initial="none")
+    assert longest_route(fig4, tiles) > longest_route(fig4, TrialSpec(behavior="tiles"))
+    # a maze of long corridors (7.2 m between junctions) needs more than the old 60 s
+    long = parse_maze_text(LONG_MAZE, "long.maze")
+    assert route_seconds(long, right) > 90.0
+    # the rule walk itself: a plus crossing entered from the south, right rule, one junction:
+    # 3 cells to the junction's centre, half a cell out of it
+    assert rule_route(crossroad("LSR"), tuple(crossroad("LSR").starts[0]), "right", 1) == (
+        pytest.approx(3.5 * 1.2)
+    )
+    # a corridor with dead ends at both ends never meets a decision cell
+    dead = parse_maze_text("#######\n#..>..#\n#######\n", "dead.maze")
+    assert rule_route(dead, tuple(dead.starts[0]), "right", 1) is None
+    assert route_seconds(dead, right) == MIN_SECONDS
+    with pytest.raises(MbnInputError, match="junctions"):
+        rule_route(dead, tuple(dead.starts[0]), "right", 0)
 
 
 def test_trial_starts_are_the_marks_then_jittered_copies():

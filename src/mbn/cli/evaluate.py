@@ -4,6 +4,7 @@ experiments: :mod:`mbn.precision`)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -32,8 +33,14 @@ examples:
   mbn evaluate --controller im.json --maze fig4 --behavior left --repeats 5 --json
   mbn evaluate --controller mbn.json --maze fig4 --behavior tiles --initial right --json
 
---json prints one object: {"trials", "successes", "success_rate", "junctions",
-"correct_junctions", "mean_stall_fraction"}
+--json prints one object: {"trials", "successes", "success_rate", "timed_out", "junctions",
+"correct_junctions", "mean_stall_fraction", "seconds"}; timed_out counts the trials that ended
+before their last judged junction with no wrong exit and no stall failure (the time limit ended
+them, not the controller): raise --seconds.
+
+time limit: by default derived from the maze: 1.5 x the time, at 0.3 m/s (the evolved followers'
+typical speed), of the longest route from a start mark through the judged junctions by the rule
+in force (for tiles: following the tiles), rounded up to 10 s, at least 60 s; fig4 gives 90 s.
 """
 
 
@@ -66,9 +73,10 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     ev.add_argument(
         "--initial",
         choices=("right", "left", "none"),
-        default="right",
-        help="rule before the first tile, for --behavior tiles (default right); none: judge "
-        "only the junctions after the first tile",
+        default=None,
+        help="rule before the first tile, for --behavior tiles (default: the rule the mbn file "
+        "starts with, its 'initial'; right for a file without one); none: judge only the "
+        "junctions after the first tile",
     )
     ev.add_argument(
         "--program",
@@ -92,8 +100,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     ev.add_argument(
         "--seconds",
         type=number_in(36_000, " s"),
-        default=60.0,
-        help="time limit of a trial in seconds (default 60)",
+        default=None,
+        help="time limit of a trial in seconds (default: derived from the maze, see below; "
+        "fig4: 90)",
     )
     ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
     ev.add_argument(
@@ -148,20 +157,12 @@ def _heading(theta: float) -> str:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from mbn.controllers import make_controller, read_controller_spec
-    from mbn.experiments.trials import TrialSpec, run_trials, summary
+    from mbn.experiments.trials import TrialSpec, route_seconds, run_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_maze
 
-    spec = TrialSpec(
-        behavior=args.behavior,
-        initial=args.initial,
-        repeats=args.repeats,
-        junctions=args.junctions,
-        seconds=args.seconds,
-        seed=args.seed,
-    )
     maze = as_grid_maze(load_maze(args.maze))  # TOML and Stage mazes on a lattice of corridors
-    spec.check_maze(maze)
+    TrialSpec(behavior=args.behavior).check_maze(maze)
     controller_spec = read_controller_spec(args.controller)
     loaded = make_controller(
         controller_spec,
@@ -169,6 +170,19 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         where=str(args.controller),
         check_stability=not args.allow_unstable,
     )
+    initial = args.initial
+    if initial is None:  # the rule the file starts with, else right
+        initial = loaded.initial_rule or "right"
+    spec = TrialSpec(
+        behavior=args.behavior,
+        initial=initial,
+        repeats=args.repeats,
+        junctions=args.junctions,
+        seed=args.seed,
+    )
+    spec.check_maze(maze)
+    seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)
+    spec = dataclasses.replace(spec, seconds=seconds)
     verdict, _, _ = run_trials(
         maze,
         spec,
@@ -178,18 +192,19 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         sensors=loaded.sensors,
         camera=loaded.camera,
     )
-    result = summary(verdict)
+    result = {**summary(verdict), "seconds": seconds}
     if args.json:
         print(json_text(result))
         return 0
     what = loaded.kind + (f", program {loaded.program}" if loaded.program else "")
     print(
         f"{args.controller} ({what}) in maze {maze.name!r}: behavior {args.behavior}"
-        + (f" (initial {args.initial})" if args.behavior == "tiles" else "")
+        + (f" (initial {initial})" if args.behavior == "tiles" else "")
         + f", {len(maze.starts)} start marks x {args.repeats}, {args.junctions} junctions, "
-        f"{args.seconds:g} s"
+        f"{seconds:g} s" + ("" if args.seconds is not None else " (from the maze)")
     )
     success = np.asarray(verdict["success"]).reshape(len(maze.starts), args.repeats)
+    timed_out = np.asarray(verdict["timed_out"]).reshape(len(maze.starts), args.repeats)
     correct = np.asarray(verdict["correct"]).reshape(len(maze.starts), args.repeats)
     judged = np.asarray(verdict["judged"]).reshape(len(maze.starts), args.repeats)
     width = len(str(len(maze.starts)))
@@ -197,11 +212,15 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         print(
             f"  start {m + 1:>{width}} at ({x:.2f}, {y:.2f}) facing {_heading(float(theta))}: "
             f"{int(success[m].sum())}/{args.repeats} successes, "
-            f"{int(correct[m].sum())}/{int(judged[m].sum())} correct junctions"
+            + (f"{int(timed_out[m].sum())} timed out, " if timed_out[m].any() else "")
+            + f"{int(correct[m].sum())}/{int(judged[m].sum())} correct junctions"
         )
     print(
         f"  total: {result['successes']}/{result['trials']} successes "
-        f"({result['success_rate']:.1%}), {result['correct_junctions']}/{result['junctions']} "
+        f"({result['success_rate']:.1%}), {result['timed_out']} timed out"
+        + (" (raise --seconds)" if result["timed_out"] else "")
+        + ", "
+        f"{result['correct_junctions']}/{result['junctions']} "
         f"correct junctions, mean stall fraction {result['mean_stall_fraction']:.4f}"
     )
     return 0

@@ -21,6 +21,7 @@ from mbn.controllers.spec import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
+    PMInitial,
 )
 
 __all__ = [
@@ -33,6 +34,7 @@ __all__ = [
     "InterpreterControllerSpec",
     "LoadedController",
     "MBNControllerSpec",
+    "PMInitial",
     "controller_from_dict",
     "controller_to_dict",
     "load_controller",

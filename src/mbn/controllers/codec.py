@@ -7,6 +7,7 @@ the file and the field. The objects are :mod:`mbn.controllers.spec`.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +29,7 @@ from mbn.controllers.spec import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
+    PMInitial,
 )
 from mbn.errors import MbnInputError
 from mbn.io import (
@@ -40,7 +42,7 @@ from mbn.io import (
     read_json,
     write_json_atomic,
 )
-from mbn.networks.ctrnn import CTRNN
+from mbn.networks.ctrnn import CTRNN, firing_rate
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.world.engine import CameraConfig
 from mbn.world.sensors import SensorConfig
@@ -120,21 +122,70 @@ def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
             "metadata": dict(spec.metadata),
         }
     if isinstance(spec, MBNControllerSpec):
+        pm: dict[str, Any] = {
+            "network": spec.program_module.to_dict(),
+            "program_neurons": list(spec.program_neurons),
+            "substeps": spec.pm_substeps,
+            "camera": {"fov_deg": spec.camera.fov_deg, "range": spec.camera.range},
+        }
+        if spec.initial is not None:
+            pm["initial"] = {
+                "rule": spec.initial.rule,
+                "potentials": list(spec.initial.potentials),
+                "program": _initial_program(
+                    spec.program_module, spec.program_neurons, spec.initial
+                ),
+            }
         return {
             **_header(KIND_MBN),
             **_interpreter_body(spec.interpreter_spec),
-            "program_module": {
-                "network": spec.program_module.to_dict(),
-                "program_neurons": list(spec.program_neurons),
-                "substeps": spec.pm_substeps,
-                "camera": {"fov_deg": spec.camera.fov_deg, "range": spec.camera.range},
-            },
+            "program_module": pm,
             "metadata": dict(spec.metadata),
         }
     raise MbnInputError(
         f"not a controller spec: {type(spec).__name__} (expected CTRNNControllerSpec, "
         "InterpreterControllerSpec or MBNControllerSpec)"
     )
+
+
+#: How far a file's ``program_module.initial.program`` may lie from the firing rates of its
+#: potentials (it is written from them; the margin covers float32 and printing).
+INITIAL_PROGRAM_TOL = 1e-4
+
+
+def _initial_program(
+    pm: CTRNN, program_neurons: tuple[int, ...], initial: PMInitial
+) -> list[float]:
+    """The program the PM sends from its initial potentials (the firing rates of its program
+    neurons), written beside them for the reader and checked on reading."""
+    y = jnp.asarray(initial.potentials, pm.dtype)
+    rates = np.asarray(firing_rate(pm, y), np.float64)[list(program_neurons)]
+    return [round(float(v), 6) for v in rates]
+
+
+def _initial_from_dict(
+    value: Any, where: str, pm: CTRNN, program_neurons: tuple[int, ...]
+) -> PMInitial:
+    data = expect_object(value, where)
+    check_fields(data, where, ["rule", "potentials"], ["program"])
+    potentials = expect_number_list(data["potentials"], f"{where}.potentials")
+    initial: PMInitial = _build(
+        where, lambda: PMInitial(rule=data["rule"], potentials=tuple(potentials))
+    )
+    if len(initial.potentials) != pm.num_neurons:
+        raise MbnInputError(
+            f"{where}.potentials: the program module has {pm.num_neurons} neurons, got "
+            f"{len(initial.potentials)} potentials"
+        )
+    if "program" in data:
+        program = np.asarray(expect_number_list(data["program"], f"{where}.program"))
+        sent = np.asarray(_initial_program(pm, program_neurons, initial))
+        if program.shape != sent.shape or np.max(np.abs(program - sent)) > INITIAL_PROGRAM_TOL:
+            raise MbnInputError(
+                f"{where}.program {program.tolist()} is not what its potentials send "
+                f"({sent.tolist()})"
+            )
+    return initial
 
 
 def _sensors_from_dict(value: Any, where: str) -> SensorConfig:
@@ -301,7 +352,7 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         return im_spec
     here = f"{where}: program_module"
     pm_data = expect_object(data["program_module"], here)
-    check_fields(pm_data, here, ["network", "program_neurons", "substeps"], ["camera"])
+    check_fields(pm_data, here, ["network", "program_neurons", "substeps"], ["camera", "initial"])
     pm = _network_from_dict(pm_data["network"], f"{here}.network")
     neurons_t = tuple(expect_int_list(pm_data["program_neurons"], f"{here}.program_neurons"))
     pm_substeps = expect_int(pm_data["substeps"], f"{here}.substeps")
@@ -312,7 +363,7 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         fov = expect_number(cam["fov_deg"], f"{here}.camera.fov_deg")
         rng = expect_number(cam["range"], f"{here}.camera.range")
         camera = _build(f"{here}.camera", lambda: CameraConfig(fov_deg=fov, range=rng))
-    return _build(
+    spec: MBNControllerSpec = _build(
         where,
         lambda: MBNControllerSpec(
             interpreter_spec=im_spec,
@@ -323,6 +374,10 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
             metadata=metadata,
         ),
     )
+    if "initial" not in pm_data:  # files written before the field: the PM starts at rest
+        return spec
+    initial = _initial_from_dict(pm_data["initial"], f"{here}.initial", pm, neurons_t)
+    return _build(where, lambda: dataclasses.replace(spec, initial=initial))
 
 
 def _build(where: str, make: Callable[[], Any]) -> Any:

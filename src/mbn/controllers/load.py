@@ -43,8 +43,10 @@ class LoadedController:
         kind: the file's kind (:data:`KINDS`).
         controller: ``(state, obs) -> (state, (v, w))`` for one robot.
         initial_state: ``n -> `` the batched initial state of ``n`` robots (potentials at 0;
-            the networks are :class:`mbn.world.rollout.Shared` by the batch: map the controller
-            over it with :func:`mbn.world.rollout.map_controller`, as the rollout does).
+            the whole MBN's program module starts from its file's ``initial`` potentials when
+            it has them; the networks are :class:`mbn.world.rollout.Shared` by the batch: map
+            the controller over it with :func:`mbn.world.rollout.map_controller`, as the rollout
+            does).
         sensors: the sonars to cast and their normalisation.
         dt: the robot step (s).
         needs_camera: whether the controller reads the camera (the whole MBN).
@@ -52,6 +54,8 @@ class LoadedController:
         programs: the file's named programs (empty for a plain CTRNN).
         program: the program in use (None for a plain CTRNN or the whole MBN).
         behavior: the behaviour a plain CTRNN file declares (else None).
+        initial_rule: for the whole MBN, the rule it follows before its first tile (its file's
+            ``initial``; None for a file without one: it starts at rest with no rule).
         spec: the parsed file.
     """
 
@@ -65,6 +69,7 @@ class LoadedController:
     programs: dict[str, tuple[float, ...]]
     program: str | None
     behavior: str | None
+    initial_rule: str | None
     spec: ControllerSpec
 
 
@@ -109,10 +114,15 @@ def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], An
         method=im_spec.method,
     )
 
+    if spec.initial is None:  # a file without ``initial``: at rest
+        pm_y0 = jnp.zeros((pm.num_neurons,), pm.dtype)
+    else:
+        pm_y0 = jnp.asarray(spec.initial.potentials, pm.dtype)
+
     def initial(n: int) -> MBNControllerState:
         return MBNControllerState(
             Shared(pm),
-            jnp.zeros((n, pm.num_neurons), pm.dtype),
+            jnp.broadcast_to(pm_y0, (n, pm.num_neurons)),
             Shared(im),
             jnp.zeros((n, im.num_neurons), im.dtype),
         )
@@ -186,6 +196,7 @@ def make_controller(
     programs: dict[str, tuple[float, ...]] = {}
     chosen: str | None = None
     camera: CameraConfig | None = None
+    initial_rule: str | None = None
     run_spec: CTRNNControllerSpec | InterpreterControllerSpec
     if isinstance(spec, CTRNNControllerSpec):
         if program is not None:
@@ -201,6 +212,7 @@ def make_controller(
         if isinstance(spec, MBNControllerSpec) and program is None:
             control, initial = _mbn_runner(spec)
             camera = spec.camera
+            initial_rule = spec.initial.rule if spec.initial is not None else None
         else:
             chosen = _choose_program(programs, program, kind, where)
             control, initial = _interpreter_runner(im_spec, programs[chosen])
@@ -215,6 +227,7 @@ def make_controller(
         programs=programs,
         program=chosen,
         behavior=spec.behavior if isinstance(spec, CTRNNControllerSpec) else None,
+        initial_rule=initial_rule,
         spec=spec,
     )
 

@@ -45,6 +45,7 @@ __all__ = [
     "ControllerSpec",
     "InterpreterControllerSpec",
     "MBNControllerSpec",
+    "PMInitial",
 ]
 
 KIND_CTRNN = "mbn.controller.ctrnn"
@@ -296,6 +297,32 @@ class InterpreterControllerSpec:
         object.__setattr__(self, "metadata", dict(self.metadata))
 
 
+@dataclass(frozen=True)
+class PMInitial:
+    """Where the program module starts, and the rule the MBN follows from there until its first
+    tile.
+
+    Attributes:
+        rule: "right" or "left": the rule the state stands for (the state the PM latches after a
+            one-colour tile stands for "right").
+        potentials: the PM's initial membrane potentials, one per PM neuron.
+    """
+
+    rule: str
+    potentials: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if self.rule not in ("right", "left"):
+            raise MbnInputError(f"rule must be right or left, got {self.rule!r}")
+        try:
+            arr = np.asarray(self.potentials, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise MbnInputError("potentials: not a list of numbers") from None
+        if arr.ndim != 1 or not np.all(np.isfinite(arr)):
+            raise MbnInputError("potentials: expected a list of finite numbers")
+        object.__setattr__(self, "potentials", tuple(float(v) for v in arr))
+
+
 @dataclass(frozen=True, eq=False)
 class MBNControllerSpec:
     """The Multiple Behavior Network: a program module (PM) that sets the interpreter's program.
@@ -308,6 +335,9 @@ class MBNControllerSpec:
             connection, in program order.
         pm_substeps: Euler steps of the PM per robot step.
         camera: the blob-finding camera the PM reads (field of view and range).
+        initial: where the PM starts and the rule that stands for (:class:`PMInitial`); None:
+            at rest (potentials 0), with no rule before the first tile (files written before
+            the field).
         metadata: free JSON-serialisable information: the file's ``metadata`` (that of
             ``interpreter_spec`` is not written).
         kind: the file kind (class constant).
@@ -319,6 +349,7 @@ class MBNControllerSpec:
     program_neurons: tuple[int, ...]
     pm_substeps: int = 4
     camera: CameraConfig = field(default_factory=CameraConfig)
+    initial: PMInitial | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -365,6 +396,17 @@ class MBNControllerSpec:
             raise MbnInputError(
                 f"program_module.substeps must be an integer >= 1, got {self.pm_substeps!r}"
             )
+        if self.initial is not None:
+            if not isinstance(self.initial, PMInitial):
+                raise MbnInputError(
+                    f"initial must be a PMInitial or None, got {type(self.initial).__name__}"
+                )
+            if len(self.initial.potentials) != self.program_module.num_neurons:
+                raise MbnInputError(
+                    f"program_module.initial.potentials: the program module has "
+                    f"{self.program_module.num_neurons} neurons, got "
+                    f"{len(self.initial.potentials)} potentials"
+                )
         _check_metadata(self.metadata)
         object.__setattr__(self, "metadata", dict(self.metadata))
 

@@ -30,21 +30,24 @@ from mbn.control.mbn import make_mbn_controller
 from mbn.errors import MbnInputError
 from mbn.experiments.crossroads import EPISODE_FITNESS_MAX, CrossroadTask, TaskArrays
 from mbn.experiments.evolve import tile_fitness
-from mbn.networks.ctrnn import CTRNN
+from mbn.networks.ctrnn import CTRNN, firing_rate
 from mbn.paper import DEFAULT_TAU
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, Shared, rollout
 
 __all__ = [
+    "Latch",
     "MBNState",
     "MemoryReward",
     "PMGenome",
     "camera_inputs",
+    "latch_after_tile",
     "mbn_controller",
     "memory_reward_maximum",
     "pm_fitness",
     "pm_memory_fitness",
     "prime",
+    "start_mismatch",
 ]
 
 
@@ -324,6 +327,120 @@ def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 
             y, _ = jax.lax.scan(step, y, jnp.asarray(seq, dtype))
         outs.append(y)
     return jnp.stack(outs, 1)
+
+
+class Latch(NamedTuple):
+    """The state a program module settles in after a tile (:func:`latch_after_tile`).
+
+    Attributes:
+        potentials: the PM's membrane potentials ``(n,)`` (float64).
+        program: the firing rates of its program neurons there.
+        seconds: seconds without input after the tile until it was taken as settled.
+    """
+
+    potentials: np.ndarray
+    program: np.ndarray
+    seconds: float
+
+
+def latch_after_tile(
+    pm: CTRNN,
+    colors: int,
+    program_neurons: tuple[int, ...] | range,
+    *,
+    see: float = 1.5,
+    dt: float = 0.1,
+    substeps: int = 4,
+    settle: float = 30.0,
+    check: float = 10.0,
+    tol: float = 1e-4,
+    max_seconds: float = 600.0,
+) -> Latch | None:
+    """The state ``pm`` (one network) latches after a tile of ``colors`` colours: from rest, the
+    camera input of that tile for ``see`` seconds (the reward's :attr:`MemoryReward.see`), then
+    no input for ``settle`` seconds, integrated as the MBN does (:func:`prime`: ``substeps``
+    Euler steps per robot step of ``dt``). It is settled when ``check`` more seconds without
+    input move no program value by more than ``tol`` and no potential by more than
+    ``100 tol``; else ``settle`` doubles, up to ``max_seconds``. Returns None when it never
+    settles (a PM that oscillates has no state to start from)."""
+    if colors not in (1, 2):
+        raise MbnInputError(f"colors must be 1 or 2, got {colors!r}")
+    if pm.W.ndim != 2:
+        raise MbnInputError("latch_after_tile takes one network")
+    neurons = list(program_neurons)
+    tile = _ONE if colors == 1 else _TWO
+    one = jax.tree.map(lambda a: jnp.asarray(a)[None], pm)
+    wait = settle
+    while wait <= max_seconds:
+        seqs = [[(tile, see), (_NONE, wait)], [(tile, see), (_NONE, wait + check)]]
+        y = np.asarray(prime(one, [camera_inputs(q, dt) for q in seqs], dt, substeps)[0])
+        rates = np.asarray(firing_rate(pm, jnp.asarray(y, pm.W.dtype)))[:, neurons]
+        if np.max(np.abs(rates[1] - rates[0])) <= tol and np.max(np.abs(y[1] - y[0])) <= 100 * tol:
+            return Latch(y[1].astype(np.float64), rates[1].astype(np.float64), wait + check)
+        wait *= 2
+    return None
+
+
+def start_mismatch(
+    pm: CTRNN,
+    im: CTRNN,
+    potentials: np.ndarray,
+    references: tuple[CTRNN, CTRNN],
+    program_neurons: tuple[int, ...] | range,
+    *,
+    approaches: tuple[str, ...] = ("south", "west", "east"),
+    im_substeps: int = 20,
+    pm_substeps: int = 4,
+    camera: CameraConfig | None = None,
+) -> tuple[float, float]:
+    """How the MBN drives before any tile when its PM starts at ``potentials``: its mean motor
+    mismatch (:func:`mbn.control.ctrnn.shadowed`) with the right- and the left-follower of
+    ``references`` riding along, over the seven crossroads without tiles entered from each of
+    ``approaches`` (one episode each from the mark, :data:`~mbn.experiments.crossroads.
+    EPISODE_SECONDS`). Returns ``(right, left)``: the smaller names the rule it drives by."""
+    from mbn.control.ctrnn import CTRNNState, ShadowedState, shadowed
+    from mbn.world.engine import compile_mazes
+    from mbn.world.mazes.builtin import CROSSROAD_KINDS, crossroad
+    from mbn.world.rollout import RolloutConfig, junction_arrays
+
+    task = CrossroadTask()
+    mazes = [crossroad(kind, approach=a) for a in approaches for kind in CROSSROAD_KINDS]
+    n = len(mazes)
+    dtype = im.W.dtype
+    world = compile_mazes(mazes)
+    junctions = junction_arrays(mazes, world)
+    config = RolloutConfig(
+        steps=task.steps, dt=task.dt, sensors=task.sensors, camera=camera or CameraConfig()
+    )
+    controller = shadowed(
+        make_mbn_controller(
+            program_neurons=tuple(program_neurons),
+            dt=task.dt,
+            substeps=im_substeps,
+            pm_substeps=pm_substeps,
+        ),
+        dt=task.dt,
+        substeps=im_substeps,
+    )
+    refs = jax.tree.map(lambda a, b: jnp.stack([jnp.asarray(a), jnp.asarray(b)]), *references)
+    r_net = _broadcast(refs, n, dtype)
+    state = ShadowedState(
+        MBNState(
+            _broadcast(pm, n, dtype),
+            jnp.broadcast_to(jnp.asarray(potentials, dtype), (n, pm.num_neurons)),
+            _broadcast(im, n, dtype),
+            jnp.zeros((n, im.num_neurons), dtype),
+        ),
+        CTRNNState(r_net, jnp.zeros((n, 2, r_net.W.shape[-1]), dtype)),
+        jnp.zeros((n, 2), dtype),
+    )
+    poses = jnp.asarray(np.stack([m.starts[0] for m in mazes]), dtype)
+    result = jax.jit(
+        lambda st, p: rollout(world, controller, st, p, jnp.arange(n), config, junctions=junctions)
+    )(state, poses)
+    mismatch = np.asarray(result.controller_state.mismatch, np.float64) / config.steps
+    right, left = mismatch.mean(0)
+    return float(right), float(left)
 
 
 def pm_memory_fitness(

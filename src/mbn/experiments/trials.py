@@ -29,6 +29,7 @@ from jax import Array
 from mbn.errors import MbnInputError
 from mbn.experiments.starts import JITTER, mark_starts
 from mbn.world.engine import CameraConfig, compile_mazes
+from mbn.world.junctions import rule_route
 from mbn.world.mazes.model import Maze
 from mbn.world.rollout import (
     EpisodeStats,
@@ -43,9 +44,14 @@ from mbn.world.sensors import SensorConfig
 __all__ = [
     "BEHAVIORS",
     "MAX_STALL_FRACTION",
+    "MIN_SECONDS",
+    "ROUTE_MARGIN",
+    "TYPICAL_SPEED",
     "TrialGroup",
     "TrialSpec",
     "judge",
+    "longest_route",
+    "route_seconds",
     "run_trial_groups",
     "run_trials",
     "summary",
@@ -55,6 +61,13 @@ __all__ = [
 BEHAVIORS: tuple[str, ...] = ("right", "left", "tiles")
 #: A trial fails when the robot was stalled in more than this fraction of its steps.
 MAX_STALL_FRACTION = 0.02
+#: The speed the evolved wall followers typically drive at (m/s; 60 % of v_max: speed is a small
+#: term of their fitness, docs/reproduce.md "Time limits").
+TYPICAL_SPEED = 0.3
+#: A derived time limit is this many times the longest route's time at :data:`TYPICAL_SPEED`.
+ROUTE_MARGIN = 1.5
+#: A derived time limit is never below this (s): the former fixed default of ``mbn evaluate``.
+MIN_SECONDS = 60.0
 
 
 @dataclass(frozen=True)
@@ -116,11 +129,51 @@ def trial_starts(maze: Maze, spec: TrialSpec) -> np.ndarray:
     return mark_starts(maze.starts, spec.repeats, spec.jitter, spec.seed, spec.exact_first)
 
 
+def longest_route(maze: Maze, spec: TrialSpec) -> float | None:
+    """The longest route (metres) from a start mark of ``maze`` until the ``spec.junctions``-th
+    judged junction is left, for a robot that keeps the rule in force
+    (:func:`mbn.world.junctions.rule_route`): ``spec.behavior``'s rule; for "tiles" the rule of
+    the last tile entered, ``spec.initial`` before the first (with "none": the longer of right
+    and left, counting junctions from the first tile). None when no walk gets there."""
+    if spec.behavior == "tiles":
+        initials = ("right", "left") if spec.initial == "none" else (spec.initial,)
+        walks = [(rule, True, spec.initial == "none") for rule in initials]
+    else:
+        walks = [(spec.behavior, False, False)]
+    routes = [
+        rule_route(
+            maze,
+            tuple(start),
+            rule,  # type: ignore[arg-type]
+            spec.junctions,
+            follow_tiles=follow,
+            count_from_tile=from_tile,
+        )
+        for start in np.asarray(maze.starts)
+        for rule, follow, from_tile in walks
+    ]
+    found = [r for r in routes if r is not None]
+    return max(found) if found else None
+
+
+def route_seconds(maze: Maze, spec: TrialSpec) -> float:
+    """A time limit for ``spec``'s trials in ``maze``: :data:`ROUTE_MARGIN` x the time of the
+    :func:`longest_route` at :data:`TYPICAL_SPEED`, rounded up to 10 s, and at least
+    :data:`MIN_SECONDS` (also when no route gets there). ``fig4``: 17.4 m, 90 s, the limit
+    ``mbn reproduce`` tests its networks with."""
+    route = longest_route(maze, spec)
+    if route is None:
+        return MIN_SECONDS
+    return max(MIN_SECONDS, 10.0 * math.ceil(ROUTE_MARGIN * route / TYPICAL_SPEED / 10.0 - 1e-9))
+
+
 def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     """Judge every episode: per trial ``success``, ``correct`` junctions among the first J,
     ``judged`` junctions (J or fewer if the robot passed fewer), ``stall`` fraction until the J-th
-    junction was left (or over the whole trial if it never was), and ``exits`` ``(n, J)``: the
-    exit taken at each judged junction (-1 where there was none)."""
+    junction was left (or over the whole trial if it never was), ``timed_out`` (the trial ended
+    before its J-th judged junction with no wrong exit and no stall failure: the time limit, not
+    the controller, ended it), and ``exits`` ``(n, J)``: the exit taken at each judged junction
+    (-1 where there was none)."""
     J = spec.junctions
     kept = np.asarray(stats.junction_exit).shape[1]
     n = np.minimum(np.asarray(stats.n_junctions), kept)
@@ -157,9 +210,12 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     stalls = fields["stalls"][:, J - 1]
     whole = np.asarray(stats.stall_fraction)
     stall = np.where(n >= J, stalls / np.maximum(out_step, 1), whole)
-    success = (n >= J) & np.all(correct, axis=1) & (stall <= MAX_STALL_FRACTION)
+    no_wrong_exit = correct.sum(1) == judged
+    calm = stall <= MAX_STALL_FRACTION
+    success = (n >= J) & no_wrong_exit & calm
     return {
         "success": success,
+        "timed_out": (n < J) & no_wrong_exit & calm,
         "correct": correct.sum(1),
         "judged": judged,
         "stall": stall,
@@ -168,13 +224,17 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
 
 
 def summary(verdict: dict[str, np.ndarray]) -> dict[str, float | int]:
-    """The JSON summary of judged trials."""
+    """The JSON summary of judged trials: ``trials``, ``successes``, ``success_rate``,
+    ``timed_out`` (trials the time limit ended before their J-th junction, with no wrong exit
+    and no stall failure: neither successes nor failures of the controller), ``junctions``,
+    ``correct_junctions``, ``mean_stall_fraction``."""
     trials = int(verdict["success"].shape[0])
     successes = int(verdict["success"].sum())
     return {
         "trials": trials,
         "successes": successes,
         "success_rate": successes / trials if trials else 0.0,
+        "timed_out": int(verdict["timed_out"].sum()),
         "junctions": int(verdict["judged"].sum()),
         "correct_junctions": int(verdict["correct"].sum()),
         "mean_stall_fraction": float(np.mean(verdict["stall"])) if trials else 0.0,

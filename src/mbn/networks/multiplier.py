@@ -60,6 +60,7 @@ __all__ = [
     "load_default",
     "load_multiplier",
     "multiply",
+    "relative_errors",
     "save_multiplier",
     "training_pairs",
     "validation_pairs",
@@ -235,6 +236,38 @@ def _evaluate(
         "max_abs_error_grid": float(grid_err.max()),
         "mean_abs_error_grid": float(grid_err.mean()),
         "fixed_point": fixed_point_check(mul, validation, precision=precision),
+    }
+
+
+def relative_errors(
+    mul: Multiplier,
+    pairs: ArrayLike,
+    *,
+    floor: float = 0.0,
+    precision: Precision = NETWORKS,
+) -> dict[str, Any]:
+    """The paper's criterion on ``pairs``: the error relative to the target ``x1 x2``, over the
+    pairs whose target is at least ``floor`` (0: all of them; the relative error is unbounded as
+    the target goes to 0, since a logistic output never is 0). Returns a JSON-ready dict:
+    ``pairs`` (counted), ``min_target``, ``fraction_within_5pct``, ``max_rel_error`` and the
+    pair ``worst`` where it is largest."""
+    with scope(precision):
+        dtype = dtype_of(precision)
+        pairs = jnp.asarray(pairs, dtype=dtype)
+        target = np.asarray(pairs[:, 0] * pairs[:, 1], np.float64)
+        out = np.asarray(multiply(mul, pairs, precision=precision), np.float64)
+    keep = target >= floor
+    if not keep.any():
+        raise MbnInputError(f"no pair has a target >= {floor:g}")
+    rel = np.abs(out[keep] - target[keep]) / target[keep]
+    worst = int(np.argmax(rel))
+    return {
+        "pairs": int(keep.sum()),
+        "floor": float(floor),
+        "min_target": float(target[keep].min()),
+        "fraction_within_5pct": float(np.mean(rel <= REL_TOL)),
+        "max_rel_error": float(rel[worst]),
+        "worst": [float(v) for v in np.asarray(pairs, np.float64)[keep][worst]],
     }
 
 

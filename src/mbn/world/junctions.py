@@ -47,6 +47,7 @@ __all__ = [
     "junction_sequence",
     "junction_tables",
     "rule_exit",
+    "rule_route",
 ]
 
 #: Compass headings in index order (also the order of the last axis of the junction tables).
@@ -266,3 +267,72 @@ def junction_sequence(maze: Maze, poses: np.ndarray, *, margin: float = 0.0) -> 
             )
         )
     return out
+
+
+def _compass(theta: float) -> int:
+    """Compass index (N E S W) nearest to the heading ``theta`` (radians from east)."""
+    return (1 - round(theta / (math.pi / 2))) % 4
+
+
+def rule_route(
+    maze: Maze,
+    start: tuple[float, float, float],
+    rule: Literal["right", "left"],
+    junctions: int,
+    *,
+    follow_tiles: bool = False,
+    count_from_tile: bool = False,
+) -> float | None:
+    """The length (metres) of the route a wall follower drives from ``start = (x, y, theta)``
+    until it leaves its ``junctions``-th decision cell, walking the grid cell by cell.
+
+    From the start cell's centre (heading: the compass direction nearest ``theta``) the walk takes
+    in every cell the exit of the rule in force (:func:`rule_exit`: in a corridor simply along
+    it, round a corner, back at a dead end); each cell moved through is one ``cell`` of length,
+    and the route ends half a cell past the centre of the ``junctions``-th decision cell entered
+    (the start cell is not a pass, as in :func:`junction_sequence`). ``follow_tiles``: entering a
+    cell with a tile makes its rule the one in force (one colour: right, two colours: left).
+    ``count_from_tile``: only decision cells entered after the first tile count.
+
+    Returns None when the walk never gets there (it comes back to a cell with the same heading,
+    rule and count: a loop without enough decision cells, or without a tile).
+    """
+    if junctions < 1:
+        raise MbnInputError(f"junctions must be >= 1, got {junctions!r}")
+    grid, cell = _grid(maze)
+    nb = free_neighbours(maze)
+    decision = decision_cells(maze)
+    tile_rule: dict[tuple[int, int], str] = {}
+    for t in maze.tiles:
+        tile_rule[cell_of(maze, t.x, t.y)] = "right" if t.colors == 1 else "left"
+    r, c = cell_of(maze, float(start[0]), float(start[1]))
+    if grid[r, c] == "#":
+        raise MbnInputError(f"maze {maze.name!r}: start {tuple(start)} is in a wall")
+    h = _compass(float(start[2]))
+    current: str = rule
+    seen_tile = not count_from_tile
+    count = 0
+    length = 0.0
+    visited: set[tuple[int, int, int, str, int, bool]] = set()
+    while True:
+        key = (r, c, h, current, count, seen_tile)
+        if key in visited:
+            return None
+        visited.add(key)
+        if length > 0 and decision[r, c] and seen_tile:
+            count += 1
+            if count == junctions:
+                return length + cell / 2
+        open_dirs = nb[r, c]
+        if length == 0 and open_dirs[h]:
+            exit_name = "straight"  # the start faces along its corridor
+        else:
+            exit_name = _rule_exit_from(open_dirs, h, current)
+        h = (h + _TURN[exit_name]) % 4
+        if not open_dirs[h]:  # a closed cell
+            return None
+        r, c = r + _STEP[h][0], c + _STEP[h][1]
+        length += cell
+        if follow_tiles and (r, c) in tile_rule:
+            current = tile_rule[(r, c)]
+            seen_tile = True

@@ -43,10 +43,16 @@ def test_specs(
     heldout_repeats: int,
     test_seed: int,
     heldout_seed: int,
+    initial: str | None = None,
 ) -> dict[str, TrialSpec]:
-    """The three tests of a controller judged by ``behavior`` (suffix -> spec): the MBN starts
-    with no rule in force (junctions count from its first tile), the others by their rule."""
-    initial = "none" if behavior == "tiles" else "right"
+    """The three tests of a controller judged by ``behavior`` (suffix -> spec). The MBN
+    ("tiles") is judged before its first tile by ``initial``, the rule its file starts with;
+    without one (None: a file without ``initial``, at rest) its junctions count from its first
+    tile. The others are judged by their rule."""
+    if behavior != "tiles":
+        initial = "right"
+    elif initial is None:
+        initial = "none"
     return {
         "": TrialSpec(behavior=behavior, initial=initial, seconds=seconds),
         "_jitter": TrialSpec(
@@ -81,6 +87,7 @@ def protocol_block(plain: dict[str, TrialSpec], mbn: dict[str, TrialSpec]) -> di
         "max_stall_fraction": MAX_STALL_FRACTION,
         "seconds": plain[""].seconds,
         "mbn_seconds": mbn[""].seconds,
+        "mbn_initial": mbn[""].initial,
         "jitter": list(plain["_jitter"].jitter),
         "jitter_trials": _trials(plain["_jitter"]),
         "heldout_trials": _trials(plain["_heldout"]),

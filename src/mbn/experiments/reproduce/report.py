@@ -127,6 +127,13 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
     )
     proto = s["tests"]["protocol"]
     jit = proto["jitter"]
+    mbn_initial = proto.get("mbn_initial", "none")  # runs before the MBN's initial state: none
+    mbn_junctions = (
+        "whose junctions count from the first tile it drives over"
+        if mbn_initial == "none"
+        else f"which starts in its {mbn_initial} state: the junctions before its first tile are "
+        f"judged by the {mbn_initial} rule"
+    )
     rows: list[list[str]] = []
     status: list[bool | None] = []
     for name, rule in TESTED:
@@ -140,6 +147,7 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                     f"{t['success_rate']:.1%}",
                     f"{t['correct_junctions']}/{t['junctions']}",
                     f"{t['mean_stall_fraction']:.2%}",
+                    str(t.get("timed_out", "-")),
                 ]
             )
             status.append(None)
@@ -150,8 +158,10 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"A trial succeeds when the robot takes the rule's exit at each of its first "
                 f"{proto['junctions']} junctions and is stalled at most "
                 f"{proto['max_stall_fraction']:.0%} of the time until it leaves the last one; "
-                f"{proto['seconds']:g} s per trial ({proto['mbn_seconds']:g} s for the MBN, whose "
-                "junctions count from the first tile it drives over). Paper protocol: the start "
+                f"{proto['seconds']:g} s per trial ({proto['mbn_seconds']:g} s for the MBN, "
+                f"{mbn_junctions}); a trial that ends before its last junction with no wrong exit "
+                "and no stall failure is counted as timed out (not a success). Paper protocol: "
+                "the start "
                 f"marks of `{s['tests']['mazes']['test']}`; `_jitter`: "
                 f"{proto['jitter_trials']} (lateral +-{jit[0]:g} m, along +-{jit[1]:g} m, heading "
                 f"+-{jit[2]:g} deg); "
@@ -164,7 +174,10 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 )
                 + ".",
             ],
-            table=(["test", "rule", "successes", "rate", "correct junctions", "stall"], rows),
+            table=(
+                ["test", "rule", "successes", "rate", "correct junctions", "stall", "timed out"],
+                rows,
+            ),
             status=status,
         )
     )
@@ -208,7 +221,8 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                     else "the paper's product, over its two trials plus switching, memory and "
                     "rest episodes: docs/experiments.md"
                 )
-                + f"), camera range {pm['camera_range']:g} m.",
+                + f"), camera range {pm['camera_range']:g} m. "
+                + _pm_start(pm.get("initial")),
             ],
             images=[images["de"]],
         )
@@ -246,6 +260,26 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
             )
         )
     return secs
+
+
+def _pm_start(start: dict[str, Any] | None) -> str:
+    """What the report says of the MBN's initial state (``stages.pm.initial``)."""
+    if start is None:
+        return "The MBN starts with its PM at rest (potentials 0), sending neither program."
+    if start["rule"] is None:
+        return "The PM did not settle after a one-colour tile: the MBN starts with its PM at rest."
+    if start["is_rf_program"]:
+        rf = f" (RF's program to within {start['tolerance']:g})"
+    else:
+        rf = (
+            f" (RF's program: {_vec(start['rf_program'])}; largest difference "
+            f"{start['max_distance_to_rf_program']:.3f})"
+        )
+    return (
+        f"The MBN starts in the state its PM latches after a one-colour tile (settled within "
+        f"{start['settled_after_seconds']:g} s), sending {_vec(start['program'])}{rf}; it "
+        f"is judged by the {start['rule']} rule before its first tile."
+    )
 
 
 def _yes(ok: bool) -> str:

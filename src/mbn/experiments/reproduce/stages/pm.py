@@ -13,6 +13,7 @@ from mbn.config import Settings, setting
 from mbn.controllers import (
     InterpreterControllerSpec,
     MBNControllerSpec,
+    PMInitial,
     read_controller_spec,
     save_controller,
 )
@@ -23,9 +24,11 @@ from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.program_module import (
     MemoryReward,
     PMGenome,
+    latch_after_tile,
     memory_reward_maximum,
     pm_fitness,
     pm_memory_fitness,
+    start_mismatch,
 )
 from mbn.experiments.reproduce.stages.common import (
     MADE_BY,
@@ -41,6 +44,10 @@ __all__ = ["PMSettings", "PMStage"]
 
 #: Crossroad kinds of the paper's PM reward (its two trials run on all seven).
 _PAPER_KINDS = 7
+#: The MBN starts in the state its PM latches after a one-colour tile (meant to be RF's).
+INITIAL_TILE = 1
+#: The latched program is reported as RF's when no value is further than this from it.
+INITIAL_PROGRAM_TOL = 0.05
 
 
 @dataclass(frozen=True)
@@ -139,6 +146,14 @@ class PMStage(Stage):
             "PM: DE generations",
         )
         pm = genome.network(jnp.asarray(de.data["best_genome"]))
+        initial, start = _initial_state(
+            pm,
+            k,
+            im_spec,
+            (read_network(ctx, "rf"), read_network(ctx, "lf")),
+            MemoryReward().see,
+            camera,
+        )
         save_controller(
             ctx.rundir.controller_file("mbn"),
             MBNControllerSpec(
@@ -146,16 +161,19 @@ class PMStage(Stage):
                 program_module=pm,
                 program_neurons=tuple(range(k)),
                 camera=camera,
+                initial=initial,
                 metadata={
                     "made_by": MADE_BY,
                     "stage": "pm",
                     "seed": ctx.seed,
                     "pm_fitness": de.data["best_fitness"],
+                    "initial": start,
                 },
             ),
         )
         return {
             **de.data,
+            "initial": start,
             "reward": s.reward,
             "fidelity": s.fidelity if s.reward == "memory" else None,
             "max_fitness": float(maximum),
@@ -163,4 +181,62 @@ class PMStage(Stage):
         }
 
     def summary(self, data: dict[str, Any]) -> str:
-        return evolution_summary(data)
+        start = data["initial"]
+        if start["rule"] is None:
+            return f"{evolution_summary(data)}; starts at rest (no settled state)"
+        program = ", ".join(f"{v:.3f}" for v in start["program"])
+        return f"{evolution_summary(data)}; starts as {start['rule']} ({program})"
+
+
+def _initial_state(
+    pm: Any,
+    k: int,
+    im_spec: InterpreterControllerSpec,
+    references: tuple[Any, Any],
+    see: float,
+    camera: CameraConfig,
+) -> tuple[PMInitial | None, dict[str, Any]]:
+    """The MBN's start: the state the evolved PM latches after a one-colour tile (shown for
+    ``see`` seconds, then nothing until it settles), and the rule it stands for: the one of the
+    network (RF or LF) the MBN started there drives closer to, by the mean motor mismatch on the
+    crossroads without tiles (:func:`start_mismatch`); and what ``results.json`` records of it,
+    with the program it sends against RF's."""
+    latch = latch_after_tile(pm, INITIAL_TILE, range(k), see=see)
+    right = im_spec.programs.get("right")
+    record: dict[str, Any] = {
+        "tile": INITIAL_TILE,
+        "rule": None,
+        "rf_program": list(right) if right is not None else None,
+    }
+    if latch is None:
+        return None, {**record, "settled": False}
+    m_right, m_left = start_mismatch(
+        pm,
+        im_spec.interpreter.net,
+        latch.potentials,
+        references,
+        range(k),
+        im_substeps=im_spec.substeps,
+        camera=camera,
+    )
+    rule = "right" if m_right <= m_left else "left"
+    distance = (
+        float(max(abs(a - b) for a, b in zip(latch.program, right, strict=True)))
+        if right is not None
+        else None
+    )
+    record.update(
+        {
+            "rule": rule,
+            "settled": True,
+            "settled_after_seconds": latch.seconds,
+            "potentials": [float(v) for v in latch.potentials],
+            "program": [round(float(v), 6) for v in latch.program],
+            "mismatch_rf": round(m_right, 6),
+            "mismatch_lf": round(m_left, 6),
+            "max_distance_to_rf_program": distance,
+            "is_rf_program": distance is not None and distance <= INITIAL_PROGRAM_TOL,
+            "tolerance": INITIAL_PROGRAM_TOL,
+        }
+    )
+    return PMInitial(rule, tuple(float(v) for v in latch.potentials)), record

@@ -140,6 +140,7 @@ class TestsStage(Stage):
                     heldout_repeats=s.heldout_repeats,
                     test_seed=ctx.seeds["test_jitter"],
                     heldout_seed=ctx.seeds["heldout_jitter"],
+                    initial=loaded[n].initial_rule,
                 )
                 groups += [
                     TrialGroup(
@@ -188,6 +189,7 @@ class TestsStage(Stage):
                 "correct": verdicts[name]["correct"].astype(int).tolist(),
                 "judged": verdicts[name]["judged"].astype(int).tolist(),
                 "stall": np.round(verdicts[name]["stall"].astype(float), 5).tolist(),
+                "timed_out": verdicts[name]["timed_out"].astype(int).tolist(),
             }
             for name in TEST_NAMES
         }
