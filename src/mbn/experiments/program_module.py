@@ -423,15 +423,14 @@ def start_mismatch(
         substeps=im_substeps,
     )
     refs = jax.tree.map(lambda a, b: jnp.stack([jnp.asarray(a), jnp.asarray(b)]), *references)
-    r_net = _broadcast(refs, n, dtype)
     state = ShadowedState(
         MBNState(
-            _broadcast(pm, n, dtype),
+            _shared(pm, dtype),
             jnp.broadcast_to(jnp.asarray(potentials, dtype), (n, pm.num_neurons)),
-            _broadcast(im, n, dtype),
+            _shared(im, dtype),
             jnp.zeros((n, im.num_neurons), dtype),
         ),
-        CTRNNState(r_net, jnp.zeros((n, 2, r_net.W.shape[-1]), dtype)),
+        CTRNNState(_shared(refs, dtype), jnp.zeros((n, 2, refs.W.shape[-1]), dtype)),
         jnp.zeros((n, 2), dtype),
     )
     poses = jnp.asarray(np.stack([m.starts[0] for m in mazes]), dtype)
