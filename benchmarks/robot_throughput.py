@@ -27,6 +27,7 @@ import math
 import os
 import platform
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import jax
 import jax.numpy as jnp
@@ -83,8 +84,12 @@ def measure(mazes: list[Maze], batch: int, steps: int, repeats: int) -> dict:
     }
 
 
-def measure_loaded(mazes: list[Maze], batch: int, steps: int, repeats: int, loaded) -> dict:
-    """Like :func:`measure` for a controller made from a spec (``make_controller``)."""
+def measure_loaded(
+    mazes: list[Maze], batch: int, steps: int, repeats: int, loaded, parts: int = 1
+) -> dict:
+    """Like :func:`measure` for a controller made from a spec (``make_controller``). With
+    ``parts > 1`` the batch is run in that many equal parts at once (threads), as the experiment
+    evaluates its DE populations (``mbn reproduce --threads``)."""
     world = compile_mazes(mazes)
     junctions = junction_arrays(mazes, world)
     maze_index = np.arange(batch) % len(mazes)
@@ -95,20 +100,31 @@ def measure_loaded(mazes: list[Maze], batch: int, steps: int, repeats: int, load
             world, loaded.controller, state, p, m, config, junctions=junctions
         )
     )
-    args = (loaded.initial_state(batch), jnp.asarray(poses, jnp.float32), jnp.asarray(maze_index))
+    size = batch // parts
+    args = (loaded.initial_state(size), jnp.asarray(poses[:size], jnp.float32))
+    index = [jnp.asarray(maze_index[k * size : (k + 1) * size]) for k in range(parts)]
+    pool = ThreadPoolExecutor(parts)
+
+    def once() -> list:
+        return [
+            f.result()
+            for f in [pool.submit(lambda m: jax.block_until_ready(run(*args, m)), m) for m in index]
+        ]
+
     start = time.perf_counter()
-    out = jax.block_until_ready(run(*args))
+    out = once()
     compile_s = time.perf_counter() - start
     best = np.inf
     for _ in range(repeats):
         start = time.perf_counter()
-        out = jax.block_until_ready(run(*args))
+        out = once()
         best = min(best, time.perf_counter() - start)
+    pool.shutdown()
     return {
-        "robot_steps_per_s": batch * steps / best,
+        "robot_steps_per_s": size * parts * steps / best,
         "compile_s": compile_s,
         "run_s": best,
-        "stall_fraction": float(np.mean(out.stats.stall_fraction)),
+        "stall_fraction": float(np.mean([np.mean(o.stats.stall_fraction) for o in out])),
     }
 
 
@@ -151,8 +167,9 @@ def workload_specs() -> dict:
     }
 
 
-def workload(steps: int, repeats: int) -> dict:
-    """Robot-steps/s of the experiment's controllers (see the module's docstring)."""
+def workload(steps: int, repeats: int, parts: int = 1) -> dict:
+    """Robot-steps/s of the experiment's controllers (see the module's docstring); with
+    ``parts > 1`` also with each batch run in that many parts at once (keys ``..._parts``)."""
     specs = workload_specs()
     crossroads = [crossroad(kind) for kind in CROSSROAD_KINDS]
     fig4 = [builtin_maze("fig4")]
@@ -165,7 +182,11 @@ def workload(steps: int, repeats: int) -> dict:
             m = measure_loaded(mazes, batch, steps, repeats, loaded)
             out[f"{name}_{batch}"] = m["robot_steps_per_s"]
             compile_s[f"{name}_{batch}"] = m["compile_s"]
+            if parts > 1:
+                m = measure_loaded(mazes, batch, steps, repeats, loaded, parts)
+                out[f"{name}_{batch}_parts"] = m["robot_steps_per_s"]
     out["compile_s"] = compile_s
+    out["parts"] = parts
     return out
 
 
@@ -200,6 +221,12 @@ def main() -> None:
     parser.add_argument(
         "--only", choices=("workload", "world"), default=None, help="run one group of cases"
     )
+    parser.add_argument(
+        "--parts",
+        type=int,
+        default=len(os.sched_getaffinity(0)),
+        help="also run each workload batch in this many parts at once (default: the cores)",
+    )
     args = parser.parse_args()
     if args.only == "workload":
         print(
@@ -208,7 +235,7 @@ def main() -> None:
                     "benchmark": "robot_throughput",
                     "unit": "robot-steps/s (100 ms steps, 10 sonars, float32)",
                     "num_steps": args.steps,
-                    "workload": workload(args.steps, args.repeats),
+                    "workload": workload(args.steps, args.repeats, args.parts),
                     "machine": machine(),
                     "versions": {"jax": jax.__version__, "numpy": np.__version__},
                 }
@@ -229,7 +256,7 @@ def main() -> None:
     odd = measure([stretched], 4096, args.steps, args.repeats)
     result = {
         "benchmark": "robot_throughput",
-        "workload": {} if args.only == "world" else workload(args.steps, args.repeats),
+        "workload": {} if args.only == "world" else workload(args.steps, args.repeats, args.parts),
         "unit": "robot-steps/s (100 ms steps, 10 sonars, 3-neuron CTRNN x 4 sub-steps, float32)",
         "num_steps": args.steps,
         "robot_steps_per_s": figures,
