@@ -51,6 +51,7 @@ def test_names_and_descriptions():
         "stage_arena",
         "fig4",
         "heldout",
+        "validation",
     )
     described = describe_builtins()
     assert [name for name, _ in described] == list(BUILTIN_NAMES)
@@ -187,7 +188,7 @@ def walk(maze: Maze, row: int, col: int, heading: int, rule: str, moves: int) ->
     ]
 
 
-@pytest.mark.parametrize(("name", "min_starts"), [("fig4", 10), ("heldout", 10)])
+@pytest.mark.parametrize(("name", "min_starts"), [("fig4", 10), ("heldout", 10), ("validation", 8)])
 def test_test_mazes(name: str, min_starts: int):
     maze = load_maze(name)
     assert maze.name == name and maze.grid is not None and maze.cell == 1.2
@@ -219,7 +220,7 @@ def test_test_mazes(name: str, min_starts: int):
         assert maze.is_free(tile.x, tile.y) and tile.width == 1.2
 
 
-@pytest.mark.parametrize("name", ["fig4", "heldout"])
+@pytest.mark.parametrize("name", ["fig4", "heldout", "validation"])
 def test_every_wall_following_circuit_of_the_test_mazes_meets_a_tile(name: str):
     # The MBN is judged from the first tile it drives over: a start from which a wall follower
     # circles without ever meeting a tile would test nothing (docs/mazes.md).
@@ -236,7 +237,10 @@ def test_every_wall_following_circuit_of_the_test_mazes_meets_a_tile(name: str):
             assert len(after) >= 3, (name, int(r), int(c), rule)
 
 
-def test_fig4_and_heldout_differ():
-    a, b = builtin_maze("fig4"), builtin_maze("heldout")
+@pytest.mark.parametrize(
+    ("one", "other"), [("fig4", "heldout"), ("fig4", "validation"), ("heldout", "validation")]
+)
+def test_the_test_and_validation_mazes_differ(one, other):
+    a, b = builtin_maze(one), builtin_maze(other)
     assert a.grid is not None and b.grid is not None
     assert a.grid.shape != b.grid.shape or (a.grid != b.grid).any()
