@@ -219,7 +219,7 @@ _DESCRIPTIONS: dict[str, str] = {
     "stage_arena": "the Stage reference arena: plus, T and two L turns, 14 x 10.4 m, 6 starts",
     "fig4": "test maze after the paper's Fig. 4: plus, T and L crossings, tiles, 10 starts",
     "heldout": "a second fig4-style maze kept out of training: tiles, 12 starts",
-    "validation": "a third fig4-style maze used by no test, for choosing among candidates: 8 starts",
+    "validation": "a third fig4-style maze used by no test (to choose among candidates): 8 starts",
 }
 
 #: Names :func:`builtin_maze` knows, in order.
