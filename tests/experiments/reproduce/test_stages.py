@@ -102,3 +102,43 @@ def test_the_report_renders_from_the_folder_alone_without_simulating(
     assert source is not None
     text = Path(source).read_text()
     assert "pipeline.runner" not in text and "run_trial" not in text
+
+
+def _with_validation(config, **changes):
+    sections = tuple(
+        sec.replace(**changes) if sec.section == "validation" else sec for sec in config.sections
+    )
+    return type(config)(sections)
+
+
+@pytest.mark.parametrize("name", ["lf", "pm"])
+def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_best(
+    quick_run, tmp_path, name
+):
+    """With a target no candidate can meet (every trial and then some), the stage evolves
+    ``attempts`` candidates, records each one's success on the validation maze, keeps the best
+    by it and writes that one's controller; with the quick run's single attempt it evolves one."""
+    from mbn.controllers import read_controller_spec
+
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    assert len(rundir.read_stage(name)["attempts"]) == 1
+    strict = _with_validation(config, target=1.0, attempts=2, jitter_per_mark=1)
+    data = run_stage(REPRODUCE, rundir, name, seed=seed, config=strict)
+    attempts = data["attempts"]
+    key = "validation_im" if name == "lf" else "validation"
+
+    def worst(a):
+        rates = [a["validation"]["success_rate"], a[key]["success_rate"]]
+        return min(rates)
+
+    if all(a["validation"]["meets_target"] and a[key]["meets_target"] for a in attempts[:1]):
+        pytest.skip("the first candidate met even a 100 % target")
+    assert len(attempts) == 2
+    assert data["chosen_attempt"] == max(
+        range(2), key=lambda i: (worst(attempts[i]), attempts[i]["best_fitness"], -i)
+    )
+    assert data["best_fitness"] == attempts[data["chosen_attempt"]]["best_fitness"]
+    controller = "lf" if name == "lf" else "mbn"
+    spec = read_controller_spec(rundir.controller_file(controller))
+    assert spec.metadata  # written by the stage for the chosen candidate
+    assert (rundir.root / "checkpoints" / f"{name}_attempt1.npz").exists()

@@ -29,6 +29,7 @@ from mbn.experiments.reproduce.settings import (
     QUICK,
     DESettings,
     FollowerSettings,
+    ValidationSettings,
     derived_seeds,
 )
 from mbn.experiments.reproduce.stages.im import IMStage
@@ -69,7 +70,7 @@ REPRODUCE = Experiment(
     name="reproduce",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(DESettings, FollowerSettings),
+    shared=(DESettings, FollowerSettings, ValidationSettings),
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

@@ -14,7 +14,7 @@ from mbn.config import Settings, setting
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import EPISODE_SECONDS
 
-__all__ = ["QUICK", "DESettings", "FollowerSettings", "derived_seeds"]
+__all__ = ["QUICK", "DESettings", "FollowerSettings", "ValidationSettings", "derived_seeds"]
 
 _DE = {f.name: f.default for f in dataclasses.fields(DEConfig)}
 
@@ -74,6 +74,37 @@ class FollowerSettings(Settings):
     )
 
 
+@dataclass(frozen=True)
+class ValidationSettings(Settings):
+    """How a stage checks its product before the next stage builds on it: success on the
+    ``validation`` maze, which no test uses, from jittered starts; a stage whose candidate falls
+    short evolves another (``attempts`` in all) and keeps the best (docs/reproduce.md)."""
+
+    section = "validation"
+    maze: str = setting(
+        "validation",
+        doc="maze the candidates are checked in (built-in name or file; not a test maze)",
+        source="docs/mazes.md",
+    )
+    jitter_per_mark: int = setting(
+        10, doc="jittered starts per start mark", low=1, high=1000, source="docs/reproduce.md"
+    )
+    target: float = setting(
+        0.95,
+        doc="success rate a candidate must reach (the tests' target)",
+        low=0.0,
+        high=1.0,
+        source="the per-run targets (docs/sweep.md)",
+    )
+    attempts: int = setting(
+        3,
+        doc="candidates a stage evolves at most before it keeps the best",
+        low=1,
+        high=20,
+        source="docs/reproduce.md",
+    )
+
+
 #: The quick preset (``--quick``): a smoke run of every stage and output with tiny budgets.
 QUICK: dict[str, dict[str, Any]] = {
     "followers": {"perturbation_copies": 1},
@@ -82,6 +113,7 @@ QUICK: dict[str, dict[str, Any]] = {
     "lf": {"generations": 20, "variants": 1},
     "pm": {"generations": 3, "variants": 1},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
+    "validation": {"jitter_per_mark": 1, "attempts": 1},
 }
 
 
@@ -93,4 +125,5 @@ def derived_seeds(seed: int) -> dict[str, int]:
         "test_jitter": seed + 1,
         "heldout_jitter": seed + 2,
         "pm_crossroad_jitter": seed + 3,
+        "validation_jitter": seed + 4,
     }

@@ -29,9 +29,11 @@ __all__ = [
     "de_config",
     "evolve_follower",
     "read_network",
+    "save_follower",
     "score",
     "stage_perturbations",
     "task",
+    "validate",
 ]
 
 MADE_BY = "mbn reproduce"
@@ -123,55 +125,79 @@ def evolve_follower(
     population: np.ndarray | None = None,
     approaches: tuple[str, ...] = ("south",),
     restarts: int = 1,
+    *,
+    name: str | None = None,
+    key: jax.Array | None = None,
+    validated: bool = False,
+    save: bool = True,
 ) -> dict[str, Any]:
     """Evolve ``genome`` for ``rule`` on the crossroads (fitness averaged over the genome and its
     perturbed copies), ``restarts`` times from independent random populations (restart 0 with
-    the stage's key, checkpoint ``NAME``; restart r with the key folded with r, checkpoint
-    ``NAME_restartR``), keep the restart with the best fitness, score its best (branch fitness
-    and the paper's terms) and save it as ``controllers/NAME.json`` (NAME: the stage's)."""
-    name = ctx.name
+    ``key`` (default the stage's), checkpoint ``NAME`` (default the stage's name); restart r
+    with the key folded with r, checkpoint ``NAME_restartR``), and keep the restart with the best
+    fitness — or, ``validated``, the fittest of those that meet the validation target on the
+    validation maze (:func:`validate`; the one with the best success there when none does, after
+    up to ``attempts - 1`` more restarts). Its best is scored (branch fitness and the paper's
+    terms) and, ``save``, written as ``controllers/NAME.json``. The data holds ``network``
+    (the CTRNN, not JSON: the caller pops it)."""
+    name = name or ctx.name
+    key = ctx.key if key is None else key
     followers = ctx.section("followers")
     fitness = robust_fitness(
         crossroad_fitness(genome, task(ctx, rule, variants, approaches)),
         stage_perturbations(ctx, genome.size),
     )
-    runs = []
-    for r in range(restarts):
+    extra = ctx.section("validation").attempts - 1 if validated else 0
+    runs: list[dict[str, Any]] = []
+    r = 0
+    while r < restarts + extra:
+        total = restarts if r < restarts else restarts + extra
         de = ctx.evolve(
             name if r == 0 else f"{name}_restart{r}",
             de_config(ctx, genome.size, followers.weight_bound),
             fitness,
-            ctx.key if r == 0 else jax.random.fold_in(ctx.key, r),
+            key if r == 0 else jax.random.fold_in(key, r),
             generations,
             f"{name.upper()}: DE generations"
-            + (f" (restart {r + 1}/{restarts})" if restarts > 1 else ""),
+            + (f" (restart {r + 1}/{total})" if total > 1 else ""),
             population,
         )
-        runs.append(de.data)
-    chosen = max(range(restarts), key=lambda r: (runs[r]["best_fitness"], -r))
-    data = dict(runs[chosen])
-    if restarts > 1:
+        run = dict(de.data)
+        if validated:
+            net = genome.network(jnp.asarray(run["best_genome"]))
+            run["validation"] = validate(ctx, CTRNNControllerSpec(net=net, behavior=rule), rule)
+        runs.append(run)
+        r += 1
+        if r >= restarts and (not validated or any(x["validation"]["meets_target"] for x in runs)):
+            break
+
+    def rank(i: int) -> tuple[Any, ...]:
+        v = runs[i].get("validation")
+        first = (
+            (v["meets_target"], v["success_rate"] if not v["meets_target"] else 0.0) if v else ()
+        )
+        return (*first, runs[i]["best_fitness"], -i)
+
+    chosen = max(range(len(runs)), key=rank)
+    data = {k: v for k, v in runs[chosen].items() if k != "validation"}
+    if runs[chosen].get("validation") is not None:
+        data["validation"] = runs[chosen]["validation"]
+    if len(runs) > 1:
         data["restarts"] = [
-            {"best_fitness": d["best_fitness"], "history": d["history"]} for d in runs
+            {
+                "best_fitness": d["best_fitness"],
+                "history": d["history"],
+                "best_genome": d["best_genome"],
+                **({"validation": d["validation"]} if "validation" in d else {}),
+            }
+            for d in runs
         ]
         data["chosen_restart"] = chosen
     net = genome.network(jnp.asarray(data["best_genome"]))
     scored = score(ctx, net, rule, variants, approaches)
     connections = [str(c) for c in genome.connections]
-    save_controller(
-        ctx.rundir.controller_file(name),
-        CTRNNControllerSpec(
-            net=net,
-            behavior=rule,
-            metadata={
-                "made_by": MADE_BY,
-                "stage": name,
-                "seed": ctx.seed,
-                "evolved": connections,
-                **scored,
-            },
-        ),
-    )
+    if save:
+        save_follower(ctx, name, net, rule, connections, scored)
     noise = {"copies": followers.perturbation_copies, "sigma": followers.perturbation_sigma}
     return {
         **data,
@@ -179,4 +205,76 @@ def evolve_follower(
         "noise": noise,
         "approaches": list(approaches),
         **scored,
+        "network": net,
+    }
+
+
+def save_follower(
+    ctx: StageContext,
+    name: str,
+    net: CTRNN,
+    rule: str,
+    connections: list[str],
+    scored: dict[str, Any],
+) -> None:
+    """Write an evolved follower as ``controllers/NAME.json``."""
+    save_controller(
+        ctx.rundir.controller_file(name),
+        CTRNNControllerSpec(
+            net=net,
+            behavior=rule,
+            metadata={
+                "made_by": MADE_BY,
+                "stage": ctx.name,
+                "seed": ctx.seed,
+                "evolved": connections,
+                **scored,
+            },
+        ),
+    )
+
+
+def validate(
+    ctx: StageContext,
+    spec: Any,
+    behavior: str,
+    program: str | None = None,
+) -> dict[str, Any]:
+    """A candidate's success on the ``[validation]`` maze, which no test uses: every start mark
+    once from the mark and ``jitter_per_mark - 1`` times jittered (the run's
+    ``validation_jitter`` seed), judged as the tests judge (the test's time limits; the MBN from
+    its start by its file's initial rule). ``spec``: a controller spec; ``program``: the stored
+    program an interpreter runs."""
+    from mbn.controllers import make_controller
+    from mbn.experiments.trials import TrialSpec, run_trials, summary
+    from mbn.world.mazes.load import load_maze
+
+    v = ctx.section("validation")
+    t = ctx.section("tests")
+    loaded = make_controller(spec, program, where=f"{ctx.name} candidate", check_stability=False)
+    initial = "right"
+    if behavior == "tiles":
+        initial = loaded.initial_rule or "none"
+    trial = TrialSpec(
+        behavior=behavior,
+        initial=initial,
+        repeats=v.jitter_per_mark,
+        seconds=t.mbn_seconds if behavior == "tiles" else t.seconds,
+        seed=ctx.seeds["validation_jitter"],
+    )
+    verdict, _, _ = run_trials(
+        load_maze(v.maze),
+        trial,
+        loaded.controller,
+        loaded.initial_state,
+        dt=loaded.dt,
+        sensors=loaded.sensors,
+        camera=loaded.camera,
+    )
+    out = summary(verdict)
+    return {
+        "trials": out["trials"],
+        "successes": out["successes"],
+        "success_rate": out["success_rate"],
+        "meets_target": out["success_rate"] >= v.target,
     }

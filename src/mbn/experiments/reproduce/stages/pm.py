@@ -35,7 +35,9 @@ from mbn.experiments.reproduce.stages.common import (
     de_config,
     read_network,
     stage_perturbations,
+    validate,
 )
+from mbn.experiments.reproduce.stages.lf import ATTEMPT_KEY
 from mbn.experiments.reproduce.stages.rf import evolution_summary
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
@@ -126,9 +128,9 @@ class PMStage(Stage):
             "im_substeps": im_spec.substeps,
             "camera": camera,
         }
+        references = (read_network(ctx, "rf"), read_network(ctx, "lf"))
         if s.reward == "memory":
             reward = MemoryReward(approaches=s.approaches, fidelity=s.fidelity)
-            references = (read_network(ctx, "rf"), read_network(ctx, "lf"))
             fit = pm_memory_fitness(
                 genome, im_spec.interpreter.net, reward=reward, references=references, **common
             )
@@ -137,26 +139,20 @@ class PMStage(Stage):
             fit = pm_fitness(genome, im_spec.interpreter.net, **common)
             maximum = (_PAPER_KINDS * s.variants * EPISODE_FITNESS_MAX) ** 2
         noise = stage_perturbations(ctx, genome.size, s.perturbation_copies, s.perturbation_sigma)
-        de = ctx.evolve(
-            "pm",
-            de_config(ctx, genome.size, s.bound, s.init),
-            jax.jit(robust_fitness(fit, noise)),
-            ctx.key,
-            s.generations,
-            "PM: DE generations",
-        )
-        pm = genome.network(jnp.asarray(de.data["best_genome"]))
-        initial, start = _initial_state(
-            pm,
-            k,
-            im_spec,
-            (read_network(ctx, "rf"), read_network(ctx, "lf")),
-            MemoryReward().see,
-            camera,
-        )
-        save_controller(
-            ctx.rundir.controller_file("mbn"),
-            MBNControllerSpec(
+        fitness = jax.jit(robust_fitness(fit, noise))
+        attempts: list[dict[str, Any]] = []
+        for a in range(ctx.section("validation").attempts):
+            de = ctx.evolve(
+                "pm" if a == 0 else f"pm_attempt{a}",
+                de_config(ctx, genome.size, s.bound, s.init),
+                fitness,
+                ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a),
+                s.generations,
+                "PM: DE generations" + (f" (attempt {a + 1})" if a else ""),
+            )
+            pm = genome.network(jnp.asarray(de.data["best_genome"]))
+            initial, start = _initial_state(pm, k, im_spec, references, MemoryReward().see, camera)
+            spec = MBNControllerSpec(
                 interpreter_spec=im_spec,
                 program_module=pm,
                 program_neurons=tuple(range(k)),
@@ -169,11 +165,35 @@ class PMStage(Stage):
                     "pm_fitness": de.data["best_fitness"],
                     "initial": start,
                 },
+            )
+            # The whole MBN on the validation maze, judged from its start.
+            check = validate(ctx, spec, "tiles")
+            attempts.append({"data": de.data, "initial": start, "spec": spec, "validation": check})
+            if check["meets_target"]:
+                break
+        chosen = max(
+            range(len(attempts)),
+            key=lambda i: (
+                attempts[i]["validation"]["success_rate"],
+                attempts[i]["data"]["best_fitness"],
+                -i,
             ),
         )
+        best = attempts[chosen]
+        save_controller(ctx.rundir.controller_file("mbn"), best["spec"])
         return {
-            **de.data,
-            "initial": start,
+            **best["data"],
+            "initial": best["initial"],
+            "validation": best["validation"],
+            "attempts": [
+                {
+                    "best_fitness": x["data"]["best_fitness"],
+                    "initial_rule": x["initial"]["rule"],
+                    "validation": x["validation"],
+                }
+                for x in attempts
+            ],
+            "chosen_attempt": chosen,
             "reward": s.reward,
             "fidelity": s.fidelity if s.reward == "memory" else None,
             "max_fitness": float(maximum),

@@ -31,7 +31,7 @@ class RFSettings(Settings):
     )
     restarts: int = setting(
         2,
-        doc="independent DE runs; the fittest is kept",
+        doc="independent DE runs; the fittest of those that pass the validation maze is kept",
         low=1,
         high=100,
         source="docs/reproduce.md",
@@ -39,9 +39,15 @@ class RFSettings(Settings):
 
 
 def evolution_summary(data: dict[str, Any], connections: bool = False) -> str:
-    """``best fitness F after G generations`` (and the connections evolved)."""
+    """``best fitness F after G generations`` (and the connections evolved, and the success on
+    the validation maze)."""
     extra = f" ({', '.join(data['connections'])})" if connections else ""
-    return f"best fitness {data['best_fitness']:.2f} after {data['generations']} generations{extra}"
+    v = data.get("validation")
+    check = f"; validation {v['successes']}/{v['trials']}" if v else ""
+    return (
+        f"best fitness {data['best_fitness']:.2f} after {data['generations']} generations"
+        f"{extra}{check}"
+    )
 
 
 class RFStage(Stage):
@@ -52,9 +58,11 @@ class RFStage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: RFSettings = ctx.settings
-        return evolve_follower(
-            ctx, Genome(), "right", s.variants, s.generations, restarts=s.restarts
+        data = evolve_follower(
+            ctx, Genome(), "right", s.variants, s.generations, restarts=s.restarts, validated=True
         )
+        data.pop("network")
+        return data
 
     def summary(self, data: dict[str, Any]) -> str:
         return evolution_summary(data)
