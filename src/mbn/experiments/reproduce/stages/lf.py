@@ -1,14 +1,18 @@
 """Stage ``lf``: the left-follower, the 3 connections chosen by ``lf_search`` re-evolved at
 length from that triple's final search population (paper 3.1). The LF and the interpreter
-running its program are checked on the validation maze; if either falls short, the next triple
-by the search's score is evolved, up to ``[validation] attempts`` in all, and the best kept."""
+running its program are checked on the validation maze; if either falls short, another
+candidate is evolved — first on the rf stage's other RF (its triples searched then), then the
+next (RF, triple) by the search's score — up to ``[validation] attempts`` in all, and the best
+kept. An LF built on another RF makes that RF the run's (``controllers/rf.json``)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from mbn.config import Settings, setting
@@ -20,9 +24,14 @@ from mbn.experiments.reproduce.stages.common import (
     evolve_follower,
     read_network,
     save_follower,
+    score,
     validate,
 )
-from mbn.experiments.reproduce.stages.lf_search import search_checkpoint
+from mbn.experiments.reproduce.stages.lf_search import (
+    best_triple,
+    search_checkpoint,
+    search_triples,
+)
 from mbn.experiments.reproduce.stages.rf import evolution_summary
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection, build_interpreter, differing_connections
@@ -32,6 +41,24 @@ __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
 
 #: Folded (plus the attempt's number) into the stage's key for each further LF attempt.
 ATTEMPT_KEY = 100
+#: Folded (plus the restart's number) into the stage's key for the triple search of another RF.
+RF_SEARCH_KEY = 1000
+
+
+def _restart_checkpoint(restart: int) -> Callable[[int], str]:
+    return lambda t: f"lf_search_rf{restart}_{t:02d}"
+
+
+def _ranked(restarts: list[dict[str, Any]]) -> list[int]:
+    """Restarts by the rf stage's ranking: those that met the validation target first, then by
+    their success there, then by fitness."""
+
+    def rank(i: int) -> tuple[Any, ...]:
+        v = restarts[i].get("validation")
+        head = (v["meets_target"], 0.0 if v["meets_target"] else v["success_rate"]) if v else ()
+        return (*head, restarts[i]["best_fitness"], -i)
+
+    return sorted(range(len(restarts)), key=rank, reverse=True)
 
 
 def _scored(data: dict[str, Any]) -> dict[str, Any]:
@@ -76,46 +103,41 @@ class LFStage(Stage):
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: LFSettings = ctx.settings
         search = ctx.read("lf_search")
-        rf = read_network(ctx, "rf")
+        rf_data = ctx.read("rf")
         mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
-        rows = search["triples"]
-        # The search's choice first, then the next triples by the same score.
-        order = sorted(range(len(rows)), key=lambda i: (-rows[i]["robust_fitness"], i))
-        order.remove(search["chosen_index"])
-        order.insert(0, search["chosen_index"])
+        # The RF candidates: the rf stage's restarts, the one it kept first, then the others by
+        # its own ranking (validation, then fitness). A restart's triples are searched only
+        # when an attempt needs them.
+        kept = int(rf_data.get("chosen_restart", 0))
+        restarts = rf_data.get("restarts") or [rf_data]
+        others = [r for r in _ranked(restarts) if r != kept]
+        rfs = {kept: read_network(ctx, "rf")}
+        searched: dict[int, tuple[list[dict[str, Any]], Callable[[int], str]]] = {
+            kept: (search["triples"], search_checkpoint)
+        }
+        used: set[tuple[int, int]] = set()
         attempts: list[dict[str, Any]] = []
-        for a, t in enumerate(order[: ctx.section("validation").attempts]):
-            conns = tuple(Connection.parse(c) for c in rows[t]["connections"])
-            genome = Genome.around(rf, conns)
-            # Warm start: the triple's final search population.
-            start = ctx.rundir.load_checkpoint(search_checkpoint(t))
-            data = evolve_follower(
-                ctx,
-                genome,
-                "left",
-                s.variants,
-                s.generations,
-                np.asarray(start.state.population),
-                s.approaches,
-                name="lf" if a == 0 else f"lf_attempt{a}",
-                key=ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a),
-                save=False,
-            )
-            net = data.pop("network")
-            data["connections_paper_notation"] = [c.paper_name for c in conns]
-            data["validation"] = validate(
-                ctx, CTRNNControllerSpec(net=net, behavior="left"), "left"
-            )
-            # The interpreter built on RF with this LF, running LF's program: an LF whose
-            # behaviour the multipliers' small errors break fails here.
-            interp = build_interpreter(rf, differing_connections(rf, net, margin=0.0), mul)
-            im = InterpreterControllerSpec(
-                interpreter=interp,
-                programs={"left": np.asarray(interp.program_of(net), dtype=float).tolist()},
-            )
-            data["validation_im"] = validate(ctx, im, "left", "left")
-            attempts.append({"data": data, "net": net, "genome": genome})
-            if data["validation"]["meets_target"] and data["validation_im"]["meets_target"]:
+        for a in range(ctx.section("validation").attempts):
+            if a == 0:
+                r, t = kept, int(search["chosen_index"])
+            elif a == 1 and others:
+                r = others[0]
+                rfs[r] = Genome().network(jnp.asarray(restarts[r]["best_genome"]))
+                checkpoint = _restart_checkpoint(r)
+                key = jax.random.fold_in(ctx.key, RF_SEARCH_KEY + r)
+                searched[r] = (search_triples(ctx, rfs[r], key, checkpoint), checkpoint)
+                t = best_triple(searched[r][0])
+            else:
+                free = [(q, i) for q in searched for i in range(len(searched[q][0]))]
+                free = [c for c in free if c not in used]
+                if not free:
+                    break
+                r, t = max(free, key=lambda c: (searched[c[0]][0][c[1]]["robust_fitness"], -c[1]))
+            used.add((r, t))
+            rows, checkpoint = searched[r]
+            attempts.append(self._attempt(ctx, s, a, rfs[r], r, rows[t], checkpoint(t), mul))
+            d = attempts[-1]["data"]
+            if d["validation"]["meets_target"] and d["validation_im"]["meets_target"]:
                 break
 
         def rank(i: int) -> tuple[float, float, int]:
@@ -127,17 +149,68 @@ class LFStage(Stage):
         best = attempts[chosen]
         data = dict(best["data"])
         save_follower(ctx, "lf", best["net"], "left", data["connections"], _scored(data))
+        if best["rf_restart"] != kept:
+            # The LF was built on another RF: that RF is the run's (the interpreter, the
+            # program module and the tests read controllers/rf.json).
+            rf = rfs[best["rf_restart"]]
+            rf_settings = ctx.section("rf")
+            scored = score(ctx, rf, "right", rf_settings.variants)
+            save_follower(ctx, "rf", rf, "right", [str(c) for c in Genome().connections], scored)
+        data["rf_restart"] = best["rf_restart"]
+        data["rf_switched"] = best["rf_restart"] != kept
         data["attempts"] = [
             {
-                "connections": a["data"]["connections"],
-                "best_fitness": a["data"]["best_fitness"],
-                "validation": a["data"]["validation"],
-                "validation_im": a["data"]["validation_im"],
+                "rf_restart": x["rf_restart"],
+                "connections": x["data"]["connections"],
+                "best_fitness": x["data"]["best_fitness"],
+                "validation": x["data"]["validation"],
+                "validation_im": x["data"]["validation_im"],
             }
-            for a in attempts
+            for x in attempts
         ]
         data["chosen_attempt"] = chosen
         return data
+
+    def _attempt(
+        self,
+        ctx: StageContext,
+        s: LFSettings,
+        a: int,
+        rf: Any,
+        restart: int,
+        row: dict[str, Any],
+        checkpoint: str,
+        mul: Any,
+    ) -> dict[str, Any]:
+        """LF re-evolved on ``rf`` from one triple's search population, then checked alone
+        and as the interpreter's program on the validation maze."""
+        conns = tuple(Connection.parse(c) for c in row["connections"])
+        genome = Genome.around(rf, conns)
+        start = ctx.rundir.load_checkpoint(checkpoint)  # warm start: the search population
+        data = evolve_follower(
+            ctx,
+            genome,
+            "left",
+            s.variants,
+            s.generations,
+            np.asarray(start.state.population),
+            s.approaches,
+            name="lf" if a == 0 else f"lf_attempt{a}",
+            key=ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a),
+            save=False,
+        )
+        net = data.pop("network")
+        data["connections_paper_notation"] = [c.paper_name for c in conns]
+        data["validation"] = validate(ctx, CTRNNControllerSpec(net=net, behavior="left"), "left")
+        # The interpreter built on RF with this LF, running LF's program: an LF whose behaviour
+        # the multipliers' small errors break fails here.
+        interp = build_interpreter(rf, differing_connections(rf, net, margin=0.0), mul)
+        im = InterpreterControllerSpec(
+            interpreter=interp,
+            programs={"left": np.asarray(interp.program_of(net), dtype=float).tolist()},
+        )
+        data["validation_im"] = validate(ctx, im, "left", "left")
+        return {"data": data, "net": net, "rf_restart": restart}
 
     def summary(self, data: dict[str, Any]) -> str:
         return evolution_summary(data, connections=True)

@@ -26,7 +26,14 @@ from mbn.experiments.reproduce.stages.common import (
 )
 from mbn.networks.programmable import Connection
 
-__all__ = ["TURNING_CANDIDATES", "LFSearchSettings", "LFSearchStage", "search_checkpoint"]
+__all__ = [
+    "TURNING_CANDIDATES",
+    "LFSearchSettings",
+    "LFSearchStage",
+    "best_triple",
+    "search_checkpoint",
+    "search_triples",
+]
 
 #: The connections into the turning neuron (neuron 2 in the paper's 1-based notation), 0-based.
 TURNING_CANDIDATES = ("W[1,0]", "W[1,1]", "W[1,2]", "WE[1,0]", "WE[1,1]", "WE[1,2]")
@@ -68,6 +75,53 @@ def _bind(
     return lambda population: search(population, connections)
 
 
+def search_triples(
+    ctx: StageContext, rf: Any, key: jax.Array, checkpoint: Callable[[int], str]
+) -> list[dict[str, Any]]:
+    """Every triple of ``[lf_search] candidates`` of ``rf`` evolved briefly for the left rule
+    (triple ``t`` from ``fold_in(key, t)``, checkpoint ``checkpoint(t)``), each final population
+    scored again with perturbed copies on the crossroads entered round a corner too: a row per
+    triple with its best plain and best robust genome and fitness."""
+    s: LFSearchSettings = ctx.section("lf_search")
+    followers = ctx.section("followers")
+    approaches = ctx.section("lf").approaches
+    search = connection_search_fitness(rf, task(ctx, "left", s.variants))
+    cands = [Connection.parse(c) for c in s.candidates]
+    triples = list(itertools.combinations(cands, 3))
+    noise = stage_perturbations(ctx, 3)
+    # Choosing: the crossroads entered round a corner too, as in a maze.
+    choose = connection_search_fitness(rf, task(ctx, "left", s.variants, approaches))
+    rows = []
+    for t, trip in enumerate(triples):
+        de = ctx.evolve(
+            checkpoint(t),
+            de_config(ctx, 3, followers.weight_bound),
+            _bind(search, trip),
+            jax.random.fold_in(key, t),
+            s.generations,
+            f"LF search {t + 1}/{len(triples)}: {', '.join(map(str, trip))}",
+        )
+        # The final population scored with perturbed copies too: an LF that keeps its
+        # behaviour when its weights move is one the interpreter can emulate.
+        robust = np.asarray(robust_fitness(_bind(choose, trip), noise)(de.state.population))
+        i = int(np.argmax(robust))
+        rows.append(
+            {
+                "connections": [str(c) for c in trip],
+                "best_fitness": de.data["best_fitness"],
+                "best_genome": de.data["best_genome"],
+                "robust_fitness": float(robust[i]),
+                "robust_genome": np.asarray(de.state.population[i], dtype=float).tolist(),
+            }
+        )
+    return rows
+
+
+def best_triple(rows: list[dict[str, Any]]) -> int:
+    """The row with the best robust fitness (the first of equals)."""
+    return max(range(len(rows)), key=lambda i: (rows[i]["robust_fitness"], -i))
+
+
 class LFSearchStage(Stage):
     name = "lf_search"
     key_id = 3
@@ -77,39 +131,8 @@ class LFSearchStage(Stage):
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: LFSearchSettings = ctx.settings
         followers = ctx.section("followers")
-        approaches = ctx.section("lf").approaches
-        rf = read_network(ctx, "rf")
-        search_task = task(ctx, "left", s.variants)
-        search = connection_search_fitness(rf, search_task)
-        cands = [Connection.parse(c) for c in s.candidates]
-        triples = list(itertools.combinations(cands, 3))
-        noise = stage_perturbations(ctx, 3)
-        # Choosing: the crossroads entered round a corner too, as in a maze.
-        choose = connection_search_fitness(rf, task(ctx, "left", s.variants, approaches))
-        rows = []
-        for t, trip in enumerate(triples):
-            de = ctx.evolve(
-                search_checkpoint(t),
-                de_config(ctx, 3, followers.weight_bound),
-                _bind(search, trip),
-                jax.random.fold_in(ctx.key, t),
-                s.generations,
-                f"LF search {t + 1}/{len(triples)}: {', '.join(map(str, trip))}",
-            )
-            # The final population scored with perturbed copies too: an LF that keeps its
-            # behaviour when its weights move is one the interpreter can emulate.
-            robust = np.asarray(robust_fitness(_bind(choose, trip), noise)(de.state.population))
-            i = int(np.argmax(robust))
-            rows.append(
-                {
-                    "connections": [str(c) for c in trip],
-                    "best_fitness": de.data["best_fitness"],
-                    "best_genome": de.data["best_genome"],
-                    "robust_fitness": float(robust[i]),
-                    "robust_genome": np.asarray(de.state.population[i], dtype=float).tolist(),
-                }
-            )
-        best = max(range(len(rows)), key=lambda i: (rows[i]["robust_fitness"], -i))
+        rows = search_triples(ctx, read_network(ctx, "rf"), ctx.key, search_checkpoint)
+        best = best_triple(rows)
         return {
             "triples": rows,
             "chosen": rows[best]["connections"],
@@ -118,12 +141,12 @@ class LFSearchStage(Stage):
                 Connection.parse(c).paper_name for c in rows[best]["connections"]
             ],
             "generations": s.generations,
-            "episodes": search_task.variants * 7,
+            "episodes": s.variants * 7,
             "noise": {
                 "copies": followers.perturbation_copies,
                 "sigma": followers.perturbation_sigma,
             },
-            "choice_approaches": list(approaches),
+            "choice_approaches": list(ctx.section("lf").approaches),
         }
 
     def summary(self, data: dict[str, Any]) -> str:
