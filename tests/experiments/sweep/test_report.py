@@ -86,3 +86,19 @@ def test_summarize_without_a_sweep_is_one_line(tmp_path):
 
     with pytest.raises(MbnInputError, match="no sweep there"):
         summarize_folder(tmp_path)
+
+
+def test_a_sweep_recorded_before_a_setting_existed_is_summarized_as_recorded(
+    tmp_path, quick_config
+):
+    """A later version of mbn that has a settings section the sweep's runs did not have still
+    counts their finished seeds: they are compared with the config the sweep recorded."""
+    config = quick_config.to_dict()
+    old = {k: v for k, v in config.items() if k != "validation"}
+    assert old != config  # the section exists now
+    out = tmp_path / "old"
+    fake_sweep(out, [0, 1], old)
+    for s in (0, 1):
+        fake_run(out, s, old, {}, {}, {"claim A": True}, [0.0, 1.0])
+    data = summarize_folder(out)
+    assert data["summary"]["meet_every_target"] == 2

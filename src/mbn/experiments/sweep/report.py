@@ -234,10 +234,11 @@ def summarize_folder(out: Path) -> dict[str, Any]:
 
     settings = data["settings"]
     seeds = [int(s) for s in settings.get("seeds", [])]
-    config = REPRODUCE.config_from_dict(settings.get("config"), str(out / SWEEP_FILE))
+    # the sweep's recorded config, checked as this version reads it, compared as recorded
+    REPRODUCE.config_from_dict(settings.get("config"), str(out / SWEEP_FILE))
     runs: dict[int, dict[str, Any] | None] = {}
     for s in seeds:
-        done = seed_state(out, s, config) == "done"
+        done = seed_state(out, s, dict(settings.get("config") or {})) == "done"
         runs[s] = read_json(seed_dir(out, s) / "results.json") if done else None
     errors = {
         s: str(data["runs"][str(s)].get("error"))

@@ -187,9 +187,12 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
     return old
 
 
-def seed_state(out: Path, seed: int, config: RunConfig) -> str:
+def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
     """``"done"`` (a complete ``results.json`` of this seed and config, and its report),
-    ``"resume"`` (a ``run.json``: an interrupted run) or ``"new"``."""
+    ``"resume"`` (a ``run.json``: an interrupted run) or ``"new"``. ``config``: the run's config,
+    or its recorded form (``sweep.json``'s, which a later version of ``mbn`` may read with
+    settings it did not have)."""
+    expected = config if isinstance(config, dict) else config.to_dict()
     folder = seed_dir(out, seed)
     results = folder / "results.json"
     if results.exists() and (folder / "report.html").exists():
@@ -200,7 +203,7 @@ def seed_state(out: Path, seed: int, config: RunConfig) -> str:
         if (
             isinstance(data, dict)
             and data.get("seed") == seed
-            and data.get("config") == config.to_dict()
+            and data.get("config") == expected
             and "tests" in data
             and "claims" in data
         ):
