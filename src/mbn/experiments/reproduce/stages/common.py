@@ -136,8 +136,8 @@ def evolve_follower(
     ``key`` (default the stage's), checkpoint ``NAME`` (default the stage's name); restart r
     with the key folded with r, checkpoint ``NAME_restartR``), and keep the restart with the best
     fitness — or, ``validated``, the fittest of those that meet the validation target on the
-    validation maze (:func:`validate`; the one with the best success there when none does, after
-    up to ``attempts - 1`` more restarts). Its best is scored (branch fitness and the paper's
+    validation maze (:func:`validate`; the one with the best success there when none does),
+    evolving up to ``attempts - 1`` more restarts until ``restarts`` of them meet it. Its best is scored (branch fitness and the paper's
     terms) and, ``save``, written as ``controllers/NAME.json``. The data holds ``network``
     (the CTRNN, not JSON: the caller pops it)."""
     name = name or ctx.name
@@ -168,7 +168,11 @@ def evolve_follower(
             run["validation"] = validate(ctx, CTRNNControllerSpec(net=net, behavior=rule), rule)
         runs.append(run)
         r += 1
-        if r >= restarts and (not validated or any(x["validation"]["meets_target"] for x in runs)):
+        # validated: go on until ``restarts`` of them meet the target (the LF stage may build
+        # on another RF than the one kept), within the budget
+        if r >= restarts and (
+            not validated or sum(x["validation"]["meets_target"] for x in runs) >= restarts
+        ):
             break
 
     def rank(i: int) -> tuple[Any, ...]:

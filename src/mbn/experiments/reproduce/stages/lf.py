@@ -105,12 +105,16 @@ class LFStage(Stage):
         search = ctx.read("lf_search")
         rf_data = ctx.read("rf")
         mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
-        # The RF candidates: the rf stage's restarts, the one it kept first, then the others by
-        # its own ranking (validation, then fitness). A restart's triples are searched only
-        # when an attempt needs them.
+        # The RF candidates: the rf stage's restarts, the one it kept first, then the others
+        # that met the validation target, by its own ranking. A restart's triples are searched
+        # only when an attempt needs them.
         kept = int(rf_data.get("chosen_restart", 0))
         restarts = rf_data.get("restarts") or [rf_data]
-        others = [r for r in _ranked(restarts) if r != kept]
+        others = [
+            r
+            for r in _ranked(restarts)
+            if r != kept and restarts[r].get("validation", {}).get("meets_target", True)
+        ]
         rfs = {kept: read_network(ctx, "rf")}
         searched: dict[int, tuple[list[dict[str, Any]], Callable[[int], str]]] = {
             kept: (search["triples"], search_checkpoint)
