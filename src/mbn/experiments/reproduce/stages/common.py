@@ -137,9 +137,10 @@ def evolve_follower(
     with the key folded with r, checkpoint ``NAME_restartR``), and keep the restart with the best
     fitness — or, ``validated``, the fittest of those that meet the validation target on the
     validation maze (:func:`validate`; the one with the best success there when none does),
-    evolving up to ``attempts - 1`` more restarts until ``restarts`` of them meet it. Its best is scored (branch fitness and the paper's
-    terms) and, ``save``, written as ``controllers/NAME.json``. The data holds ``network``
-    (the CTRNN, not JSON: the caller pops it)."""
+    evolving up to ``attempts - 1`` more restarts until ``restarts`` of them meet it. Its best
+    is scored (branch fitness and the paper's terms) and, ``save``, written as
+    ``controllers/NAME.json``. The data holds ``network`` (the CTRNN, not JSON: the caller pops
+    it)."""
     name = name or ctx.name
     key = ctx.key if key is None else key
     followers = ctx.section("followers")
