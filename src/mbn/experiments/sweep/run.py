@@ -60,9 +60,9 @@ SWEEP_FILE = "sweep.json"
 INSTALL_HINT = "mbn sweep needs Ray, which is not installed: pip install 'mbn[sweep]'"
 #: Seconds to wait for a Ray cluster's address to answer before giving up.
 CONNECT_TIMEOUT_S = 5.0
-#: The environment variables that pin a task's threads (:func:`thread_env`).
 #: The variable that tells a task's run how many parts to evaluate its populations in.
 WORKERS_VARIABLE = "MBN_FITNESS_WORKERS"
+#: The environment variables that pin a task's threads (:func:`thread_env`).
 THREAD_VARIABLES = (
     "XLA_FLAGS",
     "OMP_NUM_THREADS",
