@@ -22,7 +22,6 @@ from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     evolve_follower,
-    read_network,
     save_follower,
     score,
     validate,
@@ -115,7 +114,9 @@ class LFStage(Stage):
             for r in _ranked(restarts)
             if r != kept and restarts[r].get("validation", {}).get("meets_target", True)
         ]
-        rfs = {kept: read_network(ctx, "rf")}
+        # the RFs from the rf stage's record, not controllers/rf.json, which this stage may
+        # have rewritten before an interruption
+        rfs = {kept: Genome().network(jnp.asarray(restarts[kept]["best_genome"]))}
         searched: dict[int, tuple[list[dict[str, Any]], Callable[[int], str]]] = {
             kept: (search["triples"], search_checkpoint)
         }
