@@ -28,6 +28,7 @@ import os
 import platform
 import time
 from concurrent.futures import ThreadPoolExecutor
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -48,11 +49,11 @@ from mbn.world.mazes.builtin import CROSSROAD_KINDS, builtin_maze, crossroad
 from mbn.world.mazes.generate import corridor_maze
 from mbn.world.mazes.model import Maze
 from mbn.world.rollout import RolloutConfig, junction_arrays, rollout
+from mbn.world.sensors import SensorConfig
 
 
 def measure(mazes: list[Maze], batch: int, steps: int, repeats: int) -> dict:
-    world = compile_mazes(mazes)
-    junctions = junction_arrays(mazes, world)
+    """The world cases: ``batch`` random 3-neuron CTRNNs (genes in +-10) at 4 sub-steps."""
     rng = np.random.default_rng(0)
     net = make_ctrnn(
         rng.uniform(-10, 10, (batch, 3, 3)),
@@ -60,28 +61,13 @@ def measure(mazes: list[Maze], batch: int, steps: int, repeats: int) -> dict:
         0.5,
         dtype=np.float32,
     )
-    maze_index = np.arange(batch) % len(mazes)
-    poses = np.stack([mazes[m].starts[i % len(mazes[m].starts)] for i, m in enumerate(maze_index)])
-    controller = ctrnn_controller(dt=0.1, substeps=substeps_for(0.1, 0.5, 0.05))
-    config = RolloutConfig(steps=steps)
-    run = jax.jit(
-        lambda state, p, m: rollout(world, controller, state, p, m, config, junctions=junctions)
+    plain = SimpleNamespace(
+        controller=ctrnn_controller(dt=0.1, substeps=substeps_for(0.1, 0.5, 0.05)),
+        initial_state=lambda n: initial_state(net),
+        sensors=SensorConfig(),
+        camera=None,
     )
-    args = (initial_state(net), jnp.asarray(poses, jnp.float32), jnp.asarray(maze_index))
-    start = time.perf_counter()
-    out = jax.block_until_ready(run(*args))
-    compile_s = time.perf_counter() - start
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = jax.block_until_ready(run(*args))
-        best = min(best, time.perf_counter() - start)
-    return {
-        "robot_steps_per_s": batch * steps / best,
-        "compile_s": compile_s,
-        "run_s": best,
-        "stall_fraction": float(np.mean(out.stats.stall_fraction)),
-    }
+    return measure_loaded(mazes, batch, steps, repeats, plain)
 
 
 def measure_loaded(

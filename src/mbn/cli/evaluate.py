@@ -157,7 +157,7 @@ def _heading(theta: float) -> str:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from mbn.controllers import make_controller, read_controller_spec
-    from mbn.experiments.trials import TrialSpec, route_seconds, run_trials, summary
+    from mbn.experiments.trials import TrialSpec, route_seconds, run_loaded_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_maze
 
@@ -183,15 +183,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     spec.check_maze(maze)
     seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)
     spec = dataclasses.replace(spec, seconds=seconds)
-    verdict, _, _ = run_trials(
-        maze,
-        spec,
-        loaded.controller,
-        loaded.initial_state,
-        dt=loaded.dt,
-        sensors=loaded.sensors,
-        camera=loaded.camera,
-    )
+    verdict, _, _ = run_loaded_trials(maze, spec, loaded)
     result = {**summary(verdict), "seconds": seconds}
     if args.json:
         print(json_text(result))

@@ -52,6 +52,7 @@ __all__ = [
     "judge",
     "longest_route",
     "route_seconds",
+    "run_loaded_trials",
     "run_trial_groups",
     "run_trials",
     "summary",
@@ -273,6 +274,23 @@ def run_trials(
         record_controller=record_controller,
     )
     return verdicts["trials"], result, poses
+
+
+def run_loaded_trials(
+    maze: Maze, spec: TrialSpec, loaded: Any
+) -> tuple[dict[str, np.ndarray], RolloutResult, np.ndarray]:
+    """:func:`run_trials` of a controller made from a file
+    (:class:`mbn.controllers.LoadedController`): its controller, initial state, robot step,
+    sensors and camera."""
+    return run_trials(
+        maze,
+        spec,
+        loaded.controller,
+        loaded.initial_state,
+        dt=loaded.dt,
+        sensors=loaded.sensors,
+        camera=loaded.camera,
+    )
 
 
 @dataclass(frozen=True)

@@ -121,44 +121,30 @@ class StageContext:
         ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
         at random unless ``population`` is given; generation ``g`` draws from
         ``fold_in(key, g)``. Populations are evaluated in ``workers`` parts at once."""
-        from mbn.experiments.evolve import split_fitness
+        from mbn.experiments.evolve import generation, split_fitness, start
 
         with ThreadPoolExecutor(max(1, self.workers), thread_name_prefix="mbn-fitness") as pool:
-            parted = split_fitness(fitness, self.workers, pool)
-            return self._evolve(name, config, parted, key, generations, description, population)
-
-    def _evolve(
-        self,
-        name: str,
-        config: DEConfig,
-        fitness: Callable[[jax.Array], jax.Array],
-        key: jax.Array,
-        generations: int,
-        description: str,
-        population: np.ndarray | None,
-    ) -> DEResult:
-        from mbn.experiments.evolve import generation, start
-
-        cp = self._resumable(name, config)
-        if cp is not None:
-            state, history = cp.state, list(cp.history)
-        else:
-            state = start(key, config, fitness, population)
-            history = [generation_stats(state)]
-            self.rundir.save_checkpoint(name, Checkpoint(state, history))
-        g0 = int(state.generation)
-        bar = self.progress.task(description, generations)
-        self.progress.update(bar, completed=g0, info=f"best {history[-1][0]:.2f}")
-        for g in range(g0 + 1, generations + 1):
-            state = generation(key, g, state, config, fitness)
-            history.append(generation_stats(state))
-            self.rundir.save_checkpoint(name, Checkpoint(state, history))
-            self.progress.update(bar, completed=g, info=f"best {history[-1][0]:.2f}")
-        h = np.asarray(history, dtype=float)
-        data = {
-            "best_genome": np.asarray(state.best_genome, dtype=float).tolist(),
-            "best_fitness": float(state.best_fitness),
-            "generations": generations,
-            "history": {"best": h[:, 0].tolist(), "mean": h[:, 1].tolist()},
-        }
-        return DEResult(data, state)
+            fitness = split_fitness(fitness, self.workers, pool)
+            cp = self._resumable(name, config)
+            if cp is not None:
+                state, history = cp.state, list(cp.history)
+            else:
+                state = start(key, config, fitness, population)
+                history = [generation_stats(state)]
+                self.rundir.save_checkpoint(name, Checkpoint(state, history))
+            g0 = int(state.generation)
+            bar = self.progress.task(description, generations)
+            self.progress.update(bar, completed=g0, info=f"best {history[-1][0]:.2f}")
+            for g in range(g0 + 1, generations + 1):
+                state = generation(key, g, state, config, fitness)
+                history.append(generation_stats(state))
+                self.rundir.save_checkpoint(name, Checkpoint(state, history))
+                self.progress.update(bar, completed=g, info=f"best {history[-1][0]:.2f}")
+            h = np.asarray(history, dtype=float)
+            data = {
+                "best_genome": np.asarray(state.best_genome, dtype=float).tolist(),
+                "best_fitness": float(state.best_fitness),
+                "generations": generations,
+                "history": {"best": h[:, 0].tolist(), "mean": h[:, 1].tolist()},
+            }
+            return DEResult(data, state)

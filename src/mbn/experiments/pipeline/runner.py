@@ -38,6 +38,7 @@ __all__ = [
     "RunSettings",
     "check_out_dir",
     "collect_results",
+    "first_difference",
     "prepare",
     "replace_section",
     "run_experiment",
@@ -185,14 +186,16 @@ def check_out_dir(out: Path, kind: str, *, resume: bool, force: bool) -> None:
         )
 
 
-def _first_difference(old: Any, new: Any, path: str = "") -> str:
+def first_difference(old: Any, new: Any, root: str = "config", path: str = "") -> str:
+    """The first place where two JSON records differ, as one line: ``a.b.c: OLD then, NEW
+    now`` (``root`` when they differ as wholes)."""
     if isinstance(old, dict) and isinstance(new, dict):
         for key in [*old, *(k for k in new if k not in old)]:
             if old.get(key) != new.get(key):
-                return _first_difference(
-                    old.get(key), new.get(key), f"{path}.{key}" if path else key
+                return first_difference(
+                    old.get(key), new.get(key), root, f"{path}.{key}" if path else key
                 )
-    return f"{path or 'config'}: {json.dumps(old)} then, {json.dumps(new)} now"
+    return f"{path or root}: {json.dumps(old)} then, {json.dumps(new)} now"
 
 
 def _manifest(experiment: Experiment, seed: int, config: RunConfig) -> dict[str, Any]:
@@ -234,7 +237,7 @@ def prepare(
                 "resume it with the same seed"
             )
         if old.get("config") != mine["config"]:
-            diff = _first_difference(old.get("config"), mine["config"])
+            diff = first_difference(old.get("config"), mine["config"])
             raise MbnInputError(
                 f"{rundir.manifest}: the run was started with another config ({diff}); resume it "
                 "with the same options and settings file"

@@ -18,7 +18,6 @@ BLAS libraries to that many threads (:func:`thread_env`).
 
 from __future__ import annotations
 
-import json
 import os
 import socket
 import sys
@@ -114,16 +113,6 @@ def thread_env(cpus: int, base: Mapping[str, str] | None = None) -> dict[str, st
 # -- the sweep folder ----------------------------------------------------------------------------
 
 
-def _first_difference(old: Any, new: Any, path: str = "") -> str:
-    if isinstance(old, dict) and isinstance(new, dict):
-        for key in [*old, *(k for k in new if k not in old)]:
-            if old.get(key) != new.get(key):
-                return _first_difference(
-                    old.get(key), new.get(key), f"{path}.{key}" if path else key
-                )
-    return f"{path or 'settings'}: {json.dumps(old)} then, {json.dumps(new)} now"
-
-
 def read_sweep(out: Path) -> dict[str, Any]:
     """``DIR/sweep.json`` (one line naming the file when it is missing or not a sweep)."""
     path = Path(out) / SWEEP_FILE
@@ -179,7 +168,9 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
     old = read_sweep(out)
     mine = settings.to_dict()
     if old["settings"] != mine:
-        diff = _first_difference(old["settings"], mine)
+        from mbn.experiments.pipeline.runner import first_difference
+
+        diff = first_difference(old["settings"], mine, root="settings")
         raise MbnInputError(
             f"{out / SWEEP_FILE}: the folder holds a sweep with other settings ({diff}); use "
             "another --out or the same --seeds, --quick and --config"

@@ -26,9 +26,11 @@ from mbn.networks.ctrnn import CTRNN
 __all__ = [
     "MADE_BY",
     "PERTURBATION_KEY",
+    "SCORE_KEYS",
     "de_config",
     "evolve_follower",
     "read_network",
+    "restart_rank",
     "save_follower",
     "score",
     "stage_perturbations",
@@ -79,7 +81,8 @@ def score(
     variants: int,
     approaches: tuple[str, ...] = ("south",),
 ) -> dict[str, Any]:
-    """Branch fitness and the paper's F_M, F_R, F_L of a network on the crossroads."""
+    """Branch fitness and the paper's F_M, F_R, F_L of a network on the crossroads (the keys
+    :data:`SCORE_KEYS`)."""
     t = task(ctx, rule, variants, approaches)
     arrays = t.arrays()
     tau = float(np.asarray(net.tau).reshape(-1)[0])
@@ -176,14 +179,7 @@ def evolve_follower(
         ):
             break
 
-    def rank(i: int) -> tuple[Any, ...]:
-        v = runs[i].get("validation")
-        first = (
-            (v["meets_target"], v["success_rate"] if not v["meets_target"] else 0.0) if v else ()
-        )
-        return (*first, runs[i]["best_fitness"], -i)
-
-    chosen = max(range(len(runs)), key=rank)
+    chosen = max(range(len(runs)), key=lambda i: restart_rank(runs[i], i))
     data = {k: v for k, v in runs[chosen].items() if k != "validation"}
     if runs[chosen].get("validation") is not None:
         data["validation"] = runs[chosen]["validation"]
@@ -212,6 +208,18 @@ def evolve_follower(
         **scored,
         "network": net,
     }
+
+
+def restart_rank(run: dict[str, Any], index: int) -> tuple[Any, ...]:
+    """The key restarts are ranked by (the highest first): those that met the validation target
+    by their fitness, before the others by their success there; the first of equals."""
+    v = run.get("validation")
+    head = (v["meets_target"], 0.0 if v["meets_target"] else v["success_rate"]) if v else ()
+    return (*head, run["best_fitness"], -index)
+
+
+#: What :func:`score` gives, which a follower's file records.
+SCORE_KEYS = ("branch_fitness", "episodes", "paper_F_M", "paper_F_R", "paper_F_L")
 
 
 def save_follower(
@@ -251,7 +259,7 @@ def validate(
     its start by its file's initial rule). ``spec``: a controller spec; ``program``: the stored
     program an interpreter runs."""
     from mbn.controllers import make_controller
-    from mbn.experiments.trials import TrialSpec, run_trials, summary
+    from mbn.experiments.trials import TrialSpec, run_loaded_trials, summary
     from mbn.world.mazes.load import load_maze
 
     v = ctx.section("validation")
@@ -267,15 +275,7 @@ def validate(
         seconds=t.mbn_seconds if behavior == "tiles" else t.seconds,
         seed=ctx.seeds["validation_jitter"],
     )
-    verdict, _, _ = run_trials(
-        load_maze(v.maze),
-        trial,
-        loaded.controller,
-        loaded.initial_state,
-        dt=loaded.dt,
-        sensors=loaded.sensors,
-        camera=loaded.camera,
-    )
+    verdict, _, _ = run_loaded_trials(load_maze(v.maze), trial, loaded)
     out = summary(verdict)
     return {
         "trials": out["trials"],

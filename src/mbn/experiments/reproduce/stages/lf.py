@@ -21,7 +21,9 @@ from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
+    SCORE_KEYS,
     evolve_follower,
+    restart_rank,
     save_follower,
     score,
     validate,
@@ -46,24 +48,6 @@ RF_SEARCH_KEY = 1000
 
 def _restart_checkpoint(restart: int) -> Callable[[int], str]:
     return lambda t: f"lf_search_rf{restart}_{t:02d}"
-
-
-def _ranked(restarts: list[dict[str, Any]]) -> list[int]:
-    """Restarts by the rf stage's ranking: those that met the validation target first, then by
-    their success there, then by fitness."""
-
-    def rank(i: int) -> tuple[Any, ...]:
-        v = restarts[i].get("validation")
-        head = (v["meets_target"], 0.0 if v["meets_target"] else v["success_rate"]) if v else ()
-        return (*head, restarts[i]["best_fitness"], -i)
-
-    return sorted(range(len(restarts)), key=rank, reverse=True)
-
-
-def _scored(data: dict[str, Any]) -> dict[str, Any]:
-    return {
-        k: data[k] for k in ("branch_fitness", "episodes", "paper_F_M", "paper_F_R", "paper_F_L")
-    }
 
 
 @dataclass(frozen=True)
@@ -111,7 +95,9 @@ class LFStage(Stage):
         restarts = rf_data.get("restarts") or [rf_data]
         others = [
             r
-            for r in _ranked(restarts)
+            for r in sorted(
+                range(len(restarts)), key=lambda i: restart_rank(restarts[i], i), reverse=True
+            )
             if r != kept and restarts[r].get("validation", {}).get("meets_target", True)
         ]
         # the RFs from the rf stage's record, not controllers/rf.json, which this stage may
@@ -153,7 +139,9 @@ class LFStage(Stage):
         chosen = max(range(len(attempts)), key=rank)
         best = attempts[chosen]
         data = dict(best["data"])
-        save_follower(ctx, "lf", best["net"], "left", data["connections"], _scored(data))
+        save_follower(
+            ctx, "lf", best["net"], "left", data["connections"], {k: data[k] for k in SCORE_KEYS}
+        )
         if best["rf_restart"] != kept:
             # The LF was built on another RF: that RF is the run's (the interpreter, the
             # program module and the tests read controllers/rf.json).
