@@ -170,3 +170,29 @@ def test_fidelity_costs_a_shifted_program_more_than_the_programs_themselves():
         pm_memory_fitness(PMGenome(3), im.net, reward=MemoryReward(fidelity=1.0))
     with pytest.raises(MbnInputError, match="fidelity"):
         MemoryReward(fidelity=-1.0)
+
+
+def test_program_reward_ranks_an_exact_latch_above_a_leaky_one_and_a_slow_one():
+    """The program reward (no robot) is near its maximum 0 for the hand-made latch, lower for a
+    latch that forgets the two-colour tile once it is out of view, and lower for one that only
+    switches after the tile has been in view for longer than ``switch`` seconds; it refuses
+    programs of the wrong length."""
+    from mbn.experiments.program_module import pm_program_fitness
+
+    g = PMGenome(3)
+    exact = _switch_latch()
+    leaky = exact.copy()
+    leaky[[4, 8]] = 0.0
+    slow = exact.copy()
+    slow[9:15] *= 0.25  # weak camera inputs: the latch flips seconds after the tile appears
+    fit = pm_program_fitness(g, ((1.0, 0.0, 0.0), (0.0, 1.0, 1.0)))
+    score = np.asarray(fit(jnp.asarray(np.stack([exact, leaky, slow]), jnp.float32)))
+    assert score[0] > -0.01
+    assert score[1] < score[0] - 0.05
+    assert score[2] < score[0] - 0.005
+    assert np.all(score <= 0.0)
+    # swapping the programs makes the exact latch the worst possible one
+    swapped = pm_program_fitness(g, ((0.0, 1.0, 1.0), (1.0, 0.0, 0.0)))
+    assert float(swapped(jnp.asarray(exact[None], jnp.float32))[0]) < -0.9
+    with pytest.raises(MbnInputError, match="programs must have 3 values"):
+        pm_program_fitness(g, ((1.0, 0.0), (0.0, 1.0)))

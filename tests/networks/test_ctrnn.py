@@ -14,6 +14,7 @@ from mbn.errors import MbnInputError, UnstableStepError, UnstableStepWarning
 from mbn.networks.ctrnn import (
     check_dt,
     euler_step,
+    euler_steps,
     firing_rate,
     make_ctrnn,
     max_stable_dt,
@@ -183,6 +184,48 @@ def test_substeps_equal_smaller_steps():
     y_sub, _ = simulate(net, jnp.zeros(4), u, 0.1, method="euler", substeps=4)
     y_fine, _ = simulate(net, jnp.zeros(4), jnp.repeat(u, 4, axis=0), 0.025, method="euler")
     np.testing.assert_allclose(np.asarray(y_sub), np.asarray(y_fine), rtol=1e-13)
+
+
+@pytest.mark.parametrize("n", [3, 12])
+def test_euler_steps_mapped_over_a_batch_equal_euler_steps_one_by_one(n):
+    """``euler_steps`` under ``jax.vmap``: a held network (integrated neuron-major), a batched
+    one (mapped ``euler_step``), inputs batched or held, a state held, and a vmap inside a vmap
+    all equal ``euler_step`` repeated robot by robot, to rounding (float64)."""
+    net = random_net(3, n=n, m=5)
+    rng = np.random.default_rng(1)
+    b, steps, h = 7, 20, 0.005
+    y = jnp.asarray(rng.normal(size=(b, n)))
+    u = jnp.asarray(rng.uniform(0, 1, (b, 5)))
+
+    def by_hand(net, y, u):
+        for _ in range(steps):
+            y = euler_step(net, y, u, h)
+        return y
+
+    want = np.stack([np.asarray(by_hand(net, y[i], u[i])) for i in range(b)])
+    run = lambda net, y, u: euler_steps(net, y, u, h, steps)  # noqa: E731
+    held = jax.jit(jax.vmap(run, in_axes=(None, 0, 0)))(net, y, u)
+    np.testing.assert_allclose(np.asarray(held), want, rtol=0, atol=1e-12)
+    nets = jax.tree.map(lambda a: jnp.broadcast_to(a, (b, *a.shape)), net)
+    mapped = jax.vmap(run)(nets, y, u)
+    np.testing.assert_allclose(np.asarray(mapped), want, rtol=0, atol=1e-12)
+    one_input = jax.vmap(run, in_axes=(None, 0, None))(net, y, u[0])
+    want_one = np.stack([np.asarray(by_hand(net, y[i], u[0])) for i in range(b)])
+    np.testing.assert_allclose(np.asarray(one_input), want_one, rtol=0, atol=1e-12)
+    one_state = jax.vmap(run, in_axes=(None, None, 0))(net, y[0], u)
+    want_state = np.stack([np.asarray(by_hand(net, y[0], u[i])) for i in range(b)])
+    np.testing.assert_allclose(np.asarray(one_state), want_state, rtol=0, atol=1e-12)
+    # two networks held for a batch of robots, each robot running both (a vmap in a vmap)
+    pair = jax.tree.map(lambda a: jnp.stack([a, a * 0.5]), net)
+    both = jax.vmap(lambda y, u: jax.vmap(run, in_axes=(0, None, None))(pair, y, u))(y, u)
+    half = jax.tree.map(lambda a: a * 0.5, net)
+    np.testing.assert_allclose(np.asarray(both[:, 0]), want, rtol=0, atol=1e-12)
+    want_half = np.stack([np.asarray(by_hand(half, y[i], u[i])) for i in range(b)])
+    np.testing.assert_allclose(np.asarray(both[:, 1]), want_half, rtol=0, atol=1e-12)
+    # unmapped, it is euler_step repeated
+    np.testing.assert_allclose(np.asarray(run(net, y[0], u[0])), want[0], rtol=0, atol=1e-12)
+    with pytest.raises(MbnInputError, match="steps must be an integer"):
+        euler_steps(net, y[0], u[0], h, 0)
 
 
 def test_single_steps_agree_with_simulate():

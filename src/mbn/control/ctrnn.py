@@ -19,7 +19,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate, rk4_step
+from mbn.networks.ctrnn import CTRNN, euler_step, euler_steps, firing_rate, rk4_step
 
 if TYPE_CHECKING:
     from mbn.world.rollout import Shared
@@ -107,8 +107,11 @@ def ctrnn_controller(
         u = read(obs)
         y = state.y
         net = cast(CTRNN, state.net)  # the rollout hands a controller plain networks
-        for _ in range(substeps):
-            y = stepper(net, y, u, h)
+        if method == "euler":
+            y = euler_steps(net, y, u, h, substeps)  # a held network: integrated neuron-major
+        else:
+            for _ in range(substeps):
+                y = stepper(net, y, u, h)
         rate = firing_rate(net, y)
         v = motor.v_max * rate[..., motor.speed_neuron]
         w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)

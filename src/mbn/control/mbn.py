@@ -11,7 +11,7 @@ from jax import Array
 
 from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap, ProgrammedState, interpreter_controller
 from mbn.errors import MbnInputError
-from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate
+from mbn.networks.ctrnn import CTRNN, euler_steps, firing_rate
 
 if TYPE_CHECKING:
     from mbn.world.rollout import Shared
@@ -58,8 +58,7 @@ def make_mbn_controller(
         camera = jnp.stack([obs.camera == 1, obs.camera == 2], axis=-1).astype(dtype)
         y = state.pm_y
         pm = cast(CTRNN, state.pm)  # the rollout hands a controller plain networks
-        for _ in range(pm_substeps):
-            y = euler_step(pm, y, camera, h)
+        y = euler_steps(pm, y, camera, h, pm_substeps)
         program = firing_rate(pm, y)[..., index]
         im_state, vw = interpret(ProgrammedState(state.im, state.im_y, program), obs)
         return MBNControllerState(state.pm, y, state.im, im_state.y), vw

@@ -15,6 +15,7 @@ junction comes 2.4 m later, out of the tile's sight — so the program must be r
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -46,6 +47,7 @@ __all__ = [
     "memory_reward_maximum",
     "pm_fitness",
     "pm_memory_fitness",
+    "pm_program_fitness",
     "prime",
     "start_mismatch",
 ]
@@ -327,6 +329,92 @@ def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 
             y, _ = jax.lax.scan(step, y, jnp.asarray(seq, dtype))
         outs.append(y)
     return jnp.stack(outs, 1)
+
+
+def pm_program_fitness(
+    genome: PMGenome,
+    programs: tuple[tuple[float, ...], tuple[float, ...]],
+    *,
+    reward: MemoryReward | None = None,
+    dt: float = 0.1,
+    substeps: int = 4,
+    see: float | None = None,
+    switch: float = 0.3,
+) -> Callable[[Array], Array]:
+    """A jitted map from a PM population to how well each latches the interpreter's programs,
+    without the robot: minus the mean squared difference between the program the PM sends and
+    the program of the last tile it was shown, over the reward's switching and memory sequences
+    (:meth:`MemoryReward.sequences`: after a one-colour tile, after a two-colour tile, and each
+    tile after the other; each tile in view for ``see`` seconds, default the reward's): every
+    robot step without input once a tile has been shown, and every step with a tile in view
+    once it has been seen for ``switch`` seconds (the program must change while the tile is in
+    view, which the camera may show only briefly). ``programs``: RF's and LF's (one-colour
+    tile: the first). The ``pm`` stage's default reward (``docs/reproduce.md``, the program
+    reward); 0 is its maximum."""
+    reward = reward or MemoryReward()
+    if see is not None:
+        reward = dataclasses.replace(reward, see=see)
+    right, left = (np.asarray(p, np.float64) for p in programs)
+    k = genome.programs
+    if right.shape != (k,) or left.shape != (k,):
+        raise MbnInputError(
+            f"programs must have {k} values each, got {len(right)} and {len(left)}"
+        )
+    target_of = {_ONE: right, _TWO: left}
+    seqs = [v for name, v in sorted(reward.sequences().items()) if name != "rest"]
+    inputs, targets, weights = [], [], []
+    for seq in seqs:
+        rows, goal, w = [], [], []
+        last = None
+        for x, secs in seq:
+            n = round(secs / dt)
+            rows += [x] * n
+            if x != _NONE:
+                last = target_of[x]
+                # in view: scored once it has been seen for ``switch`` seconds
+                wait = min(round(switch / dt), n)
+                w += [0.0] * wait + [1.0] * (n - wait)
+            else:  # no input: scored once a tile has been shown
+                w += [1.0 if last is not None else 0.0] * n
+            goal += [last if last is not None else np.zeros(k)] * n
+        inputs.append(np.asarray(rows, np.float32).reshape(-1, 2))
+        targets.append(np.asarray(goal, np.float32))
+        weights.append(np.asarray(w, np.float32))
+    length = max(len(r) for r in inputs)
+
+    def pad(a: np.ndarray) -> np.ndarray:
+        return np.concatenate([a, np.zeros((length - len(a), *a.shape[1:]), a.dtype)])
+
+    x_all = np.stack([pad(a) for a in inputs], 1)  # (T, S, 2)
+    t_all = np.stack([pad(a) for a in targets], 1)  # (T, S, k)
+    w_all = np.stack([pad(a) for a in weights], 1)  # (T, S)
+    total = float(w_all.sum())
+    from mbn.networks.ctrnn import euler_step
+
+    h = dt / substeps
+
+    @jax.jit
+    def fitness(population: Array) -> Array:
+        p, dtype = population.shape[0], population.dtype
+        net = genome.network(population)
+        # (P, S, n) networks and states: each sequence runs beside the others
+        s = x_all.shape[1]
+        nets = jax.tree.map(lambda a: jnp.repeat(a[:, None], s, 1), net)
+
+        def step(y: Array, row: tuple[Array, Array, Array]) -> tuple[Array, Array]:
+            x, goal, w = row
+            for _ in range(substeps):
+                y = euler_step(nets, y, jnp.broadcast_to(x, (p, s, 2)), h)
+            rates = firing_rate(nets, y)[..., :k]
+            err = jnp.sum((rates - goal) ** 2, -1) * w  # (P, S)
+            return y, err.sum(-1)
+
+        y0 = jnp.zeros((p, s, net.W.shape[-1]), dtype)
+        rows = (jnp.asarray(x_all, dtype), jnp.asarray(t_all, dtype), jnp.asarray(w_all, dtype))
+        _, err = jax.lax.scan(step, y0, rows)
+        return -err.sum(0) / (total * k)
+
+    return fitness
 
 
 class Latch(NamedTuple):

@@ -44,6 +44,7 @@ __all__ = [
     "Method",
     "check_dt",
     "euler_step",
+    "euler_steps",
     "firing_rate",
     "integrate",
     "make_ctrnn",
@@ -285,6 +286,71 @@ def euler_step(net: CTRNN, y: ArrayLike, inputs: ArrayLike, dt: ArrayLike) -> Ar
     """One forward-Euler step of eq. 1 with inputs held constant over ``dt`` seconds."""
     y = jnp.asarray(y)
     return _euler(lambda z: vector_field(net, z, inputs), y, dt)
+
+
+def euler_steps(net: CTRNN, y: ArrayLike, inputs: ArrayLike, dt: float, steps: int) -> Array:
+    """``steps`` forward-Euler steps of ``dt`` seconds (a Python float) with the inputs held:
+    :func:`euler_step` repeated, for one network and one state (``y (n,)``, ``inputs (m,)``).
+
+    Mapped by :func:`jax.vmap` over a batch of states with the network held (one network for
+    all, as a controller file's networks are: :class:`mbn.world.rollout.Shared`), it integrates
+    the batch neuron by neuron — potentials ``(n, B)``, the batch along the fast axis — instead
+    of robot by robot: the same operations (the recurrent sum ``W r`` as one matrix product),
+    about 3 x faster for the 21-neuron interpreter at batch 4096 on a CPU, where a batch of
+    ``(B, n)`` states broadcasts each neuron's parameters along the fast axis
+    (``docs/speed.md``). Mapped with the network batched too, it is :func:`euler_step` mapped.
+    """
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+        raise MbnInputError(f"steps must be an integer >= 1, got {steps!r}")
+    return _euler_steps(float(dt), steps)(net, jnp.asarray(y), jnp.asarray(inputs))
+
+
+@functools.lru_cache(maxsize=64)
+def _euler_steps(dt: float, steps: int) -> Callable[[CTRNN, Array, Array], Array]:
+    def plain(net: CTRNN, y: Array, inputs: Array) -> Array:
+        for _ in range(steps):
+            y = euler_step(net, y, inputs, dt)
+        return y
+
+    run = jax.custom_batching.custom_vmap(plain)
+
+    @run.def_vmap
+    def batched(
+        axis_size: int, in_batched: tuple[CTRNN, bool, bool], net: CTRNN, y: Array, inputs: Array
+    ) -> tuple[Array, bool]:
+        net_batched, y_batched, u_batched = in_batched
+        if any(jax.tree.leaves(net_batched)) or net.W.ndim != 2 or y.ndim != 2:
+            axes = (
+                jax.tree.map(lambda b: 0 if b else None, net_batched),
+                0 if y_batched else None,
+                0 if u_batched else None,
+            )
+            return jax.vmap(plain, in_axes=axes, axis_size=axis_size)(net, y, inputs), True
+        # one network, a batch of states (B, n): neuron-major
+        yt = y.T if y_batched else jnp.broadcast_to(y[:, None], (y.shape[0], axis_size))
+        u = inputs.T if u_batched else inputs[:, None]  # (m, B) or (m, 1)
+        drive_in = _columns(net.WE, u)  # (n, B) or (n, 1)
+        gain, bias, tau = net.gain[:, None], net.bias[:, None], net.tau[:, None]
+        for _ in range(steps):
+            r = jax.nn.sigmoid(gain * (yt + bias))
+            yt = yt + dt * ((_columns(net.W, r) + drive_in - yt) / tau)
+        return yt.T, True
+
+    return run
+
+
+def _columns(a: Array, x: Array) -> Array:
+    """``a @ x`` for a matrix ``a (n, k)`` and columns ``x (k, B)``; small ``k`` as a sum of
+    broadcasts that XLA fuses (:func:`matvec`)."""
+    k = a.shape[-1]
+    if k == 0:
+        return jnp.zeros((a.shape[0], x.shape[-1]), a.dtype)
+    if k > _UNROLL_MAX_COLUMNS:
+        return a @ x
+    out = a[:, 0, None] * x[None, 0]
+    for j in range(1, k):
+        out = out + a[:, j, None] * x[None, j]
+    return out
 
 
 def rk4_step(net: CTRNN, y: ArrayLike, inputs: ArrayLike, dt: ArrayLike) -> Array:

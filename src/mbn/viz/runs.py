@@ -50,11 +50,12 @@ def de_curves(stages: dict[str, Any], path: Path) -> None:
                 )
         ax.plot(g, h["best"], label="best", color="C0")
         ax.plot(g, h["mean"], label="population mean", color="C1", alpha=0.8)
+        programs = name == "pm" and stages[name].get("reward") == "programs"
         if name == "pm":
             ax.axhline(stages[name]["max_fitness"], color="grey", ls="--", lw=1, label="maximum")
-        ax.set_title(f"{title}: DE fitness")
+        ax.set_title(f"{title}: DE " + ("program reward" if programs else "fitness"))
         ax.set_xlabel("generation")
-        ax.set_ylabel("fitness")
+        ax.set_ylabel("program reward (0 at best)" if programs else "fitness")
         ax.legend(loc="lower right", fontsize=8)
     ax = axes[0, 1]
     rows = stages["lf_search"]["triples"]

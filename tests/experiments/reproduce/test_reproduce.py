@@ -69,8 +69,12 @@ def test_quick_run_writes_results_with_the_documented_schema(quick_run):
     assert rf["history"] == rf["restarts"][rf["chosen_restart"]]["history"]
     assert (out / "checkpoints" / "rf.npz").exists()
     assert (out / "checkpoints" / "rf_restart1.npz").exists()
-    # the PM's reward carries the fidelity term, and the MBN file the camera it was trained with
-    assert results["stages"]["pm"]["fidelity"] > 0
+    # the PM is evolved on the program reward (0 at best), and the MBN file carries the camera
+    # it was validated with
+    pm = results["stages"]["pm"]
+    assert pm["reward"] == "programs" and pm["fidelity"] is None and pm["max_fitness"] == 0.0
+    assert pm["best_fitness"] <= 0.0 and pm["program_reward"] == pytest.approx(pm["best_fitness"], rel=1e-3, abs=1e-6)
+    assert len(pm["history"]["best"]) == pm["generations"] + 1
     mbn = json.loads((out / "controllers" / "mbn.json").read_text())
     assert mbn["program_module"]["camera"]["range"] == results["stages"]["pm"]["camera_range"]
     # wall-clock times are kept out of results.json (it depends on the seed only)

@@ -114,6 +114,20 @@ def test_crossroads_entered_round_a_corner(approach: str):
         crossroad("LS", approach="north")
 
 
+def test_crossroads_entered_from_one_cell_short_of_the_junction():
+    maze = crossroad("LSR", approach="near")
+    assert maze.name == "cross_LSR_near"
+    # the start is the centre of the cell next to the junction (3, 3), facing north
+    np.testing.assert_allclose(maze.starts, [[4.2, 3.0, math.pi / 2]])
+    plain = crossroad("LSR")
+    assert free_neighbours(maze)[(3, 3)].tolist() == free_neighbours(plain)[(3, 3)].tolist()
+    # the south arm behind the start is still open: only the start mark moved
+    for r in range(3):
+        assert maze.is_free(4.2, 0.6 + 1.2 * r)
+    with pytest.raises(MbnInputError, match="tile needs the approach"):
+        crossroad("LSR", approach="near", tile=2)
+
+
 def test_cross_lr_rules_and_arm_lengths():
     maze = crossroad("cross_LR")
     assert rule_exit(maze, (3, 3), "N", "right") == "right"

@@ -212,16 +212,24 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"IM: programmable {', '.join(im['connections_paper_notation'])}, "
                 f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
                 f"LF program {_vec(im['programs']['left'])}.",
-                f"PM: {pm['generations']} generations, reward {pm['best_fitness']:.1f} of at most "
-                f"{pm['max_fitness']:.0f} ("
-                + (
-                    "the paper's two trials: right-rule score with one-colour tiles x left-rule "
-                    "score with two-colour tiles"
-                    if pm["reward"] == "paper"
-                    else "the paper's product, over its two trials plus switching, memory and "
-                    "rest episodes: docs/experiments.md"
+                (
+                    f"PM: {pm['generations']} generations on the program reward, "
+                    f"{pm['best_fitness']:.2g} (0 at best: minus the mean squared difference "
+                    "between the program it sends and the program of the last tile it was shown, "
+                    "without the robot; docs/reproduce.md)"
+                    if pm["reward"] == "programs"
+                    else f"PM: {pm['generations']} generations, reward {pm['best_fitness']:.1f} "
+                    f"of at most {pm['max_fitness']:.0f} ("
+                    + (
+                        "the paper's two trials: right-rule score with one-colour tiles x "
+                        "left-rule score with two-colour tiles"
+                        if pm["reward"] == "paper"
+                        else "the paper's product, over its two trials plus switching, memory "
+                        "and rest episodes: docs/experiments.md"
+                    )
+                    + ")"
                 )
-                + f"), camera range {pm['camera_range']:g} m. "
+                + f", camera range {pm['camera_range']:g} m. "
                 + _pm_start(pm.get("initial")),
             ],
             images=[images["de"]],

@@ -101,7 +101,7 @@ def _normalise_kind(kind: str) -> str:
 
 
 #: Ways into a crossroad's south arm (:func:`crossroad`).
-APPROACHES = ("south", "west", "east")
+APPROACHES = ("south", "west", "east", "near")
 
 
 def check_approaches(approaches: tuple[str, ...]) -> None:
@@ -146,6 +146,8 @@ def crossroad_text(
             grid[a][c] = "."
     if approach == "south":
         grid[size - 1][a] = "^"
+    elif approach == "near":  # one cell short of the junction, as a start mark in a maze may be
+        grid[a + 1][a] = "^"
     else:  # a corridor along the south edge, entered at its far end, turning into the arm
         cols = range(a) if approach == "west" else range(a + 1, size)
         for c in cols:
@@ -180,14 +182,16 @@ def crossroad(
             ``"west"`` or ``"east"``: the south arm's end cell opens onto a corridor of ``a``
             cells along the south edge, and the start is at that corridor's far end facing the
             arm, so the robot turns a corner (left from the west, right from the east) ``a``
-            cells before the junction, as it does in a maze.
+            cells before the junction, as it does in a maze; ``"near"``: the start is in the
+            south arm's cell next to the junction (1 cell from it; the robot starts from rest
+            just short of it, as from some start marks of the test mazes).
     """
     k = _normalise_kind(kind)
     if not (isinstance(cell, int | float) and math.isfinite(cell) and cell > 0):
         raise MbnInputError(f"cell must be a finite number > 0, got {cell!r}")
     body = crossroad_text(k, arm_cells=arm_cells, tile=tile, approach=approach)
     name = f"cross_{k}" + (f"_tile{tile}" if tile is not None else "")
-    name += f"_from_{approach}" if approach != "south" else ""
+    name += {"south": "", "near": "_near"}.get(approach, f"_from_{approach}")
     text = f"name = {name}\ncell = {float(cell)!r}\n{body}"
     return parse_maze_text(text, f"<builtin {name}>", source="builtin")
 

@@ -8,6 +8,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mbn.config import Settings, setting
 from mbn.controllers import (
@@ -28,6 +29,7 @@ from mbn.experiments.program_module import (
     memory_reward_maximum,
     pm_fitness,
     pm_memory_fitness,
+    pm_program_fitness,
     start_mismatch,
 )
 from mbn.experiments.reproduce.stages.common import (
@@ -44,6 +46,9 @@ from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = ["PMSettings", "PMStage"]
 
+#: The program-reward phase before a robot reward (``shaping_generations``) of attempt a draws
+#: from ``fold_in(attempt's key, SHAPING_KEY)``.
+SHAPING_KEY = 7
 #: Crossroad kinds of the paper's PM reward (its two trials run on all seven).
 _PAPER_KINDS = 7
 #: The MBN starts in the state its PM latches after a one-colour tile (meant to be RF's).
@@ -58,12 +63,28 @@ class PMSettings(Settings):
 
     section = "pm"
     generations: int = setting(
-        250, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
+        300, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
     )
     variants: int = setting(1, doc="starts per episode", low=1, high=100)
     bound: float = setting(10.0, doc="genes are kept in [-bound, bound]", low=0.0, high=1e4)
     init: float = setting(
         10.0, doc="the first generation is drawn in [-init, init] (0 < init <= bound)", low=0.0
+    )
+    shaping_generations: int = setting(
+        0,
+        doc="with a robot reward (memory, paper): DE generations on the program reward first, "
+        "whose population the robot's DE then starts from (0: a random one)",
+        low=0,
+        high=100_000,
+        source="docs/reproduce.md (the PM's reward)",
+    )
+    switch_seconds: float = setting(
+        0.3,
+        doc="program reward: how soon the program must change once a tile is in view",
+        unit="s",
+        low=0.0,
+        high=1.5,
+        source="docs/reproduce.md (the PM's reward)",
     )
     perturbation_sigma: float = setting(
         1.0, doc="standard deviation of the PM's weight perturbations", low=0.0, high=1e4
@@ -78,10 +99,11 @@ class PMSettings(Settings):
         source="docs/experiments.md",
     )
     reward: str = setting(
-        "memory",
-        doc="the paper's product over its two trials, or with switching, memory and rest episodes",
-        choices=("paper", "memory"),
-        source="paper 3.2; docs/experiments.md (the memory reward)",
+        "programs",
+        doc="programs: latch the interpreter's programs, without the robot; memory: the paper's "
+        "product with switching, memory and rest episodes; paper: its two trials",
+        choices=("programs", "memory", "paper"),
+        source="paper 3.2; docs/reproduce.md (the PM's reward); docs/experiments.md",
     )
     fidelity: float = setting(
         2.0,
@@ -101,6 +123,11 @@ class PMSettings(Settings):
         super().__post_init__()
         if not 0 < self.init <= self.bound:
             raise MbnInputError(f"pm.init must be in (0, pm.bound], got {self.init!r}")
+        if self.reward == "programs" and self.shaping_generations:
+            raise MbnInputError(
+                "pm.shaping_generations applies to the robot's rewards (pm.reward = memory or "
+                "paper), not to pm.reward = programs"
+            )
         try:
             check_approaches(self.approaches)
         except MbnInputError as exc:
@@ -129,27 +156,54 @@ class PMStage(Stage):
             "camera": camera,
         }
         references = (read_network(ctx, "rf"), read_network(ctx, "lf"))
-        if s.reward == "memory":
-            reward = MemoryReward(approaches=s.approaches, fidelity=s.fidelity)
-            fit = pm_memory_fitness(
-                genome, im_spec.interpreter.net, reward=reward, references=references, **common
-            )
-            maximum = memory_reward_maximum(reward, s.variants)
+        programs = (im_spec.programs["right"], im_spec.programs["left"])
+        latch = jax.jit(
+            pm_program_fitness(genome, programs, reward=MemoryReward(), switch=s.switch_seconds)
+        )
+        if s.reward == "programs":
+            fitness, maximum = latch, 0.0
         else:
-            fit = pm_fitness(genome, im_spec.interpreter.net, **common)
-            maximum = (_PAPER_KINDS * s.variants * EPISODE_FITNESS_MAX) ** 2
-        noise = stage_perturbations(ctx, genome.size, s.perturbation_copies, s.perturbation_sigma)
-        fitness = jax.jit(robust_fitness(fit, noise))
+            if s.reward == "memory":
+                reward = MemoryReward(approaches=s.approaches, fidelity=s.fidelity)
+                fit = pm_memory_fitness(
+                    genome, im_spec.interpreter.net, reward=reward, references=references, **common
+                )
+                maximum = memory_reward_maximum(reward, s.variants)
+            else:
+                fit = pm_fitness(genome, im_spec.interpreter.net, **common)
+                maximum = (_PAPER_KINDS * s.variants * EPISODE_FITNESS_MAX) ** 2
+            noise = stage_perturbations(
+                ctx, genome.size, s.perturbation_copies, s.perturbation_sigma
+            )
+            fitness = jax.jit(robust_fitness(fit, noise))
+        config = de_config(ctx, genome.size, s.bound, s.init)
         attempts: list[dict[str, Any]] = []
         for a in range(ctx.section("validation").attempts):
+            name = "pm" if a == 0 else f"pm_attempt{a}"
+            key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
+            suffix = f" (attempt {a + 1})" if a else ""
+            population = None
+            shaped = None
+            if s.shaping_generations:
+                pre = ctx.evolve(
+                    f"{name}_shaping",
+                    config,
+                    latch,
+                    jax.random.fold_in(key, SHAPING_KEY),
+                    s.shaping_generations,
+                    "PM: generations on the program reward" + suffix,
+                )
+                population = np.asarray(pre.state.population)
+                shaped = {
+                    "best_fitness": pre.data["best_fitness"],
+                    "generations": s.shaping_generations,
+                    "history": pre.data["history"],
+                }
             de = ctx.evolve(
-                "pm" if a == 0 else f"pm_attempt{a}",
-                de_config(ctx, genome.size, s.bound, s.init),
-                fitness,
-                ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a),
-                s.generations,
-                "PM: DE generations" + (f" (attempt {a + 1})" if a else ""),
+                name, config, fitness, key, s.generations, "PM: DE generations" + suffix, population
             )
+            # how well the PM kept latches the programs (the program reward, 0 at best)
+            program_error = float(latch(jnp.asarray([de.data["best_genome"]]))[0])
             pm = genome.network(jnp.asarray(de.data["best_genome"]))
             initial, start = _initial_state(pm, k, im_spec, references, MemoryReward().see, camera)
             spec = MBNControllerSpec(
@@ -163,12 +217,22 @@ class PMStage(Stage):
                     "stage": "pm",
                     "seed": ctx.seed,
                     "pm_fitness": de.data["best_fitness"],
+                    "pm_reward": s.reward,
                     "initial": start,
                 },
             )
             # The whole MBN on the validation maze, judged from its start.
             check = validate(ctx, spec, "tiles")
-            attempts.append({"data": de.data, "initial": start, "spec": spec, "validation": check})
+            attempts.append(
+                {
+                    "data": de.data,
+                    "shaping": shaped,
+                    "program_reward": program_error,
+                    "initial": start,
+                    "spec": spec,
+                    "validation": check,
+                }
+            )
             if check["meets_target"]:
                 break
         chosen = max(
@@ -184,10 +248,13 @@ class PMStage(Stage):
         return {
             **best["data"],
             "initial": best["initial"],
+            "shaping": best["shaping"],
+            "program_reward": best["program_reward"],
             "validation": best["validation"],
             "attempts": [
                 {
                     "best_fitness": x["data"]["best_fitness"],
+                    "program_reward": x["program_reward"],
                     "initial_rule": x["initial"]["rule"],
                     "validation": x["validation"],
                 }
@@ -196,16 +263,22 @@ class PMStage(Stage):
             "chosen_attempt": chosen,
             "reward": s.reward,
             "fidelity": s.fidelity if s.reward == "memory" else None,
+            "switch_seconds": s.switch_seconds,
             "max_fitness": float(maximum),
             "camera_range": s.camera_range,
         }
 
     def summary(self, data: dict[str, Any]) -> str:
+        head = evolution_summary(data)
+        if data.get("reward") == "programs":
+            head = head.replace("best fitness", "program reward", 1).replace(
+                f"{data['best_fitness']:.2f}", f"{data['best_fitness']:.1e}", 1
+            )
         start = data["initial"]
         if start["rule"] is None:
-            return f"{evolution_summary(data)}; starts at rest (no settled state)"
+            return f"{head}; starts at rest (no settled state)"
         program = ", ".join(f"{v:.3f}" for v in start["program"])
-        return f"{evolution_summary(data)}; starts as {start['rule']} ({program})"
+        return f"{head}; starts as {start['rule']} ({program})"
 
 
 def _initial_state(
