@@ -92,7 +92,10 @@ def test_a_settings_file_overrides_the_defaults_and_the_quick_preset(tmp_path):
         ("[rf]\ngenerations = 10\n\nspeed = 3\n", r"s\.toml:4: rf\.speed: unknown setting"),
         ("[rf]\ngenerations = -1\n", r"s\.toml:2: rf\.generations: must be >= 0, got -1"),
         ("[rff]\ngenerations = 1\n", r"s\.toml:1: \[rff\]: unknown section"),
-        ("[pm]\nreward = 'best'\n", r"s\.toml:2: pm\.reward: expected one of programs, memory, paper"),
+        (
+            "[pm]\nreward = 'best'\n",
+            r"s\.toml:2: pm\.reward: expected one of programs, memory, paper",
+        ),
         ("[pm]\ninit = 20.0\n", r"s\.toml:1: \[pm\]: pm\.init must be in \(0, pm\.bound\]"),
         ("[lf]\napproaches = ['north']\n", r"s\.toml:2: lf\.approaches\[0\]: expected one of"),
         ("[rf\ngenerations = 1\n", r"s\.toml:1: TOML syntax error"),

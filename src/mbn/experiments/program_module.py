@@ -357,9 +357,7 @@ def pm_program_fitness(
     right, left = (np.asarray(p, np.float64) for p in programs)
     k = genome.programs
     if right.shape != (k,) or left.shape != (k,):
-        raise MbnInputError(
-            f"programs must have {k} values each, got {len(right)} and {len(left)}"
-        )
+        raise MbnInputError(f"programs must have {k} values each, got {len(right)} and {len(left)}")
     target_of = {_ONE: right, _TWO: left}
     seqs = [v for name, v in sorted(reward.sequences().items()) if name != "rest"]
     inputs, targets, weights = [], [], []

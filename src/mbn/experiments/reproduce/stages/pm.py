@@ -1,5 +1,6 @@
-"""Stage ``pm``: the program module, evolved with the interpreter fixed (paper 3.2; the reward:
-``docs/experiments.md``)."""
+"""Stage ``pm``: the program module, evolved with the interpreter fixed (paper 3.2), by default on
+the program reward without the robot and then validated in it (``docs/reproduce.md``); the robot
+rewards: ``docs/experiments.md``."""
 
 from __future__ import annotations
 
@@ -65,7 +66,14 @@ class PMSettings(Settings):
     generations: int = setting(
         300, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
     )
-    variants: int = setting(1, doc="starts per episode", low=1, high=100)
+    reward: str = setting(
+        "programs",
+        doc="programs: latch the interpreter's programs, without the robot; memory: the paper's "
+        "product with switching, memory and rest episodes; paper: its two trials",
+        choices=("programs", "memory", "paper"),
+        source="paper 3.2; docs/reproduce.md (the PM's reward); docs/experiments.md",
+    )
+    variants: int = setting(1, doc="robot rewards: starts per episode", low=1, high=100)
     bound: float = setting(10.0, doc="genes are kept in [-bound, bound]", low=0.0, high=1e4)
     init: float = setting(
         10.0, doc="the first generation is drawn in [-init, init] (0 < init <= bound)", low=0.0
@@ -87,23 +95,19 @@ class PMSettings(Settings):
         source="docs/reproduce.md (the PM's reward)",
     )
     perturbation_sigma: float = setting(
-        1.0, doc="standard deviation of the PM's weight perturbations", low=0.0, high=1e4
+        1.0,
+        doc="robot rewards: standard deviation of the PM's weight perturbations",
+        low=0.0,
+        high=1e4,
     )
     perturbation_copies: int = setting(
-        0, doc="perturbed copies per genome (0: none)", low=0, high=100
+        0, doc="robot rewards: perturbed copies per genome (0: none)", low=0, high=100
     )
     approaches: tuple[str, ...] = setting(
         ("south", "west", "east"),
         doc="how the robot enters the crossroads of the memory and rest episodes",
         choices=APPROACHES,
         source="docs/experiments.md",
-    )
-    reward: str = setting(
-        "programs",
-        doc="programs: latch the interpreter's programs, without the robot; memory: the paper's "
-        "product with switching, memory and rest episodes; paper: its two trials",
-        choices=("programs", "memory", "paper"),
-        source="paper 3.2; docs/reproduce.md (the PM's reward); docs/experiments.md",
     )
     fidelity: float = setting(
         2.0,
@@ -202,7 +206,7 @@ class PMStage(Stage):
             de = ctx.evolve(
                 name, config, fitness, key, s.generations, "PM: DE generations" + suffix, population
             )
-            # how well the PM kept latches the programs (the program reward, 0 at best)
+            # how closely this PM latches the programs (the program reward, 0 at best)
             program_error = float(latch(jnp.asarray([de.data["best_genome"]]))[0])
             pm = genome.network(jnp.asarray(de.data["best_genome"]))
             initial, start = _initial_state(pm, k, im_spec, references, MemoryReward().see, camera)
