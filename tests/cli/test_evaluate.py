@@ -87,6 +87,25 @@ def test_json_summary_of_a_ctrnn_controller(files, capsys):
     assert 0 <= result["timed_out"] <= result["trials"] - result["successes"]
 
 
+def test_any_rule_judges_the_same_trials_by_its_own_exits(files, capsys):
+    """``--behavior`` takes any priority order: the same straight-driving trials judged by the
+    right rule and by straight-right (named or written as its order) count the same junctions
+    and differ in which were correct; a robot that only drives straight is right at every pass
+    where straight is open for straight-right."""
+    common = ("--controller", files / "straight.json", "--maze", "fig4", "--seconds", "20")
+    results = {}
+    for rule in ("right", "straight-right", "SRL", "s>r>l"):
+        status, out, err = run(capsys, *common, "--behavior", rule, "--json")
+        assert status == 0, err
+        results[rule] = json.loads(out)
+    assert results["straight-right"] == results["SRL"] == results["s>r>l"]
+    a, b = results["right"], results["straight-right"]
+    assert a["junctions"] == b["junctions"] > 0
+    assert b["correct_junctions"] > a["correct_junctions"]
+    status, out, err = run(capsys, *common, "--behavior", "SRL")
+    assert "behavior straight-right" in out.splitlines()[0]
+
+
 def test_the_default_time_limit_comes_from_the_maze_and_time_outs_are_counted(files, capsys):
     common = ("--controller", files / "straight.json", "--maze", "fig4", "--behavior", "right")
     status, out, err = run(capsys, *common, "--json")
@@ -184,7 +203,7 @@ def test_controllers_that_do_not_fit_the_behavior(files, capsys):
         ("--repeats", "two", "argument --repeats: 'two' is not an integer"),
         ("--seconds", "-1", "argument --seconds: must be a finite number > 0"),
         ("--seed", "-3", "argument --seed: must be in [0, 2**32)"),
-        ("--behavior", "up", "argument --behavior: invalid choice: 'up'"),
+        ("--behavior", "up", "argument --behavior: unknown rule 'up'"),
     ],
 )
 def test_bad_flags_exit_with_status_2(files, capsys, flag, value, message):

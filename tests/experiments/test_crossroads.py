@@ -40,7 +40,7 @@ def stats(**values) -> EpisodeStats:
     }
     for name in ("cell",):
         base[f"junction_{name}"] = np.full((n, 8, 2), -1)
-    for name in ("heading", "exit", "right", "left", "tile", "step", "exit_step", "stalls"):
+    for name in ("heading", "exit", "right", "left", "open", "tile", "step", "exit_step", "stalls"):
         base[f"junction_{name}"] = np.full((n, 8), -1)
     base.update({k: np.asarray(v) for k, v in values.items()})
     return EpisodeStats(**{k: jnp.asarray(v) for k, v in base.items()})

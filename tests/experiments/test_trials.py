@@ -51,15 +51,24 @@ name = long
 """
 
 
-def passes(exits, right, left, tiles=None, n=None, stall=0.0, out_step=100, stalls=0):
-    """Synthetic stats of one episode with the given junction passes."""
+#: Open-exit mask bit of each exit code (back, right, straight, left): mbn.world.rules.OPEN_BITS.
+BIT = {BACK: 1, R: 2, S: 4, L: 8}
+
+
+def passes(exits, right, left, tiles=None, n=None, stall=0.0, out_step=100, stalls=0, opened=None):
+    """Synthetic stats of one episode with the given junction passes. ``opened``: the exits open
+    at each pass (codes); by default those the right and the left rule take there."""
     k = len(exits)
     pad = lambda v: np.array([list(v) + [-1] * (8 - len(v))])  # noqa: E731
+    if opened is None:
+        opened = [{r, lft} for r, lft in zip(right, left, strict=True)]
+    masks = [sum(BIT[e] for e in set(o)) for o in opened]
     return stats(
         n_junctions=np.array([k if n is None else n]),
         junction_exit=pad(exits),
         junction_right=pad(right),
         junction_left=pad(left),
+        junction_open=pad(masks),
         junction_tile=pad(tiles or [0] * k),
         junction_exit_step=pad([out_step] * k),
         junction_stalls=pad([stalls] * k),
@@ -81,6 +90,58 @@ def test_judging_the_right_rule():
     assert stalled["stall"][0] == pytest.approx(0.03)
     fine = judge(passes([R, S, R], right=[R, S, R], left=[L, S, L], stalls=2), spec)
     assert fine["success"].tolist() == [True]
+
+
+@pytest.mark.parametrize(
+    "order", ["RSL", "RLS", "SRL", "SLR", "LSR", "LRS"], ids=lambda o: f"rule-{o}"
+)
+def test_judging_every_rule_on_hand_made_junctions(order):
+    """Each of the six orders judged on hand-made passes: at a plus crossing (all three exits
+    open) its first exit, at a T without its first exit its second, where only its last is open
+    that one; a pass that takes another exit is wrong."""
+    from mbn.world.rules import parse_rule
+
+    rule = parse_rule(order)
+    code = {"R": R, "S": S, "L": L}
+    first, second, last = (code[c] for c in order)
+    plus, tee, lane = {R, S, L}, {second, last}, {last}
+    right_of = {frozenset(plus): R, frozenset(tee): R if R in tee else S, frozenset(lane): last}
+    left_of = {frozenset(plus): L, frozenset(tee): L if L in tee else S, frozenset(lane): last}
+    sets = [plus, tee, lane]
+    kw = {
+        "right": [right_of[frozenset(o)] for o in sets],
+        "left": [left_of[frozenset(o)] for o in sets],
+        "opened": sets,
+    }
+    for name in (rule.name, order, order.lower()):
+        spec = TrialSpec(behavior=name)
+        assert spec.behavior == rule.name
+        ok = judge(passes([first, second, last], **kw), spec)
+        assert ok["success"].tolist() == [True] and ok["correct"].tolist() == [3]
+    spec = TrialSpec(behavior=order)
+    for wrong_at in range(3):
+        exits = [first, second, last]
+        exits[wrong_at] = next(e for e in (R, S, L, BACK) if e != exits[wrong_at])
+        bad = judge(passes(exits, **kw), spec)
+        assert bad["success"].tolist() == [False] and bad["correct"].tolist() == [2], wrong_at
+    # a dead end (only back open) is back for every rule
+    dead = judge(
+        passes(
+            [first, second, BACK],
+            right=[*kw["right"][:2], BACK],
+            left=[*kw["left"][:2], BACK],
+            opened=[plus, tee, {BACK}],
+        ),
+        spec,
+    )
+    assert dead["success"].tolist() == [True]
+
+
+def test_an_unknown_rule_is_one_clear_error():
+    with pytest.raises(MbnInputError, match="behavior must be a rule"):
+        TrialSpec(behavior="RRL")
+    with pytest.raises(MbnInputError, match="behavior must be a rule"):
+        TrialSpec(behavior="upward")
 
 
 def test_judging_tiles_follows_the_tile_in_force():

@@ -71,7 +71,7 @@ def test_rule_exit_errors():
         rule_exit(SMALL, (5, 0), "N", "right")
     with pytest.raises(MbnInputError, match="heading must be one of N E S W, got 'up'"):
         rule_exit(SMALL, (1, 2), "up", "right")
-    with pytest.raises(MbnInputError, match="rule must be 'right' or 'left'"):
+    with pytest.raises(MbnInputError, match="unknown rule 'both'"):
         rule_exit(SMALL, (1, 2), "N", "both")  # type: ignore[arg-type]
     with pytest.raises(MbnInputError, match="junction analysis needs a grid maze"):
         decision_cells(stage_arena())

@@ -150,6 +150,19 @@ def test_rule_exits_depend_on_the_crossroad_kind():
     left = [EXIT_NAMES[int(x)] for x in out.stats.junction_left[:, 0]]
     assert right == ["straight", "right", "right"]
     assert left == ["left", "straight", "left"]
+    # the open exits recorded give every rule's exit; the right and left rules' agree with
+    # the exits recorded for them
+    from mbn.world.rules import rule_exit_codes
+
+    mask = np.asarray(out.stats.junction_open[:, 0])
+    np.testing.assert_array_equal(rule_exit_codes("right", mask), out.stats.junction_right[:, 0])
+    np.testing.assert_array_equal(rule_exit_codes("left", mask), out.stats.junction_left[:, 0])
+    straight_right = [EXIT_NAMES[int(x)] for x in rule_exit_codes("straight-right", mask)]
+    straight_left = [EXIT_NAMES[int(x)] for x in rule_exit_codes("SLR", mask)]
+    assert straight_right == ["straight", "straight", "right"]
+    assert straight_left == ["straight", "straight", "left"]
+    # no pass beyond the first: no mask
+    assert np.all(np.asarray(out.stats.junction_open[:, 1]) == -1)
 
 
 def test_tile_driven_over_stays_in_force_and_camera_sees_it_ahead():

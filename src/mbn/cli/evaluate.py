@@ -66,9 +66,12 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     ev.add_argument("--maze", required=True, help="built-in name or maze file")
     ev.add_argument(
         "--behavior",
-        choices=BEHAVIORS,
+        type=_behavior,
         required=True,
-        help="the rule a trial is judged by; 'tiles' needs an mbn controller and a maze with tiles",
+        metavar="{" + ",".join(BEHAVIORS) + ",ORDER}",
+        help="the rule a trial is judged by: a name, or any priority order of the exits right, "
+        "straight and left (e.g. SRL, straight>right>left); 'tiles' needs an mbn controller and "
+        "a maze with tiles",
     )
     ev.add_argument(
         "--initial",
@@ -113,6 +116,18 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument("--json", action="store_true", help="print one JSON object")
     ev.set_defaults(func=_cmd_evaluate, precision=ROBOT)
+
+
+def _behavior(text: str) -> str:
+    """``--behavior``: 'tiles' or a rule (kept as its name)."""
+    from mbn.world.rules import parse_rule
+
+    if text == "tiles":
+        return text
+    try:
+        return parse_rule(text).name
+    except MbnInputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _program_for(args: argparse.Namespace, kind: str) -> str | None:

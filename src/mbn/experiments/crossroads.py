@@ -28,7 +28,7 @@ depend on one exact start.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
@@ -41,6 +41,7 @@ from mbn.world.mazes.builtin import CROSSROAD_KINDS, check_approaches, crossroad
 from mbn.world.mazes.model import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
 from mbn.world.rollout import EpisodeStats, RolloutConfig, junction_arrays
+from mbn.world.rules import parse_rule
 from mbn.world.sensors import SensorConfig
 
 __all__ = [
@@ -57,7 +58,7 @@ __all__ = [
     "rule_arm",
 ]
 
-Rule = Literal["right", "left"]
+#: The paper's two rules (the wall followers); any rule of :mod:`mbn.world.rules` is trainable.
 RULES: tuple[str, ...] = ("right", "left")
 #: Length of a training episode (s); the paper says "about 20 seconds" (section 3.1), 30 s give
 #: the robot time to reach the arm from a jittered start (docs/experiments.md).
@@ -71,15 +72,14 @@ ARM_VECTORS = {"L": (-1.0, 0.0), "S": (0.0, 1.0), "R": (1.0, 0.0)}
 
 
 def rule_arm(kind: str, rule: str) -> str:
-    """The exit (``"L"``, ``"S"`` or ``"R"``) a wall-following rule takes at a crossroad kind
-    entered from the south: right-hand rule first of R, S, L; left-hand rule first of L, S, R."""
-    if rule not in RULES:
-        raise MbnInputError(f"rule must be right or left, got {rule!r}")
+    """The exit (``"L"``, ``"S"`` or ``"R"``) a rule (:mod:`mbn.world.rules`) takes at a
+    crossroad kind entered from the south: the first of its order that the kind has (the
+    right-hand rule first of R, S, L; the left-hand rule first of L, S, R)."""
+    order = parse_rule(rule).initials
     if kind not in CROSSROAD_KINDS:
         raise MbnInputError(
             f"unknown crossroad kind {kind!r} (known: {', '.join(CROSSROAD_KINDS)})"
         )
-    order = "RSL" if rule == "right" else "LSR"
     return next(c for c in order if c in kind)
 
 
@@ -88,7 +88,8 @@ class CrossroadTask:
     """The crossroad training task.
 
     Attributes:
-        rule: "right" or "left": the wall-following rule rewarded.
+        rule: the rule rewarded (:mod:`mbn.world.rules`: "right", "left", "straight-right", ...
+            or an order such as "SRL"; kept as its name).
         fitness: "branch" (default) or "paper" (see the module docstring).
         variants: starts per crossroad: the start mark and ``variants - 1`` jittered ones.
         seconds: episode length (the paper: "about 20 seconds"; default 30 s, see docs).
@@ -115,8 +116,7 @@ class CrossroadTask:
     approaches: tuple[str, ...] = ("south",)
 
     def __post_init__(self) -> None:
-        if self.rule not in RULES:
-            raise MbnInputError(f"rule must be right or left, got {self.rule!r}")
+        object.__setattr__(self, "rule", parse_rule(self.rule).name)
         if self.fitness not in FITNESSES:
             raise MbnInputError(
                 f"fitness must be one of {', '.join(FITNESSES)}, got {self.fitness!r}"

@@ -39,6 +39,7 @@ from mbn.world.rollout import (
     junction_arrays,
     rollout,
 )
+from mbn.world.rules import NAMED_RULES, parse_rule, rule_exit_codes
 from mbn.world.sensors import SensorConfig
 
 __all__ = [
@@ -59,7 +60,8 @@ __all__ = [
     "trial_starts",
 ]
 
-BEHAVIORS: tuple[str, ...] = ("right", "left", "tiles")
+#: The behaviours named on the command line: the rules with names, and the MBN's tiles.
+BEHAVIORS: tuple[str, ...] = (*NAMED_RULES, "tiles")
 #: A trial fails when the robot was stalled in more than this fraction of its steps.
 MAX_STALL_FRACTION = 0.02
 #: The speed the evolved wall followers typically drive at (m/s; 60 % of v_max: speed is a small
@@ -76,7 +78,9 @@ class TrialSpec:
     """How a controller is tested in a maze.
 
     Attributes:
-        behavior: "right", "left" or "tiles" (the rule of the last tile driven over).
+        behavior: a rule (:mod:`mbn.world.rules`: "right", "left", "straight-right", ... or an
+            order such as "SRL"; kept as its name) or "tiles" (the rule of the last tile driven
+            over).
         initial: the rule before the first tile ("tiles" only): "right", "left", or "none" —
             junctions passed before the first tile are then not judged (the J judged junctions
             are the first J after it).
@@ -99,10 +103,15 @@ class TrialSpec:
     exact_first: bool = True
 
     def __post_init__(self) -> None:
-        if self.behavior not in BEHAVIORS:
-            raise MbnInputError(
-                f"behavior must be one of {', '.join(BEHAVIORS)}, got {self.behavior!r}"
-            )
+        if self.behavior != "tiles":
+            try:
+                rule = parse_rule(self.behavior)
+            except MbnInputError:
+                raise MbnInputError(
+                    f"behavior must be a rule ({', '.join(NAMED_RULES)}, or an order such as "
+                    f"'SRL') or tiles, got {self.behavior!r}"
+                ) from None
+            object.__setattr__(self, "behavior", rule.name)
         if self.initial not in ("right", "left", "none"):
             raise MbnInputError(f"initial must be right, left or none, got {self.initial!r}")
         if not (isinstance(self.repeats, int) and self.repeats >= 1):
@@ -185,7 +194,7 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         )
     fields = {
         name: np.asarray(getattr(stats, f"junction_{name}"))
-        for name in ("exit", "right", "left", "tile", "exit_step", "stalls")
+        for name in ("exit", "right", "left", "open", "tile", "exit_step", "stalls")
     }
     if spec.behavior == "tiles" and spec.initial == "none":
         # drop the passes made before the first tile: move the others to the front, in order
@@ -196,10 +205,8 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     exits = fields["exit"][:, :J]
     right = fields["right"][:, :J]
     left = fields["left"][:, :J]
-    if spec.behavior == "right":
-        rule = right
-    elif spec.behavior == "left":
-        rule = left
+    if spec.behavior != "tiles":
+        rule = rule_exit_codes(spec.behavior, fields["open"][:, :J])
     else:
         tile = fields["tile"][:, :J]
         first = right if spec.initial == "right" else left

@@ -10,7 +10,8 @@ Definitions (cells of :attr:`Maze.grid`; outside the grid is wall):
   cell while moving north has heading ``'N'``. Exits are relative to that heading: ``'right'``,
   ``'straight'``, ``'left'``, ``'back'``.
 * The **right-hand rule** takes the first open exit of right, straight, left (else back); the
-  **left-hand rule** the first of left, straight, right (else back).
+  **left-hand rule** the first of left, straight, right (else back); any other priority order of
+  the three exits is a rule too (:mod:`mbn.world.rules`).
 * A **junction pass** (:func:`junction_sequence`): the robot's cell is the grid cell containing
   its ``(x, y)``; a pass begins when the robot moves into a decision cell from another cell and
   ends when it moves into a different cell; entry heading and exit are the compass directions of
@@ -22,19 +23,20 @@ Definitions (cells of :attr:`Maze.grid`; outside the grid is wall):
 
 The jitted rollout engine (:mod:`mbn.world.rollout`) needs the same rules as arrays indexed per
 cell: :func:`junction_tables` gives, for every cell and each of the four entry headings, the exit
-code of each rule (0 back, 1 right, 2 straight, 3 left; -1 where the cell is not a decision cell).
+code of the right and the left rule (0 back, 1 right, 2 straight, 3 left; -1 where the cell is not
+a decision cell) and the mask of open exits (any rule's exit, :mod:`mbn.world.rules`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from mbn.errors import MbnInputError
 from mbn.world.mazes.model import Maze
+from mbn.world.rules import Rule, open_mask, parse_rule
 
 __all__ = [
     "EXITS",
@@ -61,7 +63,6 @@ EXIT_CODES = {name: code for code, name in enumerate(EXITS)}
 _STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))
 # relative turn (compass offset from the entry heading) of each exit, and the rule orders
 _TURN = {"straight": 0, "right": 1, "back": 2, "left": 3}
-_RULE_ORDER = {"right": ("right", "straight", "left"), "left": ("left", "straight", "right")}
 
 
 def _grid(maze: Maze) -> tuple[np.ndarray, float]:
@@ -113,28 +114,30 @@ def _heading_index(heading: str) -> int:
         raise MbnInputError(f"heading must be one of N E S W, got {heading!r}") from None
 
 
-def _rule_exit_from(open_dirs: np.ndarray, h: int, rule: str) -> str:
-    for name in _RULE_ORDER[rule]:
-        if open_dirs[(h + _TURN[name]) % 4]:
-            return name
-    return "back"
+def _open_exits(open_dirs: np.ndarray, h: int) -> set[str]:
+    """The exits (relative to entry heading ``h``) whose neighbour is free."""
+    return {name for name, turn in _TURN.items() if open_dirs[(h + turn) % 4]}
+
+
+def _rule_exit_from(open_dirs: np.ndarray, h: int, rule: str | Rule) -> str:
+    return parse_rule(rule).exit(_open_exits(open_dirs, h))
 
 
 def rule_exit(
     maze: Maze,
     cell: tuple[int, int],
     heading: str,
-    rule: Literal["right", "left"],
+    rule: str | Rule,
 ) -> str:
-    """The exit (``'right' 'straight' 'left' 'back'``) that the right- or left-hand rule takes in
+    """The exit (``'right' 'straight' 'left' 'back'``) that ``rule`` (a name or an order,
+    :func:`mbn.world.rules.parse_rule`: e.g. the right-hand rule ``'right'``) takes in
     ``cell = (row, col)`` for a robot entering it while moving ``heading`` (``'N' 'E' 'S' 'W'``).
 
     Works for any free cell; in a corridor cell it is simply ``'straight'`` (or the way round a
     corner, or ``'back'`` at a dead end).
     """
     grid, _ = _grid(maze)
-    if rule not in _RULE_ORDER:
-        raise MbnInputError(f"rule must be 'right' or 'left', got {rule!r}")
+    rule = parse_rule(rule)
     h = _heading_index(heading)
     r, c = cell
     rows, cols = grid.shape
@@ -152,18 +155,29 @@ def junction_tables(maze: Maze) -> dict[str, np.ndarray]:
         ``"right"``, ``"left"``: ``(R, C, 4)`` int8, the exit code (0 back, 1 right, 2 straight,
         3 left) the right- / left-hand rule takes in each cell for each entry heading (N, E, S, W
         order); -1 where the cell is not a decision cell.
+        ``"open_mask"``: ``(R, C, 4)`` int8, the exits open there for each entry heading
+        (:data:`mbn.world.rules.OPEN_BITS`; any rule's exit: :func:`mbn.world.rules.
+        rule_exit_codes`); -1 where the cell is not a decision cell.
         ``"decision"``: ``(R, C)`` bool, :func:`decision_cells`.
         ``"open"``: ``(R, C, 4)`` bool, :func:`free_neighbours`.
     """
     nb = free_neighbours(maze)
     decision = decision_cells(maze)
     rows, cols = decision.shape
-    tables = {rule: np.full((rows, cols, 4), -1, dtype=np.int8) for rule in _RULE_ORDER}
+    tables = {rule: np.full((rows, cols, 4), -1, dtype=np.int8) for rule in ("right", "left")}
+    mask = np.full((rows, cols, 4), -1, dtype=np.int8)
     for r, c in zip(*np.nonzero(decision), strict=True):
         for h in range(4):
             for rule, table in tables.items():
                 table[r, c, h] = EXIT_CODES[_rule_exit_from(nb[r, c], h, rule)]
-    return {"right": tables["right"], "left": tables["left"], "decision": decision, "open": nb}
+            mask[r, c, h] = open_mask(_open_exits(nb[r, c], h))
+    return {
+        "right": tables["right"],
+        "left": tables["left"],
+        "open_mask": mask,
+        "decision": decision,
+        "open": nb,
+    }
 
 
 @dataclass(frozen=True)
@@ -277,7 +291,7 @@ def _compass(theta: float) -> int:
 def rule_route(
     maze: Maze,
     start: tuple[float, float, float],
-    rule: Literal["right", "left"],
+    rule: str | Rule,
     junctions: int,
     *,
     follow_tiles: bool = False,
@@ -309,7 +323,7 @@ def rule_route(
     if grid[r, c] == "#":
         raise MbnInputError(f"maze {maze.name!r}: start {tuple(start)} is in a wall")
     h = _compass(float(start[2]))
-    current: str = rule
+    current: str = parse_rule(rule).name
     seen_tile = not count_from_tile
     count = 0
     length = 0.0

@@ -51,7 +51,9 @@ class EpisodeStats(NamedTuple):
     passes in all, and for the first ``max_junctions`` of them ``junction_cell`` (row, col) of the
     maze grid, ``junction_heading`` (0..3 = N, E, S, W: direction of entry), ``junction_exit``,
     ``junction_right`` and ``junction_left`` (exit codes of :data:`EXIT_NAMES`: taken, and what
-    the right- and left-hand rules take), ``junction_tile`` (tile in force on entry) and
+    the right- and left-hand rules take), ``junction_open`` (the exits open there, a mask of
+    :data:`mbn.world.rules.OPEN_BITS`: what any rule takes, :func:`mbn.world.rules.
+    rule_exit_codes`), ``junction_tile`` (tile in force on entry) and
     ``junction_step`` (step of entry), ``junction_exit_step`` (step at which the robot is in the
     next cell) and ``junction_stalls`` (stalled moves from the start of the episode until then);
     entries beyond ``n_junctions`` are -1 (a pass still open at the end has no exit yet).
@@ -72,6 +74,7 @@ class EpisodeStats(NamedTuple):
     junction_exit: Array
     junction_right: Array
     junction_left: Array
+    junction_open: Array
     junction_tile: Array
     junction_step: Array
     junction_exit_step: Array
@@ -79,12 +82,13 @@ class EpisodeStats(NamedTuple):
 
 
 def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
-    """Rule-exit tables aligned with ``world.windows`` rows: ``(rows, 4, 2)`` int8 (entry heading
-    N, E, S, W; right rule, left rule); -1 where the cell is not a decision cell."""
+    """Rule-exit tables aligned with ``world.windows`` rows: ``(rows, 4, 3)`` int8 (entry heading
+    N, E, S, W; the right rule's exit, the left rule's, and the mask of open exits,
+    :data:`mbn.world.rules.OPEN_BITS`); -1 where the cell is not a decision cell."""
     from mbn.world.junctions import junction_tables
 
     total = world.n_rows
-    out = np.full((total, 4, 2), -1, dtype=np.int8)
+    out = np.full((total, 4, 3), -1, dtype=np.int8)
     shapes = np.asarray(world.shape)
     offsets = np.asarray(world.offset)
     for k, maze in enumerate(mazes):
@@ -97,12 +101,14 @@ def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
             raise MbnInputError(f"maze {maze.name!r}: lattice does not match its grid")
         right = np.asarray(tables["right"])  # (R, C, 4)
         left = np.asarray(tables["left"])
+        mask = np.asarray(tables["open_mask"])
         # lattice row of cell (i = col, j = R-1-row) is offset + i * ny + j
         for r in range(rows):
             for c in range(cols):
                 idx = offsets[k] + c * ny + (rows - 1 - r)
                 out[idx, :, 0] = right[r, c]
                 out[idx, :, 1] = left[r, c]
+                out[idx, :, 2] = mask[r, c]
     return jnp.asarray(out)
 
 
@@ -167,7 +173,7 @@ class JunctionLog(NamedTuple):
     entered (a pass open), ``entry`` that pass's entry heading (0..3 = N, E, S, W), ``passes`` the
     passes closed; and for the first ``J`` passes ``(B, J)`` (-1 where none; ``cell (B, J, 2)``)
     the fields of :class:`EpisodeStats`' ``junction_*``: ``cell``, ``heading``, ``exit``,
-    ``right``, ``left``, ``tile``, ``step``, ``exit_step``, ``stalls``."""
+    ``right``, ``left``, ``open``, ``tile``, ``step``, ``exit_step``, ``stalls``."""
 
     in_pass: Array
     entry: Array
@@ -177,6 +183,7 @@ class JunctionLog(NamedTuple):
     exit: Array
     right: Array
     left: Array
+    open: Array
     tile: Array
     step: Array
     exit_step: Array
@@ -195,6 +202,7 @@ def start_junctions(b: int, max_junctions: int) -> JunctionLog:
         exit=neg,
         right=neg,
         left=neg,
+        open=neg,
         tile=neg,
         step=neg,
         exit_step=neg,
@@ -252,7 +260,7 @@ def log_junctions(
     nx_, ny_ = mc.shape[:, 0], mc.shape[:, 1]
     inside = (ci >= 0) & (ci < nx_) & (cj >= 0) & (cj < ny_)
     lattice_row = jnp.where(inside, mc.offset + ci * ny_ + cj, 0)
-    rule = tables[lattice_row, heading].astype(jnp.int32)  # (B, 2)
+    rule = tables[lattice_row, heading].astype(jnp.int32)  # (B, 3): right, left, open mask
     opening = moved & inside & (rule[:, 0] >= 0)
     write2 = opening[:, None] & (slots == passes[:, None])  # (B, J)
 
@@ -269,6 +277,7 @@ def log_junctions(
         exit=exit_,
         right=put(log.right, rule[:, 0]),
         left=put(log.left, rule[:, 1]),
+        open=put(log.open, rule[:, 2]),
         tile=put(log.tile, tile),
         step=put(log.step, jnp.broadcast_to(step, (b,))),
         exit_step=exit_step,
@@ -298,6 +307,7 @@ def episode_stats(
         junction_exit=log.exit,
         junction_right=log.right,
         junction_left=log.left,
+        junction_open=log.open,
         junction_tile=log.tile,
         junction_step=log.step,
         junction_exit_step=log.exit_step,
