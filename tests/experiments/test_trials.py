@@ -144,6 +144,27 @@ def test_an_unknown_rule_is_one_clear_error():
         TrialSpec(behavior="upward")
 
 
+def test_judging_three_kinds_of_tile_by_their_rules():
+    """With tile_rules (right, left, straight-right), a three-colour tile in force is judged by
+    straight-right; a maze with three-colour tiles is refused under the paper's two rules."""
+    spec = TrialSpec(behavior="tiles", tile_rules=("right", "left", "SRL"))
+    assert spec.tile_rules == ("right", "left", "straight-right")
+    plus = {R, S, L}
+    kw = {"right": [R, R, R], "left": [L, L, L], "opened": [plus, plus, plus]}
+    ok = judge(passes([R, L, S], tiles=[1, 2, 3], **kw), spec)
+    assert ok["success"].tolist() == [True]
+    bad = judge(passes([R, L, R], tiles=[1, 2, 3], **kw), spec)
+    assert bad["success"].tolist() == [False] and bad["correct"].tolist() == [2]
+    maze = parse_maze_text("#########\n#>.1.2.3#\n#######.#\n", "t.maze")
+    with pytest.raises(MbnInputError, match="3-colour tiles"):
+        TrialSpec(behavior="tiles").check_maze(maze)
+    spec.check_maze(maze)
+    with pytest.raises(MbnInputError, match="tile_rules"):
+        TrialSpec(behavior="tiles", tile_rules=())
+    with pytest.raises(MbnInputError, match="unknown rule"):
+        TrialSpec(behavior="tiles", tile_rules=("right", "up"))
+
+
 def test_judging_tiles_follows_the_tile_in_force():
     spec = TrialSpec(behavior="tiles", initial="left")
     # before any tile: left rule; then a two-colour tile (left); then a one-colour tile (right)

@@ -198,8 +198,8 @@ def test_camera_sees_tiles_in_view_and_not_behind_walls():
     assert np.asarray(cam.nearest).tolist() == [2, 0, 1, 0]
     assert np.asarray(cam.blobs).tolist() == [2, 0, 1, 0]
     # the two blobs of the two-colour tile lie left and right of the heading
-    b0, b1 = np.asarray(cam.bearing)[0, 0]
-    assert b0 * b1 < 0
+    b0, b1, _ = np.asarray(cam.bearing)[0, 0]
+    assert b0 * b1 < 0 and not np.asarray(cam.visible)[0, 0, 2]
     # a wall between camera and tile hides it: west tile seen from the south arm
     hidden = jnp.asarray([[4.2, 2.0, math.radians(135.0)]])
     cam1 = _camera(w, jnp.zeros(1, jnp.int32), hidden, E.CameraConfig(range=5))
@@ -207,6 +207,28 @@ def test_camera_sees_tiles_in_view_and_not_behind_walls():
     # driving over: the tile under the middle of the body
     under = E.tile_under(w, mi, jnp.asarray([[4.25, 2.2, math.pi / 2]] * 4))
     assert np.asarray(under).tolist() == [2, 2, 2, 2]
+
+
+def test_a_three_colour_tile_shows_three_blobs_left_middle_and_right():
+    maze = Maze(
+        name="three",
+        walls=crossroad("LSR").walls,
+        bounds=(0.0, 8.4, 0.0, 8.4),
+        tiles=(Tile(4.2, 2.2, 3),),
+    )
+    w = E.compile_mazes([maze])
+    poses = jnp.asarray([[4.2, 0.6, math.pi / 2], [4.2, 0.6, -math.pi / 2]])
+    cam = _camera(w, jnp.zeros(2, jnp.int32), poses, E.CameraConfig(range=3.5))
+    assert np.asarray(cam.nearest).tolist() == [3, 0]
+    assert np.asarray(cam.blobs).tolist() == [3, 0]
+    assert np.asarray(cam.visible)[0, 0].tolist() == [True, True, True]
+    # the thirds side by side across the corridor: one on each side of the heading, one ahead
+    b0, b1, b2 = np.asarray(cam.bearing)[0, 0]
+    assert b0 * b2 < 0 and abs(b1) < min(abs(b0), abs(b2))
+    under = E.tile_under(w, jnp.zeros(1, jnp.int32), jnp.asarray([[4.25, 2.2, math.pi / 2]]))
+    assert np.asarray(under).tolist() == [3]
+    with pytest.raises(MbnInputError, match="tile colors must be 1, 2 or 3"):
+        Tile(1.0, 1.0, 4)
 
 
 def test_camera_config_is_validated():

@@ -30,7 +30,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.starts import JITTER, mark_starts
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.junctions import rule_route
-from mbn.world.mazes.model import Maze
+from mbn.world.mazes.model import TILE_COLORS, Maze
 from mbn.world.rollout import (
     EpisodeStats,
     RolloutConfig,
@@ -91,6 +91,9 @@ class TrialSpec:
         seed: seed of the jitter (NumPy, at this edge).
         exact_first: whether the first trial of each mark starts from the mark exactly (else
             all ``repeats`` trials of a mark are jittered).
+        tile_rules: "tiles" only: the rule a tile of 1, 2, ... colours puts in force (the
+            paper's: one colour right, two colours left); a maze with a tile of more colours
+            than rules is refused (:meth:`check_maze`).
     """
 
     behavior: str = "right"
@@ -101,6 +104,7 @@ class TrialSpec:
     jitter: tuple[float, float, float] = JITTER
     seed: int = 0
     exact_first: bool = True
+    tile_rules: tuple[str, ...] = ("right", "left")
 
     def __post_init__(self) -> None:
         if self.behavior != "tiles":
@@ -112,6 +116,12 @@ class TrialSpec:
                     f"'SRL') or tiles, got {self.behavior!r}"
                 ) from None
             object.__setattr__(self, "behavior", rule.name)
+        if not 1 <= len(self.tile_rules) <= len(TILE_COLORS):
+            raise MbnInputError(
+                f"tile_rules: one rule per tile kind (1 to {len(TILE_COLORS)}), got "
+                f"{self.tile_rules!r}"
+            )
+        object.__setattr__(self, "tile_rules", tuple(parse_rule(r).name for r in self.tile_rules))
         if self.initial not in ("right", "left", "none"):
             raise MbnInputError(f"initial must be right, left or none, got {self.initial!r}")
         if not (isinstance(self.repeats, int) and self.repeats >= 1):
@@ -131,6 +141,14 @@ class TrialSpec:
             )
         if self.behavior == "tiles" and not maze.tiles:
             raise MbnInputError(f"behavior 'tiles' needs tiles, and maze {maze.name!r} has none")
+        if self.behavior == "tiles":
+            most = max(t.colors for t in maze.tiles)
+            if most > len(self.tile_rules):
+                raise MbnInputError(
+                    f"maze {maze.name!r} has {most}-colour tiles, and the rules in force are "
+                    f"known for tiles of up to {len(self.tile_rules)} colours "
+                    f"({', '.join(self.tile_rules)})"
+                )
 
 
 def trial_starts(maze: Maze, spec: TrialSpec) -> np.ndarray:
@@ -146,7 +164,7 @@ def longest_route(maze: Maze, spec: TrialSpec) -> float | None:
     the last tile entered, ``spec.initial`` before the first (with "none": the longer of right
     and left, counting junctions from the first tile). None when no walk gets there."""
     if spec.behavior == "tiles":
-        initials = ("right", "left") if spec.initial == "none" else (spec.initial,)
+        initials = spec.tile_rules if spec.initial == "none" else (spec.initial,)
         walks = [(rule, True, spec.initial == "none") for rule in initials]
     else:
         walks = [(spec.behavior, False, False)]
@@ -158,6 +176,7 @@ def longest_route(maze: Maze, spec: TrialSpec) -> float | None:
             spec.junctions,
             follow_tiles=follow,
             count_from_tile=from_tile,
+            tile_rules=spec.tile_rules,
         )
         for start in np.asarray(maze.starts)
         for rule, follow, from_tile in walks
@@ -203,14 +222,15 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         fields = {k: np.take_along_axis(v, order, axis=1) for k, v in fields.items()}
         n = valid.sum(1)
     exits = fields["exit"][:, :J]
-    right = fields["right"][:, :J]
-    left = fields["left"][:, :J]
+    opened = fields["open"][:, :J]
     if spec.behavior != "tiles":
-        rule = rule_exit_codes(spec.behavior, fields["open"][:, :J])
+        rule = rule_exit_codes(spec.behavior, opened)
     else:
         tile = fields["tile"][:, :J]
-        first = right if spec.initial == "right" else left
-        rule = np.where(tile == 1, right, np.where(tile == 2, left, first))
+        # before the first tile: the initial rule ("none": those passes were dropped above)
+        rule = rule_exit_codes(spec.initial if spec.initial != "none" else "right", opened)
+        for colors, name in enumerate(spec.tile_rules, start=1):
+            rule = np.where(tile == colors, rule_exit_codes(name, opened), rule)
     passed = np.arange(J)[None, :] < n[:, None]
     correct = passed & (exits == rule)
     judged = np.minimum(n, J)

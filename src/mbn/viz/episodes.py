@@ -32,6 +32,7 @@ from mbn.errors import MbnInputError
 from mbn.viz.maze import (
     TILE1_COLOR,
     TILE2_COLORS,
+    TILE3_COLORS,
     draw_maze,
     legend_below,
     maze_figsize,
@@ -66,7 +67,7 @@ PATH_COLORS = (
     "#7f7f7f",
     "#222222",
 )
-_CAMERA_FOV_COLORS = {0: "#9aa0a6", 1: TILE1_COLOR, 2: TILE2_COLORS[1]}
+_CAMERA_FOV_COLORS = {0: "#9aa0a6", 1: TILE1_COLOR, 2: TILE2_COLORS[1], 3: TILE3_COLORS[1]}
 _TILE_WORDS = {0: "none", 1: "1-colour", 2: "2-colour"}
 
 

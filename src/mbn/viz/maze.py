@@ -8,8 +8,8 @@
 Figures are made and saved by :mod:`mbn.viz.style`. Coordinates are the world's: metres, x east,
 y north, equal aspect. Colours: walls dark grey, free space white, decision cells of grid mazes
 pale blue, one-colour tiles orange, two-colour tiles blue (blob 0, the half to the right of the
-tile's heading) and magenta (blob 1), start poses green arrows numbered by their index in
-``maze.starts``.
+tile's heading) and magenta (blob 1), three-colour tiles green, yellow and teal (blobs 0, 1, 2),
+start poses green arrows numbered by their index in ``maze.starts``.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ __all__ = [
     "START_COLOR",
     "TILE1_COLOR",
     "TILE2_COLORS",
+    "TILE3_COLORS",
     "WALL_COLOR",
     "draw_maze",
     "legend_below",
@@ -45,6 +46,7 @@ WALL_COLOR = "#3a3d42"
 DECISION_COLOR = "#dfe8f5"
 TILE1_COLOR = "#f28e2b"
 TILE2_COLORS = ("#2f6db5", "#c936c0")
+TILE3_COLORS = ("#2ca02c", "#e6b800", "#17becf")
 START_COLOR = "#1e8a3c"
 
 
@@ -93,6 +95,14 @@ def maze_legend_handles(maze: Maze, *, junctions: bool, starts: bool, tiles: boo
             (
                 Patch(facecolor=TILE2_COLORS[0], label="two-colour tile"),
                 Patch(facecolor=TILE2_COLORS[1]),
+            )
+        )
+    if tiles and any(t.colors == 3 for t in maze.tiles):
+        handles.append(
+            (
+                Patch(facecolor=TILE3_COLORS[0], label="three-colour tile"),
+                Patch(facecolor=TILE3_COLORS[1]),
+                Patch(facecolor=TILE3_COLORS[2]),
             )
         )
     if starts and len(maze.starts):
@@ -160,7 +170,8 @@ def draw_maze(
     Walls are dark grey rectangles (artists with gid ``"wall"``, one per row of ``maze.walls``);
     a maze whose outside is solid also gets a dark frame round its bounds (gid ``"frame"``). Tiles
     are drawn from :meth:`Tile.corners`: one-colour tiles orange (gid ``"tile1"``), two-colour
-    tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1).
+    tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1),
+    three-colour tiles as three thirds (gid ``"tile3"``: green, yellow, teal).
     Decision cells of grid mazes (:func:`mbn.world.junctions.decision_cells`) are shaded pale blue
     (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled with their index.
 
@@ -207,13 +218,17 @@ def draw_maze(
                 )
                 ax.patches[-1].set_gid("tile1")
             else:
-                m_lo, m_hi = (c[0] + c[3]) / 2, (c[1] + c[2]) / 2
-                halves = (np.array([c[0], c[1], m_hi, m_lo]), np.array([m_lo, m_hi, c[2], c[3]]))
-                for half, color in zip(halves, TILE2_COLORS, strict=True):
+                # equal parts across the corridor, blob 0 first
+                n = tile.colors
+                colors = TILE2_COLORS if n == 2 else TILE3_COLORS
+                lo = [c[0] + (c[3] - c[0]) * i / n for i in range(n + 1)]
+                hi = [c[1] + (c[2] - c[1]) * i / n for i in range(n + 1)]
+                for i, color in enumerate(colors):
+                    part = np.array([lo[i], hi[i], hi[i + 1], lo[i + 1]])
                     ax.add_patch(
-                        Polygon(half, closed=True, facecolor=color, edgecolor="none", zorder=1)
+                        Polygon(part, closed=True, facecolor=color, edgecolor="none", zorder=1)
                     )
-                    ax.patches[-1].set_gid("tile2")
+                    ax.patches[-1].set_gid(f"tile{n}")
     _add_rectangles(
         ax,
         maze.walls,

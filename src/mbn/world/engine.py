@@ -798,10 +798,10 @@ class CameraReading(NamedTuple):
     """What the blob finder reports at one step.
 
     ``blobs``: the number of distinct colour blobs in view (each visible tile shows one blob per
-    colour). ``nearest``: the number of colours (0 none, 1, 2) of the nearest tile in view — the
-    camera input of the program module. ``visible``: ``(..., T, 2)`` which blobs of which tile are
-    in view; ``bearing``: ``(..., T, 2)`` each blob's bearing in the camera frame (radians,
-    positive left; meaningful where visible).
+    colour). ``nearest``: the number of colours (0 none, 1, 2, 3) of the nearest tile in view —
+    the camera input of the program module. ``visible``: ``(..., T, 3)`` which blobs of which
+    tile are in view; ``bearing``: ``(..., T, 3)`` each blob's bearing in the camera frame
+    (radians, positive left; meaningful where visible).
     """
 
     blobs: Array
@@ -822,7 +822,8 @@ def see_tiles(
 ) -> CameraReading:
     """The blob finder at ``pose (B, 3)``: a tile's blob is in view when one of its sample points
     (across the tile's width) is within the field of view and range and no wall lies between the
-    camera and it. A two-colour tile's halves are separate blobs."""
+    camera and it. A two-colour tile's halves are separate blobs, and a three-colour tile's
+    thirds."""
     tiles = world.tiles[maze_index]  # (B, T, 6)
     colors = world.tile_colors[maze_index]  # (B, T)
     th = pose[..., 2]
@@ -864,20 +865,26 @@ def see_tiles(
     ).reshape(b, t, k)
     seen = in_view & (free >= dist - 1e-4)
     rel = jnp.arctan2(uy * c[:, None, None] - ux * s[:, None, None], cos_off)
-    left = u < 0  # first half of the samples: blob 0 of a two-colour tile
+    # blob b of a tile of c colours: the samples in the b-th of c equal parts of its width
+    # (first: the u < 0 side); one colour: all of them
     two = (colors == 2)[..., None]
-    blob0 = jnp.where(two, seen & left, seen)
-    blob1 = jnp.where(two, seen & ~left, False)
-    vis0, vis1 = jnp.any(blob0, -1), jnp.any(blob1, -1)
-    visible = jnp.stack([vis0, vis1], -1)  # (B, T, 2)
+    three = (colors == 3)[..., None]
+    left, right = u < 0, u > 0
+    first_third, last_third = u < -1 / 6, u > 1 / 6
+    middle = ~first_third & ~last_third
+    blob0 = jnp.where(two, seen & left, jnp.where(three, seen & first_third, seen))
+    blob1 = jnp.where(two, seen & right, jnp.where(three, seen & middle, False))
+    blob2 = jnp.where(three, seen & last_third, False)
+    vis0, vis1, vis2 = jnp.any(blob0, -1), jnp.any(blob1, -1), jnp.any(blob2, -1)
+    visible = jnp.stack([vis0, vis1, vis2], -1)  # (B, T, 3)
 
     def mean_bearing(mask: Array) -> Array:
         n = jnp.maximum(jnp.sum(mask, -1), 1)
         return jnp.sum(jnp.where(mask, rel, 0.0), -1) / n
 
-    bearing = jnp.stack([mean_bearing(blob0), mean_bearing(blob1)], -1)
+    bearing = jnp.stack([mean_bearing(blob0), mean_bearing(blob1), mean_bearing(blob2)], -1)
     blobs = jnp.sum(visible, axis=(-1, -2))
-    any_vis = vis0 | vis1
+    any_vis = vis0 | vis1 | vis2
     nearest_t = jnp.argmin(jnp.where(any_vis, centre_dist, jnp.inf), axis=-1)
     nearest = jnp.where(
         jnp.any(any_vis, -1), jnp.take_along_axis(colors, nearest_t[:, None], -1)[:, 0], 0
@@ -886,7 +893,7 @@ def see_tiles(
 
 
 def tile_under(world: World, maze_index: Array, pose: Array) -> Array:
-    """The number of colours (0 none, 1, 2) of the tile under the middle of the body."""
+    """The number of colours (0 none, 1, 2, 3) of the tile under the middle of the body."""
     tiles = world.tiles[maze_index]
     colors = world.tile_colors[maze_index]
     th = pose[..., 2:3]

@@ -296,6 +296,7 @@ def rule_route(
     *,
     follow_tiles: bool = False,
     count_from_tile: bool = False,
+    tile_rules: tuple[str, ...] = ("right", "left"),
 ) -> float | None:
     """The length (metres) of the route a wall follower drives from ``start = (x, y, theta)``
     until it leaves its ``junctions``-th decision cell, walking the grid cell by cell.
@@ -305,7 +306,8 @@ def rule_route(
     it, round a corner, back at a dead end); each cell moved through is one ``cell`` of length,
     and the route ends half a cell past the centre of the ``junctions``-th decision cell entered
     (the start cell is not a pass, as in :func:`junction_sequence`). ``follow_tiles``: entering a
-    cell with a tile makes its rule the one in force (one colour: right, two colours: left).
+    cell with a tile makes its rule the one in force (``tile_rules[colours - 1]``; the paper's:
+    one colour right, two colours left).
     ``count_from_tile``: only decision cells entered after the first tile count.
 
     Returns None when the walk never gets there (it comes back to a cell with the same heading,
@@ -318,7 +320,13 @@ def rule_route(
     decision = decision_cells(maze)
     tile_rule: dict[tuple[int, int], str] = {}
     for t in maze.tiles:
-        tile_rule[cell_of(maze, t.x, t.y)] = "right" if t.colors == 1 else "left"
+        if follow_tiles and t.colors > len(tile_rules):
+            raise MbnInputError(
+                f"maze {maze.name!r}: a {t.colors}-colour tile, and tile_rules name rules for "
+                f"tiles of up to {len(tile_rules)} colours"
+            )
+        if t.colors <= len(tile_rules):
+            tile_rule[cell_of(maze, t.x, t.y)] = parse_rule(tile_rules[t.colors - 1]).name
     r, c = cell_of(maze, float(start[0]), float(start[1]))
     if grid[r, c] == "#":
         raise MbnInputError(f"maze {maze.name!r}: start {tuple(start)} is in a wall")

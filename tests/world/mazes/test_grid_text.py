@@ -92,10 +92,10 @@ def test_tile_heading_follows_the_corridor():
     assert grid_tile_heading(grid, 2, 0) == 0.0  # east-west dead end
     assert grid_tile_heading(grid, 1, 4) == pytest.approx(math.pi / 2)  # corner W+S (tie)
     assert grid_tile_heading(grid, 1, 3) == 0.0  # corridor running east
-    maze = parse_maze_text("#####\n.1.2.\n###.#\n", "m.maze")
-    # '1' in an east-west corridor; '2' in a T whose bar runs east-west
-    assert [t.heading for t in maze.tiles] == [0.0, 0.0]
-    assert [t.colors for t in maze.tiles] == [1, 2]
+    maze = parse_maze_text("#######\n.1.2.3.\n###.###\n", "m.maze")
+    # '1' and '3' in an east-west corridor; '2' in a T whose bar runs east-west
+    assert [t.heading for t in maze.tiles] == [0.0, 0.0, 0.0]
+    assert [t.colors for t in maze.tiles] == [1, 2, 3]
 
 
 @pytest.mark.parametrize(
@@ -103,7 +103,7 @@ def test_tile_heading_follows_the_corridor():
     [
         (
             "#.#\n#x#\n",
-            "m.maze:2: unknown character 'x' in column 2 (expected one of # . 1 2 > < ^ v)",
+            "m.maze:2: unknown character 'x' in column 2 (expected one of # . 1 2 3 > < ^ v)",
         ),
         ("; c\ncell = abc\n.\n", "m.maze:2: cell must be a number of metres, got 'abc'"),
         ("cell = -1\n.\n", "m.maze:1: cell must be a finite number > 0"),

@@ -10,8 +10,8 @@
     ###1###
     ###^###
 
-* ``#`` wall, ``.`` free, ``1``/``2`` free with a one-/two-colour tile, ``>`` ``<`` ``^`` ``v``
-  free with a start pose at the cell centre facing east, west, north, south.
+* ``#`` wall, ``.`` free, ``1``/``2``/``3`` free with a one-/two-/three-colour tile, ``>``
+  ``<`` ``^`` ``v`` free with a start pose at the cell centre facing east, west, north, south.
 * The first grid line is north. The grid's south-west corner is (0, 0): with ``R`` grid lines,
   the cell on line ``r`` (0 = top) and column ``c`` covers ``x`` in ``[c cell, (c + 1) cell]`` and
   ``y`` in ``[(R - 1 - r) cell, (R - r) cell]``. Outside the grid is wall.
@@ -52,7 +52,7 @@ __all__ = [
 ]
 
 #: The characters of a ``.maze`` grid, in the order error messages list them.
-GRID_CHARS = ("#", ".", "1", "2", ">", "<", "^", "v")
+GRID_CHARS = ("#", ".", "1", "2", "3", ">", "<", "^", "v")
 #: Heading (radians) of the start pose each start mark stands for.
 START_HEADINGS = {">": 0.0, "<": math.pi, "^": math.pi / 2, "v": -math.pi / 2}
 

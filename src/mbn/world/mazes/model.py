@@ -20,6 +20,7 @@ from mbn.errors import MbnInputError
 __all__ = [
     "DEFAULT_CELL",
     "DEFAULT_TILE_LENGTH",
+    "TILE_COLORS",
     "Maze",
     "Tile",
     "merge_cells",
@@ -30,6 +31,8 @@ __all__ = [
 DEFAULT_CELL = 1.2
 #: Default extent of a tile along the corridor (metres).
 DEFAULT_TILE_LENGTH = 0.3
+#: The tile kinds: how many colours (blobs side by side across the corridor) a tile shows.
+TILE_COLORS = (1, 2, 3)
 
 
 @dataclass(frozen=True)
@@ -37,8 +40,9 @@ class Tile:
     """A coloured strip on the floor, across a corridor.
 
     ``(x, y)`` is its centre; ``heading`` the direction along the corridor (radians); ``width`` its
-    extent across the corridor and ``length`` along it. ``colors`` is 1 (one-colour tile) or 2 (a
-    two-colour tile: two halves side by side across the corridor, so that a camera sees two blobs).
+    extent across the corridor and ``length`` along it. ``colors`` is 1 (one-colour tile), 2 (a
+    two-colour tile: two halves side by side across the corridor, so that a camera sees two blobs)
+    or 3 (a three-colour tile: three thirds, three blobs).
     """
 
     x: float
@@ -49,8 +53,8 @@ class Tile:
     heading: float = math.pi / 2
 
     def __post_init__(self) -> None:
-        if self.colors not in (1, 2):
-            raise MbnInputError(f"tile colors must be 1 or 2, got {self.colors!r}")
+        if self.colors not in TILE_COLORS:
+            raise MbnInputError(f"tile colors must be 1, 2 or 3, got {self.colors!r}")
         for name in ("x", "y", "width", "length", "heading"):
             value = getattr(self, name)
             if not math.isfinite(value):

@@ -133,8 +133,8 @@ def parse_toml_maze(
     tiles: list[Tile] = []
     for label, v in tables["tile"]:
         colors = v["colors"]
-        if colors not in (1.0, 2.0):
-            raise MbnInputError(f"{label}: colors must be 1 or 2, got {colors:g}")
+        if colors not in (1.0, 2.0, 3.0):
+            raise MbnInputError(f"{label}: colors must be 1, 2 or 3, got {colors:g}")
         width = v.get("width", DEFAULT_CELL)
         length = v.get("length", DEFAULT_TILE_LENGTH)
         if width <= 0 or length <= 0:
