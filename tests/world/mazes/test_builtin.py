@@ -1,4 +1,5 @@
-"""The built-in mazes: crossroads, the Stage arena, fig4 and heldout."""
+"""The built-in mazes: crossroads, the Stage arena, fig4, heldout, validation and the mazes with
+three kinds of tile."""
 
 from __future__ import annotations
 
@@ -52,6 +53,8 @@ def test_names_and_descriptions():
         "fig4",
         "heldout",
         "validation",
+        "tiles3",
+        "tiles3_heldout",
     )
     described = describe_builtins()
     assert [name for name, _ in described] == list(BUILTIN_NAMES)
@@ -258,3 +261,54 @@ def test_the_test_and_validation_mazes_differ(one, other):
     a, b = builtin_maze(one), builtin_maze(other)
     assert a.grid is not None and b.grid is not None
     assert a.grid.shape != b.grid.shape or (a.grid != b.grid).any()
+
+
+@pytest.mark.parametrize("name", ["tiles3", "tiles3_heldout"])
+def test_the_three_tile_mazes(name: str):
+    """Tiles of all three kinds (at least three each), plus, T and L junctions, no dead end, ten
+    or more start marks mid-corridor; from every mark each of the rules right, left,
+    straight-right and straight-left passes three junctions, and with tiles putting right, left
+    and straight-right in force a robot starting as either wall follower drives over a tile and
+    then through three junctions (rule_route walks the grid cell by cell)."""
+    from mbn.world.junctions import rule_route
+
+    maze = load_maze(name)
+    assert maze.name == name and maze.grid is not None and maze.cell == 1.2
+    kinds = [t.colors for t in maze.tiles]
+    assert all(kinds.count(k) >= 3 for k in (1, 2, 3)), kinds
+    assert len(maze.starts) >= 10
+    nb = free_neighbours(maze)
+    count = nb.sum(-1) * (maze.grid != "#")
+    assert int((count == 4).sum()) >= 2 and int((count == 3).sum()) >= 3
+    assert int(decision_cells(maze).sum() - (count >= 3).sum()) >= 2  # L corners
+    assert int((count == 1).sum()) == 0  # no dead end
+    for r, c in zip(*np.nonzero(np.isin(maze.grid, list(MARK_HEADING))), strict=True):
+        h = MARK_HEADING[str(maze.grid[r, c])]
+        assert nb[r, c, h] and nb[r, c, (h + 2) % 4]
+        assert not nb[r, c, (h + 1) % 4] and not nb[r, c, (h + 3) % 4]
+    rules = ("right", "left", "straight-right")
+    for start in maze.starts:
+        for rule in ("right", "left", "straight-right", "straight-left"):
+            assert rule_route(maze, tuple(start), rule, 3) is not None, (name, start, rule)
+        for first in ("right", "left"):
+            route = rule_route(
+                maze,
+                tuple(start),
+                first,
+                3,
+                follow_tiles=True,
+                count_from_tile=True,
+                tile_rules=rules,
+            )
+            assert route is not None, (name, start, first)
+    with pytest.raises(MbnInputError, match="3-colour tile"):
+        rule_route(maze, tuple(maze.starts[0]), "right", 3, follow_tiles=True)
+
+
+def test_the_three_tile_mazes_differ_from_each_other_and_the_others():
+    a, b = builtin_maze("tiles3"), builtin_maze("tiles3_heldout")
+    assert a.grid is not None and b.grid is not None
+    assert a.grid.shape != b.grid.shape or (a.grid != b.grid).any()
+    for other in ("fig4", "heldout", "validation"):
+        g = builtin_maze(other).grid
+        assert g is not None and (g.shape != a.grid.shape or (g != a.grid).any())

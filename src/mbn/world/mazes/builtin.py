@@ -224,6 +224,8 @@ _DESCRIPTIONS: dict[str, str] = {
     "fig4": "test maze after the paper's Fig. 4: plus, T and L crossings, tiles, 10 starts",
     "heldout": "a second fig4-style maze kept out of training: tiles, 12 starts",
     "validation": "a third fig4-style maze used by no test (to choose among candidates): 8 starts",
+    "tiles3": "test maze with one-, two- and three-colour tiles: plus, T and L, 11 starts",
+    "tiles3_heldout": "a second maze with three kinds of tile, kept out of training: 11 starts",
 }
 
 #: Names :func:`builtin_maze` knows, in order.
@@ -236,7 +238,7 @@ def builtin_maze(name: str) -> Maze:
         return crossroad(name)
     if name == "stage_arena":
         return stage_arena()
-    if name in ("fig4", "heldout", "validation"):
+    if name in ("fig4", "heldout", "validation", "tiles3", "tiles3_heldout"):
         return _packaged(name)
     raise MbnInputError(f"unknown built-in maze {name!r} (known: {', '.join(BUILTIN_NAMES)})")
 
