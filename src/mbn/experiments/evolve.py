@@ -37,6 +37,7 @@ from mbn.paper import DEFAULT_TAU
 from mbn.world.rollout import EpisodeStats, rollout
 
 __all__ = [
+    "FITNESS_PARTS",
     "RF_CONNECTIONS",
     "Genome",
     "connection_search_fitness",
@@ -218,22 +219,41 @@ def robust_fitness(fitness: Callable[[Array], Array], noise: Array) -> Callable[
     return averaged
 
 
+#: A population is always evaluated in this many parts (:func:`split_fitness`), however many
+#: threads evaluate them: XLA's float sums depend on the shape they run on (a population of 18
+#: evaluated whole and in two halves differs in the sixth digit for some genomes), so the parts,
+#: not the machine, must fix the shapes for a seed to give the same run everywhere.
+FITNESS_PARTS = 2
+
+
 def split_fitness(
-    fitness: Callable[[Array], Array], workers: int, pool: Executor | None = None
+    fitness: Callable[[Array], Array],
+    workers: int,
+    pool: Executor | None = None,
+    parts: int = FITNESS_PARTS,
 ) -> Callable[[Array], Array]:
-    """``fitness`` of a population computed in ``workers`` parts at once (threads): each
-    genome's fitness depends on its own episodes only, and XLA runs one computation on about one
-    core, so parts evaluated side by side use every core. The values are those of one call (a
-    test compares them bit for bit). ``workers <= 1``: ``fitness`` itself."""
-    if workers <= 1:
+    """``fitness`` of a population computed in ``parts`` parts (contiguous, as equal as they
+    can be), ``min(workers, parts)`` of them at once in threads: each genome's fitness depends on
+    its own episodes only, and XLA runs one computation on about one core, so parts evaluated
+    side by side use the cores. The parts are the same for any ``workers``, so the values are
+    too, bit for bit (a test compares them); ``workers <= 1`` evaluates them one after the
+    other. ``parts <= 1``: ``fitness`` itself."""
+    if parts <= 1:
         return fitness
-    executor = pool or ThreadPoolExecutor(workers, thread_name_prefix="mbn-fitness")
+    threads = max(1, min(workers, parts))
+    executor = pool or (
+        ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") if threads > 1 else None
+    )
 
     def parted(population: Array) -> Array:
         p = int(population.shape[0])
-        bounds = np.linspace(0, p, min(workers, p) + 1).round().astype(int)
-        parts = [executor.submit(fitness, population[a:b]) for a, b in itertools.pairwise(bounds)]
-        return jnp.concatenate([jnp.asarray(f.result()) for f in parts])
+        bounds = np.linspace(0, p, min(parts, p) + 1).round().astype(int)
+        pieces = [population[a:b] for a, b in itertools.pairwise(bounds)]
+        if executor is None or threads == 1:
+            values = [fitness(x) for x in pieces]
+        else:
+            values = [f.result() for f in [executor.submit(fitness, x) for x in pieces]]
+        return jnp.concatenate([jnp.asarray(v) for v in values])
 
     return parted
 

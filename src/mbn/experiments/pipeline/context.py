@@ -120,7 +120,8 @@ class StageContext:
         """DE for ``generations`` generations, checkpointed after each one in
         ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
         at random unless ``population`` is given; generation ``g`` draws from
-        ``fold_in(key, g)``. Populations are evaluated in ``workers`` parts at once."""
+        ``fold_in(key, g)``. Populations are evaluated in
+        :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts, ``workers`` of them at once."""
         from mbn.experiments.evolve import generation, split_fitness, start
 
         with ThreadPoolExecutor(max(1, self.workers), thread_name_prefix="mbn-fitness") as pool:
