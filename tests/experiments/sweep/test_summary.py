@@ -93,3 +93,22 @@ def test_summarize_pools_trials_and_counts_seeds_and_claims():
     assert s["per_seed"]["1"]["missed"] == ["rf_jitter"]
     assert s["per_seed"]["3"] == {"state": "failed", "error": "RuntimeError: boom"}
     assert s["claims"] == [{"claim": "c1", "runs": 3, "hold": 2, "criterion": "x"}]
+
+
+def test_claims_naming_a_run_s_own_connections_count_together():
+    """The LF claim names the connections each run re-evolved ("; here W_21, W_22, WE_22"):
+    runs that chose other connections still count towards one claim."""
+    from mbn.experiments.sweep.summary import claim_key
+
+    text = "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1; here {})"
+    runs = {}
+    for seed, conns in enumerate(["W_21, W_22, WE_22", "W_21, WE_21, WE_22", "W_22, W_23, WE_21"]):
+        r = _results()
+        r["claims"] = [{"claim": text.format(conns), "pass": seed != 1, "criterion": "x"}]
+        runs[seed] = r
+    s = summarize(runs, {})
+    key = "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1)"
+    assert s["claims"] == [{"claim": key, "runs": 3, "hold": 2, "criterion": "x"}]
+    assert claim_key("The MBN follows the right wall (section 3.2)") == (
+        "The MBN follows the right wall (section 3.2)"
+    )

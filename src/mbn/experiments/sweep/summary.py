@@ -14,6 +14,7 @@ Wilson score interval of ``k`` successes in ``n`` trials at ``z`` = 1.96 is
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -26,6 +27,17 @@ __all__ = ["Z95", "describe", "seed_verdict", "summarize", "wilson_interval"]
 
 #: The standard normal quantile of a two-sided 95 % interval.
 Z95 = 1.959963984540054
+
+
+#: What a run's claim names of its own (the LF's connections, "; here W_21, W_22, WE_22"): left
+#: out when the claims of several runs are counted together.
+_RUN_SPECIFIC = re.compile(r";\s*here [^)]*")
+
+
+def claim_key(claim: str) -> str:
+    """A claim as the runs share it: its text without what one run names of its own (the LF's
+    connections), so that the claims of runs that chose other connections count together."""
+    return _RUN_SPECIFIC.sub("", claim)
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
@@ -134,7 +146,7 @@ def summarize(
     for r in finished.values():
         for c in r.get("claims", []):
             entry = claims.setdefault(
-                c["claim"], {"runs": 0, "hold": 0, "criterion": c["criterion"]}
+                claim_key(c["claim"]), {"runs": 0, "hold": 0, "criterion": c["criterion"]}
             )
             entry["runs"] += 1
             entry["hold"] += int(bool(c["pass"]))
