@@ -95,8 +95,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         type=int_in(1, 256),
         default=available_cores(),
         metavar="N",
-        help="evaluate each DE population in N parts at once (default: the cores this process "
-        f"may use, here {available_cores()}); the results do not depend on it",
+        help="threads evaluating each DE population's two parts (2 evaluates them at once; "
+        f"default: the cores this process may use, here {available_cores()}); the results do "
+        "not depend on it",
     )
     # The stages run in the config's precision ([run] precision); this is the default's.
     rep.set_defaults(func=run_reproduce, precision=ROBOT)

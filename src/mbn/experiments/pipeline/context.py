@@ -50,7 +50,7 @@ class StageContext:
         needs: the stages it reads.
         progress: progress bars (silent when disabled).
         log: prints a notice (one line).
-        workers: populations are evaluated in this many parts at once
+        workers: threads evaluating the populations' parts
             (:func:`mbn.experiments.evolve.split_fitness`; the results do not depend on it).
     """
 
