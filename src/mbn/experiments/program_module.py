@@ -31,7 +31,7 @@ from mbn.control.mbn import make_mbn_controller
 from mbn.errors import MbnInputError
 from mbn.experiments.crossroads import EPISODE_FITNESS_MAX, CrossroadTask, TaskArrays
 from mbn.experiments.evolve import tile_fitness
-from mbn.networks.ctrnn import CTRNN, firing_rate
+from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate
 from mbn.paper import DEFAULT_TAU
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, Shared, rollout
@@ -311,8 +311,6 @@ def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 
     """Program-module states after each camera input sequence, from rest: ``(P, S, n)`` for a
     batch of ``P`` networks and ``S`` sequences (``inputs[s]``: ``(steps, 2)``, one row per robot
     step of ``dt`` seconds, integrated in ``substeps`` Euler steps as the MBN controller does)."""
-    from mbn.networks.ctrnn import euler_step
-
     p, n = pm.W.shape[0], pm.W.shape[-1]
     dtype = pm.W.dtype
     h = dt / substeps
@@ -387,8 +385,6 @@ def pm_program_fitness(
     t_all = np.stack([pad(a) for a in targets], 1)  # (T, S, k)
     w_all = np.stack([pad(a) for a in weights], 1)  # (T, S)
     total = float(w_all.sum())
-    from mbn.networks.ctrnn import euler_step
-
     h = dt / substeps
 
     @jax.jit

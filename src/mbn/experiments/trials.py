@@ -213,7 +213,7 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         )
     fields = {
         name: np.asarray(getattr(stats, f"junction_{name}"))
-        for name in ("exit", "right", "left", "open", "tile", "exit_step", "stalls")
+        for name in ("exit", "open", "tile", "exit_step", "stalls")
     }
     if spec.behavior == "tiles" and spec.initial == "none":
         # drop the passes made before the first tile: move the others to the front, in order

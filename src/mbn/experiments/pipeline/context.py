@@ -122,9 +122,10 @@ class StageContext:
         at random unless ``population`` is given; generation ``g`` draws from
         ``fold_in(key, g)``. Populations are evaluated in
         :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts, ``workers`` of them at once."""
-        from mbn.experiments.evolve import generation, split_fitness, start
+        from mbn.experiments.evolve import FITNESS_PARTS, generation, split_fitness, start
 
-        with ThreadPoolExecutor(max(1, self.workers), thread_name_prefix="mbn-fitness") as pool:
+        threads = max(1, min(self.workers, FITNESS_PARTS))
+        with ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") as pool:
             fitness = split_fitness(fitness, self.workers, pool)
             cp = self._resumable(name, config)
             if cp is not None:

@@ -207,7 +207,11 @@ class PMStage(Stage):
                 name, config, fitness, key, s.generations, "PM: DE generations" + suffix, population
             )
             # how closely this PM latches the programs (the program reward, 0 at best)
-            program_error = float(latch(jnp.asarray([de.data["best_genome"]]))[0])
+            program_error = (
+                de.data["best_fitness"]
+                if s.reward == "programs"
+                else float(latch(jnp.asarray([de.data["best_genome"]]))[0])
+            )
             pm = genome.network(jnp.asarray(de.data["best_genome"]))
             initial, start = _initial_state(pm, k, im_spec, references, MemoryReward().see, camera)
             spec = MBNControllerSpec(
@@ -273,11 +277,12 @@ class PMStage(Stage):
         }
 
     def summary(self, data: dict[str, Any]) -> str:
-        head = evolution_summary(data)
-        if data.get("reward") == "programs":
-            head = head.replace("best fitness", "program reward", 1).replace(
-                f"{data['best_fitness']:.2f}", f"{data['best_fitness']:.1e}", 1
-            )
+        programs = data.get("reward") == "programs"
+        head = (
+            evolution_summary(data, label="program reward", fmt=".1e")
+            if programs
+            else evolution_summary(data)
+        )
         start = data["initial"]
         if start["rule"] is None:
             return f"{head}; starts at rest (no settled state)"

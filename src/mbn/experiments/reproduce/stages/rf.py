@@ -38,14 +38,16 @@ class RFSettings(Settings):
     )
 
 
-def evolution_summary(data: dict[str, Any], connections: bool = False) -> str:
-    """``best fitness F after G generations`` (and the connections evolved, and the success on
-    the validation maze)."""
+def evolution_summary(
+    data: dict[str, Any], connections: bool = False, label: str = "best fitness", fmt: str = ".2f"
+) -> str:
+    """``best fitness F after G generations`` (``label``, F in ``fmt``; and the connections
+    evolved, and the success on the validation maze)."""
     extra = f" ({', '.join(data['connections'])})" if connections else ""
     v = data.get("validation")
     check = f"; validation {v['successes']}/{v['trials']}" if v else ""
     return (
-        f"best fitness {data['best_fitness']:.2f} after {data['generations']} generations"
+        f"{label} {data['best_fitness']:{fmt}} after {data['generations']} generations"
         f"{extra}{check}"
     )
 
