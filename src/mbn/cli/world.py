@@ -50,8 +50,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     show = sub.add_parser(
         "show-maze",
         help="draw a maze as a PNG",
-        description="Draw a maze: walls, tiles (one- and two-colour), decision cells of grid "
-        "mazes, and start poses.",
+        description="Draw a maze: walls, tiles (one-, two- and three-colour), decision cells of "
+        "grid mazes, and start poses.",
         epilog="maze: a built-in name (see `mbn mazes`) or a .maze, .toml or Player/Stage .world "
         "file\nexample:\n  mbn show-maze fig4 --out fig4.png",
         formatter_class=raw,
