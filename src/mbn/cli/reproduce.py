@@ -33,7 +33,7 @@ lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figu
 timings.json, stages/, records/, checkpoints/, run.json
 
 examples:
-  mbn reproduce                                full run into runs/reproduce (about 12 minutes)
+  mbn reproduce                                full run into runs/reproduce (about 6 min on 2 cores)
   mbn reproduce --quick --out /tmp/q           smoke run
   mbn reproduce --out runs/s2 --seed 2         another seed
   mbn reproduce --out runs/s2 --seed 2 --resume    continue it after an interruption

@@ -111,6 +111,42 @@ def _with_validation(config, **changes):
     return type(config)(sections)
 
 
+def _with(config, section, **changes):
+    sections = tuple(
+        sec.replace(**changes) if sec.section == section else sec for sec in config.sections
+    )
+    return type(config)(sections)
+
+
+def test_lf_evolves_the_searchs_best_triples_and_keeps_the_fittest_that_validates(
+    quick_run, tmp_path
+):
+    """With ``finalists`` = 2 and a target every candidate meets, the LF stage evolves the
+    search's chosen triple and its next best by the search's robust score, on the kept RF, in one
+    round, and keeps the fitter of the two."""
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    search = rundir.read_stage("lf_search")
+    config = _with(_with(config, "validation", target=0.0, attempts=2), "lf", finalists=2)
+    data = run_stage(REPRODUCE, rundir, "lf", seed=seed, config=config)
+    attempts = data["attempts"]
+    assert len(attempts) == 2 and {a["round"] for a in attempts} == {0}
+    rows = search["triples"]
+    first = search["chosen_index"]
+    runner_up = max(
+        (t for t in range(len(rows)) if t != first),
+        key=lambda t: (rows[t]["robust_fitness"], -t),
+    )
+    assert [a["connections"] for a in attempts] == [
+        rows[first]["connections"],
+        rows[runner_up]["connections"],
+    ]
+    fitness = [a["best_fitness"] for a in attempts]
+    assert data["chosen_attempt"] == (1 if fitness[1] > fitness[0] else 0)
+    assert data["best_fitness"] == max(fitness)
+    assert (rundir.root / "checkpoints" / "lf.npz").exists()
+    assert (rundir.root / "checkpoints" / "lf_attempt0_1.npz").exists()
+
+
 @pytest.mark.parametrize("name", ["lf", "pm"])
 def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_best(
     quick_run, tmp_path, name
@@ -134,9 +170,16 @@ def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_
     if all(a["validation"]["meets_target"] and a[key]["meets_target"] for a in attempts[:1]):
         pytest.skip("the first candidate met even a 100 % target")
     assert len(attempts) == 2
-    assert data["chosen_attempt"] == max(
-        range(2), key=lambda i: (worst(attempts[i]), attempts[i]["best_fitness"], -i)
-    )
+
+    def rank(i):
+        a = attempts[i]
+        if name == "pm":
+            return (worst(a), a["best_fitness"], -i)
+        # LF: those that meet both targets by fitness, before the others by the worse rate
+        meets = a["validation"]["meets_target"] and a[key]["meets_target"]
+        return (meets, 0.0 if meets else worst(a), a["best_fitness"], -i)
+
+    assert data["chosen_attempt"] == max(range(2), key=rank)
     assert data["best_fitness"] == attempts[data["chosen_attempt"]]["best_fitness"]
     controller = "lf" if name == "lf" else "mbn"
     spec = read_controller_spec(rundir.controller_file(controller))

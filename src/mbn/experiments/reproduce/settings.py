@@ -96,6 +96,14 @@ class ValidationSettings(Settings):
         high=1.0,
         source="the per-run targets (docs/sweep.md)",
     )
+    agreement: float = setting(
+        0.98,
+        doc="share of the trials in which the interpreter with LF's program must take LF's "
+        "exits (the tests' agreement target)",
+        low=0.0,
+        high=1.0,
+        source="the per-run targets (docs/sweep.md)",
+    )
     attempts: int = setting(
         3,
         doc="candidates a stage evolves at most before it keeps the best",
@@ -110,7 +118,7 @@ QUICK: dict[str, dict[str, Any]] = {
     "followers": {"perturbation_copies": 1},
     "rf": {"generations": 15, "variants": 1, "restarts": 2},
     "lf_search": {"generations": 2, "variants": 1},
-    "lf": {"generations": 20, "variants": 1},
+    "lf": {"generations": 20, "variants": 1, "finalists": 1},
     "pm": {"generations": 30, "variants": 1},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
     "validation": {"jitter_per_mark": 1, "attempts": 1},

@@ -36,6 +36,8 @@ __all__ = [
     "stage_perturbations",
     "task",
     "validate",
+    "validation_record",
+    "validation_verdict",
 ]
 
 MADE_BY = "mbn reproduce"
@@ -258,8 +260,18 @@ def validate(
     ``validation_jitter`` seed), judged as the tests judge (the test's time limits; the MBN from
     its start by its file's initial rule). ``spec``: a controller spec; ``program``: the stored
     program an interpreter runs."""
+    return validation_record(ctx, validation_verdict(ctx, spec, behavior, program))
+
+
+def validation_verdict(
+    ctx: StageContext,
+    spec: Any,
+    behavior: str,
+    program: str | None = None,
+) -> dict[str, np.ndarray]:
+    """The judge's verdict (per trial: success, exits, ...) of :func:`validate`'s trials."""
     from mbn.controllers import make_controller
-    from mbn.experiments.trials import TrialSpec, run_loaded_trials, summary
+    from mbn.experiments.trials import TrialSpec, run_loaded_trials
     from mbn.world.mazes.load import load_maze
 
     v = ctx.section("validation")
@@ -276,10 +288,17 @@ def validate(
         seed=ctx.seeds["validation_jitter"],
     )
     verdict, _, _ = run_loaded_trials(load_maze(v.maze), trial, loaded)
+    return verdict
+
+
+def validation_record(ctx: StageContext, verdict: dict[str, np.ndarray]) -> dict[str, Any]:
+    """What :func:`validate` records of a verdict: trials, successes, rate, target met."""
+    from mbn.experiments.trials import summary
+
     out = summary(verdict)
     return {
         "trials": out["trials"],
         "successes": out["successes"],
         "success_rate": out["success_rate"],
-        "meets_target": out["success_rate"] >= v.target,
+        "meets_target": out["success_rate"] >= ctx.section("validation").target,
     }

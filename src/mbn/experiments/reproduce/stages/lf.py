@@ -1,9 +1,10 @@
-"""Stage ``lf``: the left-follower, the 3 connections chosen by ``lf_search`` re-evolved at
-length from that triple's final search population (paper 3.1). The LF and the interpreter
-running its program are checked on the validation maze; if either falls short, another
-candidate is evolved — first on the rf stage's other RF (its triples searched then), then the
-next (RF, triple) by the search's score — up to ``[validation] attempts`` in all, and the best
-kept. An LF built on another RF makes that RF the run's (``controllers/rf.json``)."""
+"""Stage ``lf``: the left-follower, 3 connections of RF re-evolved (paper 3.1). The search's best
+triples (``[lf] finalists`` of them) are each re-evolved from that triple's final search
+population and checked, the LF alone and the interpreter running its program, on the
+validation maze; the fittest finalist that meets the target on both is kept. If none does,
+another round is evolved — first on the rf stage's other RF (its triples searched then), then
+the next (RF, triple) by the search's score — up to ``[validation] attempts`` rounds, and the
+best kept. An LF built on another RF makes that RF the run's (``controllers/rf.json``)."""
 
 from __future__ import annotations
 
@@ -26,10 +27,10 @@ from mbn.experiments.reproduce.stages.common import (
     restart_rank,
     save_follower,
     score,
-    validate,
+    validation_record,
+    validation_verdict,
 )
 from mbn.experiments.reproduce.stages.lf_search import (
-    best_triple,
     search_checkpoint,
     search_triples,
 )
@@ -40,7 +41,7 @@ from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
 
-#: Folded (plus the attempt's number) into the stage's key for each further LF attempt.
+#: Folded (plus the round's number) into the stage's key for the finalists of each later round.
 ATTEMPT_KEY = 100
 #: Folded (plus the restart's number) into the stage's key for the triple search of another RF.
 RF_SEARCH_KEY = 1000
@@ -50,13 +51,45 @@ def _restart_checkpoint(restart: int) -> Callable[[int], str]:
     return lambda t: f"lf_search_rf{restart}_{t:02d}"
 
 
+def candidate_name(round_: int, index: int) -> str:
+    """The checkpoint of finalist ``index`` of round ``round_`` (the first is the stage's own)."""
+    if round_ == 0 and index == 0:
+        return "lf"
+    return f"lf_attempt{round_}" + (f"_{index}" if index else "")
+
+
+def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:
+    """The key LF candidates are ranked by (the highest first): those that meet the validation
+    target alone and as the interpreter's program, and the agreement target between the two, by
+    their fitness; before the others, by the worse of their two successes there; the first of
+    equals."""
+    rates = (candidate["validation"]["success_rate"], candidate["validation_im"]["success_rate"])
+    meets = (
+        candidate["validation"]["meets_target"]
+        and candidate["validation_im"]["meets_target"]
+        and candidate["validation_agreement"]["meets_target"]
+    )
+    return (meets, 0.0 if meets else min(rates), candidate["best_fitness"], -index)
+
+
 @dataclass(frozen=True)
 class LFSettings(Settings):
     """The left-follower (LF): 3 connections of RF re-evolved."""
 
     section = "lf"
     generations: int = setting(
-        200, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
+        70,
+        doc="DE generations of each finalist",
+        low=0,
+        high=100_000,
+        source="docs/reproduce.md (a finalist's fitness levels off within about 60)",
+    )
+    finalists: int = setting(
+        3,
+        doc="the search's best triples re-evolved in each round; the fittest validated is kept",
+        low=1,
+        high=20,
+        source="docs/reproduce.md (LF's quality is set by the triple's basin, not by length)",
     )
     variants: int = setting(
         4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
@@ -90,7 +123,7 @@ class LFStage(Stage):
         mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
         # The RF candidates: the rf stage's restarts, the one it kept first, then the others
         # that met the validation target, by its own ranking. A restart's triples are searched
-        # only when an attempt needs them.
+        # only when a round needs them.
         kept = int(rf_data.get("chosen_restart", 0))
         restarts = rf_data.get("restarts") or [rf_data]
         others = [
@@ -107,37 +140,54 @@ class LFStage(Stage):
             kept: (search["triples"], search_checkpoint)
         }
         used: set[tuple[int, int]] = set()
-        attempts: list[dict[str, Any]] = []
+        candidates: list[dict[str, Any]] = []
+
+        def by_search(pool: list[tuple[int, int]]) -> list[tuple[int, int]]:
+            free = [c for c in pool if c not in used]
+            score = lambda c: (searched[c[0]][0][c[1]]["robust_fitness"], -c[1])  # noqa: E731
+            return sorted(free, key=score, reverse=True)[: s.finalists]
+
         for a in range(ctx.section("validation").attempts):
             if a == 0:
-                r, t = kept, int(search["chosen_index"])
+                # the search's choice first, then its next best triples
+                first = (kept, int(search["chosen_index"]))
+                pool = [(kept, t) for t in range(len(search["triples"]))]
+                chosen_pairs = [first] + [c for c in by_search(pool) if c != first]
+                chosen_pairs = chosen_pairs[: s.finalists]
             elif a == 1 and others:
                 r = others[0]
                 rfs[r] = Genome().network(jnp.asarray(restarts[r]["best_genome"]))
                 checkpoint = _restart_checkpoint(r)
                 key = jax.random.fold_in(ctx.key, RF_SEARCH_KEY + r)
                 searched[r] = (search_triples(ctx, rfs[r], key, checkpoint), checkpoint)
-                t = best_triple(searched[r][0])
+                chosen_pairs = by_search([(r, t) for t in range(len(searched[r][0]))])
             else:
-                free = [(q, i) for q in searched for i in range(len(searched[q][0]))]
-                free = [c for c in free if c not in used]
-                if not free:
-                    break
-                r, t = max(free, key=lambda c: (searched[c[0]][0][c[1]]["robust_fitness"], -c[1]))
-            used.add((r, t))
-            rows, checkpoint = searched[r]
-            attempts.append(self._attempt(ctx, s, a, rfs[r], r, rows[t], checkpoint(t), mul))
-            d = attempts[-1]["data"]
-            if d["validation"]["meets_target"] and d["validation_im"]["meets_target"]:
+                pool = [(q, i) for q in searched for i in range(len(searched[q][0]))]
+                chosen_pairs = by_search(pool)
+            if not chosen_pairs:
+                break
+            for f, (r, t) in enumerate(chosen_pairs):
+                used.add((r, t))
+                rows, checkpoint = searched[r]
+                key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
+                cand = self._candidate(
+                    ctx,
+                    s,
+                    candidate_name(a, f),
+                    jax.random.fold_in(key, f) if f else key,
+                    rfs[r],
+                    r,
+                    rows[t],
+                    checkpoint(t),
+                    mul,
+                )
+                cand["round"] = a
+                candidates.append(cand)
+            if any(candidate_rank(c["data"], i)[0] for i, c in enumerate(candidates)):
                 break
 
-        def rank(i: int) -> tuple[float, float, int]:
-            d = attempts[i]["data"]
-            worst = min(d["validation"]["success_rate"], d["validation_im"]["success_rate"])
-            return (worst, d["best_fitness"], -i)
-
-        chosen = max(range(len(attempts)), key=rank)
-        best = attempts[chosen]
+        chosen = max(range(len(candidates)), key=lambda i: candidate_rank(candidates[i]["data"], i))
+        best = candidates[chosen]
         data = dict(best["data"])
         save_follower(
             ctx, "lf", best["net"], "left", data["connections"], {k: data[k] for k in SCORE_KEYS}
@@ -153,22 +203,26 @@ class LFStage(Stage):
         data["rf_switched"] = best["rf_restart"] != kept
         data["attempts"] = [
             {
+                "round": x["round"],
                 "rf_restart": x["rf_restart"],
                 "connections": x["data"]["connections"],
                 "best_fitness": x["data"]["best_fitness"],
                 "validation": x["data"]["validation"],
                 "validation_im": x["data"]["validation_im"],
+                "validation_agreement": x["data"]["validation_agreement"],
             }
-            for x in attempts
+            for x in candidates
         ]
         data["chosen_attempt"] = chosen
+        data["finalists"] = s.finalists
         return data
 
-    def _attempt(
+    def _candidate(
         self,
         ctx: StageContext,
         s: LFSettings,
-        a: int,
+        name: str,
+        key: jax.Array,
         rf: Any,
         restart: int,
         row: dict[str, Any],
@@ -188,21 +242,30 @@ class LFStage(Stage):
             s.generations,
             np.asarray(start.state.population),
             s.approaches,
-            name="lf" if a == 0 else f"lf_attempt{a}",
-            key=ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a),
+            name=name,
+            key=key,
             save=False,
         )
         net = data.pop("network")
         data["connections_paper_notation"] = [c.paper_name for c in conns]
-        data["validation"] = validate(ctx, CTRNNControllerSpec(net=net, behavior="left"), "left")
+        alone = validation_verdict(ctx, CTRNNControllerSpec(net=net, behavior="left"), "left")
         # The interpreter built on RF with this LF, running LF's program: an LF whose behaviour
-        # the multipliers' small errors break fails here.
+        # the multipliers' small errors break fails here, or takes other exits than LF does.
         interp = build_interpreter(rf, differing_connections(rf, net, margin=0.0), mul)
         im = InterpreterControllerSpec(
             interpreter=interp,
             programs={"left": np.asarray(interp.program_of(net), dtype=float).tolist()},
         )
-        data["validation_im"] = validate(ctx, im, "left", "left")
+        emulated = validation_verdict(ctx, im, "left", "left")
+        data["validation"] = validation_record(ctx, alone)
+        data["validation_im"] = validation_record(ctx, emulated)
+        same = np.all(np.asarray(alone["exits"]) == np.asarray(emulated["exits"]), axis=1)
+        data["validation_agreement"] = {
+            "trials": int(same.size),
+            "same_branches": int(same.sum()),
+            "rate": float(same.mean()),
+            "meets_target": bool(same.mean() >= ctx.section("validation").agreement),
+        }
         return {"data": data, "net": net, "rf_restart": restart}
 
     def summary(self, data: dict[str, Any]) -> str:
