@@ -126,7 +126,8 @@ def test_lf_evolves_the_searchs_best_triples_and_keeps_the_fittest_that_validate
     round, and keeps the fitter of the two."""
     rundir, seed, config = _copy(quick_run, tmp_path)
     search = rundir.read_stage("lf_search")
-    config = _with(_with(config, "validation", target=0.0, attempts=2), "lf", finalists=2)
+    config = _with(config, "validation", target=0.0, agreement=0.0)
+    config = _with(config, "lf", finalists=2)
     data = run_stage(REPRODUCE, rundir, "lf", seed=seed, config=config)
     attempts = data["attempts"]
     assert len(attempts) == 2 and {a["round"] for a in attempts} == {0}
@@ -159,6 +160,10 @@ def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_
     rundir, seed, config = _copy(quick_run, tmp_path)
     assert len(rundir.read_stage(name)["attempts"]) == 1
     strict = _with_validation(config, target=1.0, attempts=2, jitter_per_mark=1)
+    # LF: rounds of one finalist; the third is a fresh RF's (or the second, without another
+    # validated RF from the rf stage)
+    candidates = 3 if name == "lf" else 2
+    strict = _with(strict, "lf", rounds=3)
     data = run_stage(REPRODUCE, rundir, name, seed=seed, config=strict)
     attempts = data["attempts"]
     key = "validation_im" if name == "lf" else "validation"
@@ -169,19 +174,36 @@ def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_
 
     if all(a["validation"]["meets_target"] and a[key]["meets_target"] for a in attempts[:1]):
         pytest.skip("the first candidate met even a 100 % target")
-    assert len(attempts) == 2
+    assert len(attempts) == candidates
 
     def rank(i):
         a = attempts[i]
         if name == "pm":
             return (worst(a), a["best_fitness"], -i)
-        # LF: those that meet both targets by fitness, before the others by the worse rate
-        meets = a["validation"]["meets_target"] and a[key]["meets_target"]
+        # LF: those that meet every validation target by fitness, before the others by the
+        # worse rate
+        meets = (
+            a["validation"]["meets_target"]
+            and a[key]["meets_target"]
+            and a["validation_agreement"]["meets_target"]
+        )
         return (meets, 0.0 if meets else worst(a), a["best_fitness"], -i)
 
-    assert data["chosen_attempt"] == max(range(2), key=rank)
+    assert data["chosen_attempt"] == max(range(candidates), key=rank)
     assert data["best_fitness"] == attempts[data["chosen_attempt"]]["best_fitness"]
     controller = "lf" if name == "lf" else "mbn"
     spec = read_controller_spec(rundir.controller_file(controller))
     assert spec.metadata  # written by the stage for the chosen candidate
     assert (rundir.root / "checkpoints" / f"{name}_attempt1.npz").exists()
+    if name == "lf":
+        rf = rundir.read_stage("rf")
+        kept = rf.get("chosen_restart", 0)
+        others = [
+            i for i, x in enumerate(rf["restarts"]) if i != kept and x["validation"]["meets_target"]
+        ]
+        fresh = data["new_rfs"]
+        assert len(fresh) == (1 if others else 2)
+        for f in fresh:  # evolved and validated by the lf stage, numbered after the rf stage's
+            assert f["restart"] >= len(rf["restarts"])
+            assert (rundir.root / "checkpoints" / f"lf_rf{f['restart']}.npz").exists()
+            assert f["validation"]["trials"] > 0

@@ -118,7 +118,7 @@ QUICK: dict[str, dict[str, Any]] = {
     "followers": {"perturbation_copies": 1},
     "rf": {"generations": 15, "variants": 1, "restarts": 2},
     "lf_search": {"generations": 2, "variants": 1},
-    "lf": {"generations": 20, "variants": 1, "finalists": 1},
+    "lf": {"generations": 20, "variants": 1, "finalists": 1, "rounds": 1},
     "pm": {"generations": 30, "variants": 1},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
     "validation": {"jitter_per_mark": 1, "attempts": 1},

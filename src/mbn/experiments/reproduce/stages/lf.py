@@ -1,9 +1,9 @@
 """Stage ``lf``: the left-follower, 3 connections of RF re-evolved (paper 3.1). The search's best
 triples (``[lf] finalists`` of them) are each re-evolved from that triple's final search
-population and checked, the LF alone and the interpreter running its program, on the
-validation maze; the fittest finalist that meets the target on both is kept. If none does,
-another round is evolved — first on the rf stage's other RF (its triples searched then), then
-the next (RF, triple) by the search's score — up to ``[validation] attempts`` rounds, and the
+population and checked on the validation maze, the LF alone and the interpreter running its
+program (both successes, and the interpreter taking LF's exits); the fittest finalist that meets
+every target is kept. If none does, another round is evolved — on the rf stage's other RF (its
+triples searched then), then on fresh RFs this stage evolves — up to ``[lf] rounds``, and the
 best kept. An LF built on another RF makes that RF the run's (``controllers/rf.json``)."""
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from mbn.experiments.reproduce.stages.common import (
     restart_rank,
     save_follower,
     score,
+    validate,
     validation_record,
     validation_verdict,
 )
@@ -45,6 +46,8 @@ __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
 ATTEMPT_KEY = 100
 #: Folded (plus the restart's number) into the stage's key for the triple search of another RF.
 RF_SEARCH_KEY = 1000
+#: Folded (plus the restart's number) into the stage's key for a fresh RF evolved by this stage.
+NEW_RF_KEY = 2000
 
 
 def _restart_checkpoint(restart: int) -> Callable[[int], str]:
@@ -90,6 +93,15 @@ class LFSettings(Settings):
         low=1,
         high=20,
         source="docs/reproduce.md (LF's quality is set by the triple's basin, not by length)",
+    )
+    rounds: int = setting(
+        4,
+        doc="rounds of finalists at most: the kept RF's, the rf stage's other RF's, then a fresh "
+        "RF's each",
+        low=1,
+        high=20,
+        source="docs/reproduce.md (about half the RFs make no left-follower three connections "
+        "away)",
     )
     variants: int = setting(
         4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
@@ -147,7 +159,16 @@ class LFStage(Stage):
             score = lambda c: (searched[c[0]][0][c[1]]["robust_fitness"], -c[1])  # noqa: E731
             return sorted(free, key=score, reverse=True)[: s.finalists]
 
-        for a in range(ctx.section("validation").attempts):
+        def search_rf(r: int, net: Any) -> list[tuple[int, int]]:
+            """Search RF ``r``'s triples; its best pairs by the search's score."""
+            rfs[r] = net
+            checkpoint = _restart_checkpoint(r)
+            key = jax.random.fold_in(ctx.key, RF_SEARCH_KEY + r)
+            searched[r] = (search_triples(ctx, net, key, checkpoint), checkpoint)
+            return by_search([(r, t) for t in range(len(searched[r][0]))])
+
+        new_rfs: list[dict[str, Any]] = []
+        for a in range(s.rounds):
             if a == 0:
                 # the search's choice first, then its next best triples
                 first = (kept, int(search["chosen_index"]))
@@ -156,14 +177,19 @@ class LFStage(Stage):
                 chosen_pairs = chosen_pairs[: s.finalists]
             elif a == 1 and others:
                 r = others[0]
-                rfs[r] = Genome().network(jnp.asarray(restarts[r]["best_genome"]))
-                checkpoint = _restart_checkpoint(r)
-                key = jax.random.fold_in(ctx.key, RF_SEARCH_KEY + r)
-                searched[r] = (search_triples(ctx, rfs[r], key, checkpoint), checkpoint)
-                chosen_pairs = by_search([(r, t) for t in range(len(searched[r][0]))])
+                net = Genome().network(jnp.asarray(restarts[r]["best_genome"]))
+                chosen_pairs = search_rf(r, net)
             else:
-                pool = [(q, i) for q in searched for i in range(len(searched[q][0]))]
-                chosen_pairs = by_search(pool)
+                # a fresh RF: evolved as the rf stage evolves its restarts, validated, searched
+                r = len(restarts) + len(new_rfs)
+                fresh = self._new_rf(ctx, r)
+                net = fresh.pop("network")
+                new_rfs.append(fresh)
+                if fresh["validation"]["meets_target"]:
+                    chosen_pairs = search_rf(r, net)
+                else:
+                    pool = [(q, i) for q in searched for i in range(len(searched[q][0]))]
+                    chosen_pairs = by_search(pool)
             if not chosen_pairs:
                 break
             for f, (r, t) in enumerate(chosen_pairs):
@@ -215,7 +241,32 @@ class LFStage(Stage):
         ]
         data["chosen_attempt"] = chosen
         data["finalists"] = s.finalists
+        data["new_rfs"] = new_rfs
         return data
+
+    def _new_rf(self, ctx: StageContext, restart: int) -> dict[str, Any]:
+        """Another RF, evolved and validated as the rf stage's restarts are (checkpoint
+        ``lf_rfR``, key ``fold_in(lf key, NEW_RF_KEY + R)``): its record, with ``network``."""
+        rf_settings = ctx.section("rf")
+        data = evolve_follower(
+            ctx,
+            Genome(),
+            "right",
+            rf_settings.variants,
+            rf_settings.generations,
+            name=f"lf_rf{restart}",
+            key=jax.random.fold_in(ctx.key, NEW_RF_KEY + restart),
+            save=False,
+        )
+        net = data["network"]
+        validation = validate(ctx, CTRNNControllerSpec(net=net, behavior="right"), "right")
+        return {
+            "restart": restart,
+            "best_fitness": data["best_fitness"],
+            "best_genome": data["best_genome"],
+            "validation": validation,
+            "network": net,
+        }
 
     def _candidate(
         self,
