@@ -13,6 +13,10 @@ way ``mbn evaluate`` and the test stage load them (``mbn.controllers.make_contro
 3-neuron follower at ``NETWORK_SUBSTEPS`` (20 sub-steps of 5 ms), the 21-neuron interpreter of a
 follower with 3 programmable connections (6-neuron multipliers) running a program, and the whole
 MBN (program module, interpreter and camera) in ``fig4``, which has tiles; batches 126 and 4096.
+Beside them: the same 21-neuron interpreter simulated by its structure (``interpreter_blocks``:
+the neurons beside a batch of multipliers, :mod:`mbn.networks.structured`), and the fully
+programmable interpreter of the follower genome (its 12 connections, 75 neurons) simulated so
+(``interpreter_full``).
 
 Prints one JSON line; compile time is measured apart from run time.
 
@@ -22,6 +26,7 @@ Prints one JSON line; compile time is measured apart from run time.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -43,7 +48,12 @@ from mbn.controllers import (
 )
 from mbn.networks.ctrnn import make_ctrnn
 from mbn.networks.multiplier import load_default
-from mbn.networks.programmable import build_interpreter, differing_connections
+from mbn.networks.programmable import (
+    Connection,
+    Programmable,
+    build_interpreter,
+    differing_connections,
+)
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.mazes.builtin import CROSSROAD_KINDS, builtin_maze, crossroad
 from mbn.world.mazes.generate import corridor_maze
@@ -140,9 +150,21 @@ def workload_specs() -> dict:
         bias=rng.uniform(-10, 10, 3),
         dtype=f32,
     )
+    # every connection of the follower genome programmable (W 3 x 3, WE on the diagonal, in
+    # +-20), simulated by its structure; and the paper's interpreter by its structure too
+    genome = [Connection("W", i, j) for i in range(3) for j in range(3)]
+    genome += [Connection("WE", k, k) for k in range(3)]
+    full = build_interpreter(rf, [Programmable(c, -20.0, 20.0) for c in genome], load_default(6))
+    full_spec = InterpreterControllerSpec(
+        interpreter=full,
+        programs={"right": np.asarray(full.program_of(rf), float).tolist()},
+        simulation="blocks",
+    )
     return {
         "follower": CTRNNControllerSpec(net=rf),
         "interpreter": im,
+        "interpreter_blocks": dataclasses.replace(im, simulation="blocks"),
+        "interpreter_full": full_spec,
         "mbn": MBNControllerSpec(
             interpreter_spec=im,
             program_module=pm,
@@ -150,6 +172,7 @@ def workload_specs() -> dict:
             camera=CameraConfig(range=0.8),
         ),
         "neurons": int(interp.num_neurons),
+        "full_neurons": int(full.num_neurons),
     }
 
 
@@ -159,10 +182,20 @@ def workload(steps: int, repeats: int, parts: int = 1) -> dict:
     specs = workload_specs()
     crossroads = [crossroad(kind) for kind in CROSSROAD_KINDS]
     fig4 = [builtin_maze("fig4")]
-    out: dict = {"interpreter_neurons": specs["neurons"]}
+    out: dict = {
+        "interpreter_neurons": specs["neurons"],
+        "interpreter_full_neurons": specs["full_neurons"],
+    }
     compile_s: dict = {}
-    for name, mazes in (("follower", crossroads), ("interpreter", crossroads), ("mbn", fig4)):
-        program = "left" if name == "interpreter" else None
+    cases = (
+        ("follower", crossroads),
+        ("interpreter", crossroads),
+        ("interpreter_blocks", crossroads),
+        ("interpreter_full", crossroads),
+        ("mbn", fig4),
+    )
+    for name, mazes in cases:
+        program = {"interpreter": "left", "interpreter_blocks": "left"}.get(name)
         loaded = make_controller(specs[name], program, check_stability=False)
         for batch in (126, 4096):
             m = measure_loaded(mazes, batch, steps, repeats, loaded)

@@ -19,7 +19,8 @@ import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.networks.ctrnn import CTRNN, euler_step, euler_steps, firing_rate, rk4_step
+from mbn.networks.ctrnn import CTRNN, _rk4, euler_step, euler_steps, firing_rate, rk4_step
+from mbn.networks.structured import BlockNet, block_euler_steps, block_field, block_rates
 
 if TYPE_CHECKING:
     from mbn.world.rollout import Shared
@@ -63,9 +64,10 @@ class MotorMap:
 
 
 class CTRNNState(NamedTuple):
-    """A CTRNN controller's state: the network (weights, tau, ...) and its potentials ``y``."""
+    """A CTRNN controller's state: the network (weights, tau, ...; or an interpreter by its
+    blocks, :class:`mbn.networks.structured.BlockNet`) and its potentials ``y``."""
 
-    net: CTRNN | Shared
+    net: CTRNN | BlockNet | Shared
     y: Array
 
 
@@ -106,13 +108,23 @@ def ctrnn_controller(
     def control(state: CTRNNState, obs: Any) -> tuple[CTRNNState, tuple[Array, Array]]:
         u = read(obs)
         y = state.y
-        net = cast(CTRNN, state.net)  # the rollout hands a controller plain networks
-        if method == "euler":
-            y = euler_steps(net, y, u, h, substeps)  # a held network: integrated neuron-major
+        held = state.net  # the rollout hands a controller plain networks
+        if isinstance(held, BlockNet):  # an interpreter simulated by its structure
+            if method == "euler":
+                y = block_euler_steps(held, y, u, h, substeps)
+            else:
+                blocks = held
+                for _ in range(substeps):
+                    y = _rk4(lambda z: block_field(blocks, z, u), y, h)
+            rate = block_rates(held, y)
         else:
-            for _ in range(substeps):
-                y = stepper(net, y, u, h)
-        rate = firing_rate(net, y)
+            net = cast(CTRNN, held)
+            if method == "euler":
+                y = euler_steps(net, y, u, h, substeps)  # a held network: neuron-major
+            else:
+                for _ in range(substeps):
+                    y = stepper(net, y, u, h)
+            rate = firing_rate(net, y)
         v = motor.v_max * rate[..., motor.speed_neuron]
         w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)
         return CTRNNState(state.net, y), (v, w)
@@ -124,7 +136,7 @@ class ProgrammedState(NamedTuple):
     """An interpreter controller's state: the fixed-weight network, its potentials, and the
     program fed to its program inputs (``(K,)`` in [0, 1])."""
 
-    net: CTRNN | Shared
+    net: CTRNN | BlockNet | Shared
     y: Array
     program: Array
 

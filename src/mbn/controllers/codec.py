@@ -98,6 +98,8 @@ def _interpreter_body(spec: InterpreterControllerSpec) -> dict[str, Any]:
         "dt": spec.dt,
         "substeps": spec.substeps,
         "method": spec.method,
+        # written only when not the default, so that older files read and write unchanged
+        **({"simulation": spec.simulation} if spec.simulation != "dense" else {}),
     }
 
 
@@ -326,9 +328,10 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         )
     body = ["interpreter", "programs", *common]
     if kind == KIND_INTERPRETER:
-        check_fields(data, where, [*header, *body], optional)
+        check_fields(data, where, [*header, *body], [*optional, "simulation"])
     else:
-        check_fields(data, where, [*header, *body, "program_module"], optional)
+        check_fields(data, where, [*header, *body, "program_module"], [*optional, "simulation"])
+    simulation = data.get("simulation", "dense")
     interp = _interpreter_from_dict(data["interpreter"], where)
     programs = expect_object(data["programs"], f"{where}: programs")
     if kind == KIND_INTERPRETER and not programs:
@@ -345,6 +348,7 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
             sensors=sensors,
             motor=motor,
             metadata=metadata if kind == KIND_INTERPRETER else {},
+            simulation=simulation,
             **settings,
         ),
     )

@@ -104,7 +104,7 @@ def _ctrnn_runner(spec: CTRNNControllerSpec) -> tuple[Controller, Callable[[int]
 
 def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], Any]]:
     im_spec = spec.interpreter_spec
-    im, pm = im_spec.interpreter.net, spec.program_module
+    im, pm = _simulated(im_spec), spec.program_module
     control = make_mbn_controller(
         program_neurons=spec.program_neurons,
         dt=im_spec.dt,
@@ -130,10 +130,16 @@ def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], An
     return control, initial
 
 
+def _simulated(im_spec: InterpreterControllerSpec) -> Any:
+    """The network a controller integrates: the dense interpreter or its blocks."""
+    interp = im_spec.interpreter
+    return interp.blocks() if im_spec.simulation == "blocks" else interp.net
+
+
 def _interpreter_runner(
     im_spec: InterpreterControllerSpec, program: tuple[float, ...]
 ) -> tuple[Controller, Callable[[int], Any]]:
-    net = im_spec.interpreter.net
+    net = _simulated(im_spec)
     values = jnp.asarray(program, net.dtype)
     control = interpreter_controller(
         dt=im_spec.dt, substeps=im_spec.substeps, motor=im_spec.motor, method=im_spec.method

@@ -41,6 +41,7 @@ __all__ = [
     "MULTIPLIER_KIND",
     "NUM_INPUTS",
     "PM_INPUTS",
+    "SIMULATIONS",
     "CTRNNControllerSpec",
     "ControllerSpec",
     "InterpreterControllerSpec",
@@ -258,6 +259,10 @@ def _normalise_programs(
     return out
 
 
+#: How an interpreter may be simulated (:attr:`InterpreterControllerSpec.simulation`).
+SIMULATIONS = ("dense", "blocks")
+
+
 @dataclass(frozen=True, eq=False)
 class InterpreterControllerSpec:
     """The fixed-weight interpreter with named programs.
@@ -271,6 +276,10 @@ class InterpreterControllerSpec:
             neurons are original neurons (the interpreter puts them first).
         substeps: interpreter steps per robot step (the multipliers run at tau/10: 20 steps of
             5 ms for tau = 0.5 s).
+        simulation: how the interpreter is simulated: ``"dense"``, as one CTRNN of all its
+            neurons, or ``"blocks"``, by its structure (the original neurons beside a batch of
+            multipliers, :mod:`mbn.networks.structured`): the same network, a cost linear in the
+            number of programmable connections.
         kind: the file kind (class constant).
     """
 
@@ -283,8 +292,13 @@ class InterpreterControllerSpec:
     substeps: int = NETWORK_SUBSTEPS
     method: str = "euler"
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    simulation: str = "dense"
 
     def __post_init__(self) -> None:
+        if self.simulation not in SIMULATIONS:
+            raise MbnInputError(
+                f"simulation must be one of {', '.join(SIMULATIONS)}, got {self.simulation!r}"
+            )
         _check_interpreter(self.interpreter)
         k = len(self.interpreter.connections)
         object.__setattr__(self, "programs", _normalise_programs(self.programs, k))

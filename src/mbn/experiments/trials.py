@@ -172,7 +172,7 @@ def longest_route(maze: Maze, spec: TrialSpec) -> float | None:
         rule_route(
             maze,
             tuple(start),
-            rule,  # type: ignore[arg-type]
+            rule,
             spec.junctions,
             follow_tiles=follow,
             count_from_tile=from_tile,

@@ -48,6 +48,7 @@ from mbn.networks.ctrnn import (
     vector_field,
 )
 from mbn.networks.multiplier import Multiplier
+from mbn.networks.structured import BlockNet, block_exact_field, block_field, from_interpreter
 
 __all__ = [
     "DEFAULT_TAU_RATIO",
@@ -212,6 +213,12 @@ class Interpreter:
     def num_neurons(self) -> int:
         """Neurons of the whole interpreter, ``num_original + K * mul_size``."""
         return self.net.num_neurons
+
+    def blocks(self) -> BlockNet:
+        """The same network by its structure (:mod:`mbn.networks.structured`)."""
+        return from_interpreter(
+            self.net, self.num_original, self.num_data_inputs, self.mul_size, self.mul_output
+        )
 
     def mul_block(self, c: int) -> slice:
         """Neuron indices of the multiplier of connection ``c``."""
@@ -415,7 +422,12 @@ def _exact_field(interp: Interpreter, y: Array, u: Array) -> Array:
 
 
 def _settle_multipliers(
-    interp: Interpreter, y0: Array, u0: Array, dt: float | Array, method: str
+    interp: Interpreter,
+    y0: Array,
+    u0: Array,
+    dt: float | Array,
+    method: str,
+    blocks: BlockNet | None = None,
 ) -> Array:
     """Let the multipliers reach their fixed point for the initial inputs, neurons held still.
 
@@ -427,7 +439,8 @@ def _settle_multipliers(
     mul_tau = jnp.min(jnp.where(frozen, jnp.inf, interp.net.tau))
 
     def field(y: Array, u: Array) -> Array:
-        return jnp.where(frozen, 0.0, vector_field(interp.net, y, u))
+        f = vector_field(interp.net, y, u) if blocks is None else block_field(blocks, y, u)
+        return jnp.where(frozen, 0.0, f)
 
     # 2 T (T = 10 tau_m): the settling time the multipliers are checked against
     num = jnp.ceil(2 * 10 * mul_tau / dt).astype(int)
@@ -444,8 +457,15 @@ def _run(
     method: str,
     substeps: int,
     exact: bool,
+    blocks: BlockNet | None = None,
 ) -> Array:
-    if exact:
+    if blocks is not None:
+        if exact:
+            field = functools.partial(block_exact_field, blocks)
+        else:
+            field = functools.partial(block_field, blocks)
+            y0 = _settle_multipliers(interp, y0, inputs[0], dt, method, blocks)
+    elif exact:
         field = functools.partial(_exact_field, interp)
         y0 = y0[..., : interp.num_original]
     else:
@@ -466,6 +486,7 @@ def run(
     method: Method = "rk4",
     substeps: int = 1,
     exact: bool = False,
+    simulation: str = "dense",
 ) -> Array:
     """Run the interpreter over piecewise-constant data inputs with a program.
 
@@ -479,6 +500,8 @@ def run(
         method: 'euler' or 'rk4'.
         substeps: integrator steps per input step.
         exact: replace every multiplier by the exact product.
+        simulation: ``"dense"`` (one CTRNN of all the neurons) or ``"blocks"`` (by its
+            structure, :mod:`mbn.networks.structured`; the same network).
 
     Returns:
         Firing rates of the original neurons after each step, ``(num_steps, ..., n)``.
@@ -487,7 +510,10 @@ def run(
     check_data_inputs(interp, data)
     program = check_program(interp, program)
     inputs = interp.inputs(data, program)
-    return _run(interp, interp.initial_state(y0), inputs, dt, method, substeps, exact)
+    if simulation not in ("dense", "blocks"):
+        raise MbnInputError(f"simulation: expected dense or blocks, got {simulation!r}")
+    blocks = interp.blocks() if simulation == "blocks" else None
+    return _run(interp, interp.initial_state(y0), inputs, dt, method, substeps, exact, blocks)
 
 
 @functools.partial(jax.jit, static_argnames=("method", "substeps"))

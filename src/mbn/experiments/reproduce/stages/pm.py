@@ -160,7 +160,7 @@ class PMStage(Stage):
             "camera": camera,
         }
         references = (read_network(ctx, "rf"), read_network(ctx, "lf"))
-        programs = (im_spec.programs["right"], im_spec.programs["left"])
+        programs = (tuple(im_spec.programs["right"]), tuple(im_spec.programs["left"]))
         latch = jax.jit(
             pm_program_fitness(genome, programs, reward=MemoryReward(), switch=s.switch_seconds)
         )
