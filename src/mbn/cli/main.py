@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from typing import TextIO
 
 from mbn import __version__
-from mbn.cli import evaluate, networks, reproduce, sweep, world
+from mbn.cli import evaluate, networks, reproduce, run, sweep, world
 from mbn.errors import MbnInputError, MbnWarning
 from mbn.io import check_writable
 from mbn.precision import scope
@@ -45,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         + world.EPILOG
         + reproduce.EPILOG
         + sweep.EPILOG
+        + run.EPILOG
         + evaluate.EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -55,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_commands(sub, _Parser)
     reproduce.add_commands(sub, _Parser)
     sweep.add_commands(sub, _Parser)
+    run.add_commands(sub, _Parser)
     return parser
 
 

@@ -214,6 +214,23 @@ class Interpreter:
         """Neurons of the whole interpreter, ``num_original + K * mul_size``."""
         return self.net.num_neurons
 
+    def digest(self) -> str:
+        """sha256 of the interpreter's fixed weights (W, WE, tau, bias, gain, bounds, and its
+        connections): a run records it to check the interpreter was not changed."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for a in (
+            *(getattr(self.net, f) for f in ("W", "WE", "tau", "bias", "gain")),
+            self.lower,
+            self.upper,
+        ):
+            arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+            h.update(str(arr.shape).encode())
+            h.update(arr.tobytes())
+        h.update(",".join(map(str, self.connections)).encode())
+        return h.hexdigest()
+
     def blocks(self) -> BlockNet:
         """The same network by its structure (:mod:`mbn.networks.structured`)."""
         return from_interpreter(

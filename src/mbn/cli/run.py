@@ -1,0 +1,113 @@
+"""``mbn run EXPERIMENT``: a registered experiment other than the paper's (``mbn reproduce``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from mbn.cli.args import available_cores, int_in, seed
+from mbn.precision import ROBOT
+
+__all__ = ["EPILOG", "EXPERIMENTS", "add_commands", "experiment"]
+
+EPILOG = """\
+  mbn run new-behaviours --out runs/nb        new behaviours by programs alone
+"""
+
+#: The experiments ``mbn run`` knows, with a line each.
+EXPERIMENTS = {
+    "new-behaviours": "a fully programmable interpreter of the run's RF, and new behaviours "
+    "by its programs alone (docs/behaviours.md)",
+}
+
+_EPILOG = """\
+experiments:
+{experiments}
+
+Every DE generation is checkpointed in DIR/checkpoints: `mbn run EXPERIMENT --out DIR --resume`
+continues where a run stopped. Settings as in `mbn reproduce` (`--print-config`, `--config`).
+
+examples:
+  mbn run new-behaviours --out runs/nb                 a full run
+  mbn run new-behaviours --quick --out /tmp/nb         smoke run
+  mbn run new-behaviours --out runs/nb --resume        continue it
+"""
+
+
+def experiment(name: str) -> Any:
+    """The registered experiment called ``name``."""
+    if name == "new-behaviours":
+        from mbn.experiments.behaviours import NEW_BEHAVIOURS
+
+        return NEW_BEHAVIOURS
+    raise KeyError(name)
+
+
+def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add ``run`` to the ``mbn`` sub-parsers."""
+    listing = "\n".join(f"  {k:<16}{v}" for k, v in EXPERIMENTS.items())
+    cmd = sub.add_parser(
+        "run",
+        help="a registered experiment beyond the paper's (new-behaviours)",
+        description="Run a registered experiment, stage by stage, checkpointed and resumable.",
+        epilog=_EPILOG.format(experiments=listing),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    cmd.add_argument("experiment", choices=sorted(EXPERIMENTS), help="the experiment")
+    cmd.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default runs/EXPERIMENT); refused if it holds another run, unless "
+        "--resume or --force",
+    )
+    cmd.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
+    cmd.add_argument(
+        "--config", type=Path, default=None, metavar="FILE.toml", help="settings file (TOML)"
+    )
+    cmd.add_argument(
+        "--print-config", action="store_true", help="print the effective config and exit"
+    )
+    cmd.add_argument("--quick", action="store_true", help="smoke run with tiny budgets")
+    cmd.add_argument(
+        "--resume", action="store_true", help="continue the run in --out where it stopped"
+    )
+    cmd.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
+    cmd.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
+    cmd.add_argument(
+        "--threads",
+        type=int_in(1, 256),
+        default=available_cores(),
+        metavar="N",
+        help=f"threads evaluating each DE population's two parts (default {available_cores()})",
+    )
+    cmd.set_defaults(func=run, precision=ROBOT)
+
+
+def run(args: argparse.Namespace) -> int:
+    from mbn.config import read_toml
+    from mbn.experiments.pipeline.runner import run_experiment
+
+    exp = experiment(args.experiment)
+    document = read_toml(args.config) if args.config is not None else None
+    config = exp.config(quick=args.quick, document=document)
+    if args.print_config:
+        sys.stdout.write(config.to_toml(f"mbn run {args.experiment}: the effective config"))
+        return 0
+    out = args.out if args.out is not None else Path("runs") / args.experiment
+    run_experiment(
+        exp,
+        out,
+        seed=args.seed,
+        config=config,
+        resume=args.resume,
+        force=args.force,
+        progress=not args.quiet and sys.stderr.isatty(),
+        log=(lambda _m: None) if args.quiet else print,
+        workers=args.threads,
+    )
+    if not args.quiet:
+        print(f"results: {out / 'results.json'}")
+    return 0

@@ -1,0 +1,65 @@
+"""``mbn run new-behaviours``: new behaviours by programs alone (the paper's abstract and its
+discussion, beyond its experiment).
+
+Stages:
+
+1.–4. ``multiplier``, ``rf``, ``lf_search``, ``lf``: as in ``mbn reproduce`` (the same stage
+   keys: for one seed, the same RF and LF as ``mbn reproduce --seed`` makes).
+8. ``im_full``: a fully programmable interpreter of RF (every connection of the follower genome,
+   and LF's), simulated by its structure; its tests with RF's and LF's programs, and agreement
+   against the number of programmable connections.
+
+Each stage is one module (the first four ``mbn.experiments.reproduce.stages``'s, the others
+:mod:`mbn.experiments.behaviours.stages`'s); ``docs/behaviours.md`` describes them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mbn.experiments.behaviours.stages.im_full import IMFullStage
+from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.reproduce.settings import (
+    QUICK as REPRODUCE_QUICK,
+)
+from mbn.experiments.reproduce.settings import (
+    DESettings,
+    FollowerSettings,
+    ValidationSettings,
+    derived_seeds,
+)
+from mbn.experiments.reproduce.stages.lf import LFStage
+from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
+from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
+from mbn.experiments.reproduce.stages.rf import RFStage
+from mbn.experiments.reproduce.stages.tests import TestsSettings
+
+__all__ = ["NEW_BEHAVIOURS", "RUN_KIND", "STAGES"]
+
+RUN_KIND = "mbn.new-behaviours"
+
+STAGES = Registry([MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMFullStage()])
+
+#: The quick preset: the reproduction's, and a short agreement curve.
+QUICK: dict[str, dict[str, Any]] = {
+    **REPRODUCE_QUICK,
+    "im_full": {"curve": False},
+}
+
+
+def _results(
+    rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
+) -> dict[str, Any]:
+    return {"tests": dict(stages["im_full"]["tests"])}
+
+
+#: The experiment ``mbn run new-behaviours`` runs.
+NEW_BEHAVIOURS = Experiment(
+    name="new-behaviours",
+    kind=RUN_KIND,
+    registry=STAGES,
+    shared=(DESettings, FollowerSettings, ValidationSettings, TestsSettings),
+    quick=QUICK,
+    seeds=derived_seeds,
+    results=_results,
+)

@@ -1,0 +1,255 @@
+"""Stage ``im_full``: a fully programmable interpreter of the run's RF — every connection of the
+follower genome programmable (and the turning neuron's other two inputs, which a left-follower
+may use), each in the genome's bounds — simulated by its structure, tested with the RF and LF
+programs as the paper's interpreter is; and the paper's warning measured: the interpreter's
+agreement with LF and RF as connections are made programmable one by one, from the paper's set
+(the connections where RF and LF differ) to all of them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    make_controller,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.protocol import SUFFIXES, test_specs
+from mbn.experiments.reproduce.stages.common import MADE_BY, read_network
+from mbn.experiments.trials import run_loaded_trials, summary
+from mbn.networks.ctrnn import CTRNN
+from mbn.networks.multiplier import load_multiplier
+from mbn.networks.programmable import (
+    Connection,
+    Interpreter,
+    Programmable,
+    build_interpreter,
+    differing_connections,
+)
+from mbn.world.mazes.load import load_maze
+
+__all__ = ["FULL_CONNECTIONS", "IMFullSettings", "IMFullStage", "agreement", "nested_sets"]
+
+#: The follower genome (W 3 x 3, WE on the diagonal) and the turning neuron's two other inputs
+#: (the LF search's candidates reach them), 0-based.
+FULL_CONNECTIONS = (
+    *(f"W[{i},{j}]" for i in range(3) for j in range(3)),
+    *(f"WE[{k},{k}]" for k in range(3)),
+    "WE[1,0]",
+    "WE[1,2]",
+)
+#: The agreement an interpreter must reach with the network it emulates (the tests' target).
+AGREEMENT_TARGET = 0.98
+#: The success rate of the jittered and held-out tests (the tests' target).
+ROBUST_TARGET = 0.95
+
+
+@dataclass(frozen=True)
+class IMFullSettings(Settings):
+    """The fully programmable interpreter."""
+
+    section = "im_full"
+    connections: tuple[str, ...] = setting(
+        FULL_CONNECTIONS,
+        doc="the programmable connections, 0-based ('W[i,j]', 'WE[i,k]'), in the order the "
+        "agreement curve adds them",
+        source="issue: every connection of the follower genome, and LF's",
+    )
+    bound: float = setting(
+        20.0,
+        doc="each programmable weight's range is [-bound, bound] (the genome's)",
+        low=0.0,
+        high=1e4,
+        source="[followers] weight_bound",
+    )
+    tau_ratio: float = setting(
+        0.025,
+        doc="the multipliers' time constant over the receiving neuron's",
+        low=1e-4,
+        high=1.0,
+        source="docs/behaviours.md (tau/10 at 5 ms: LF's program 87 %; tau/40 at 1.25 ms: 98.5 %)",
+    )
+    substeps: int = setting(
+        80,
+        doc="interpreter steps per 0.1 s robot step (h / tau_m = 0.1, the multipliers' training "
+        "step)",
+        low=1,
+        high=1000,
+        source="docs/behaviours.md",
+    )
+    curve: bool = setting(
+        True, doc="measure agreement against the number of programmable connections"
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for c in self.connections:
+            try:
+                Connection.parse(c)
+            except MbnInputError as exc:
+                raise MbnInputError(f"im_full.connections: {exc}") from None
+        if len(set(self.connections)) != len(self.connections):
+            raise MbnInputError("im_full.connections: a connection is listed twice")
+
+
+def nested_sets(first: list[Connection], order: list[Connection]) -> list[list[Connection]]:
+    """The connection sets of the agreement curve: ``first`` (the paper's), then one more of
+    ``order`` at a time (those not yet in), up to all of ``order`` and ``first``."""
+    current = list(first)
+    sets = [list(current)]
+    for c in order:
+        if c not in current:
+            current.append(c)
+            sets.append(list(current))
+    return sets
+
+
+def agreement(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:
+    """How often two controllers took the same exits at every judged junction, trial by trial."""
+    same = np.all(np.asarray(a["exits"]) == np.asarray(b["exits"]), axis=1)
+    return {"trials": int(same.size), "same_branches": int(same.sum()), "rate": float(same.mean())}
+
+
+def _interpreter(rf: CTRNN, conns: list[Connection], mul: Any, s: IMFullSettings) -> Interpreter:
+    return build_interpreter(
+        rf, [Programmable(c, -s.bound, s.bound) for c in conns], mul, tau_ratio=s.tau_ratio
+    )
+
+
+def _spec(
+    interp: Interpreter, rf: CTRNN, lf: CTRNN, s: IMFullSettings, meta: dict[str, Any]
+) -> InterpreterControllerSpec:
+    for name, net in (("RF", rf), ("LF", lf)):
+        weights = np.asarray([c.value(net) for c in interp.connections])
+        if np.any(np.abs(weights) > s.bound):
+            raise MbnInputError(
+                f"im_full.bound: {name}'s weights reach {np.max(np.abs(weights)):g}, beyond the "
+                f"bound {s.bound:g}"
+            )
+    return InterpreterControllerSpec(
+        interpreter=interp,
+        programs={
+            "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
+            "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
+        },
+        substeps=s.substeps,
+        simulation="blocks",
+        metadata=meta,
+    )
+
+
+class IMFullStage(Stage):
+    name = "im_full"
+    key_id = 8
+    outputs = ("controllers/im_full.json",)
+    needs = ("multiplier", "rf", "lf")
+    settings = IMFullSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: IMFullSettings = ctx.settings
+        t = ctx.section("tests")
+        rf, lf = read_network(ctx, "rf"), read_network(ctx, "lf")
+        mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
+        conns = [Connection.parse(c) for c in s.connections]
+        for c in differing_connections(rf, lf, margin=0.0):
+            if c.connection not in conns:
+                raise MbnInputError(
+                    f"im_full.connections: LF differs from RF in {c.connection}, which is not "
+                    "programmable: the interpreter could not run LF's program"
+                )
+        interp = _interpreter(rf, conns, mul, s)
+        meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed}
+        spec = _spec(interp, rf, lf, s, {**meta, "sha256": interp.digest()})
+        save_controller(ctx.rundir.controller_file("im_full"), spec)
+
+        mazes = {"": load_maze(t.maze), "_jitter": load_maze(t.maze)}
+        mazes["_heldout"] = load_maze(t.heldout_maze)
+        specs = {
+            rule: test_specs(
+                rule,
+                seconds=t.seconds,
+                jitter_per_mark=t.jitter_per_mark,
+                heldout_repeats=t.heldout_repeats,
+                test_seed=ctx.seeds["test_jitter"],
+                heldout_seed=ctx.seeds["heldout_jitter"],
+            )
+            for rule in ("right", "left")
+        }
+        nets = {"right": rf, "left": lf}
+        bar = ctx.progress.task("im_full tests", 2 * len(SUFFIXES))
+        done = 0
+        references: dict[str, dict[str, dict[str, np.ndarray]]] = {}
+        tests: dict[str, Any] = {}
+        agree: dict[str, Any] = {}
+        for rule, short in (("right", "rf"), ("left", "lf")):
+            plain = make_controller(CTRNNControllerSpec(net=nets[rule], behavior=rule), None)
+            emulated = make_controller(spec, rule, where="im_full")
+            references[rule] = {}
+            for suffix in SUFFIXES:
+                ref, _, _ = run_loaded_trials(mazes[suffix], specs[rule][suffix], plain)
+                got, _, _ = run_loaded_trials(mazes[suffix], specs[rule][suffix], emulated)
+                references[rule][suffix] = ref
+                tests[f"im_full_{short}{suffix}"] = summary(got)
+                agree[f"im_full_{short}{suffix}"] = agreement(got, ref)
+                done += 1
+                ctx.progress.update(bar, completed=done, info=f"{short}{suffix}")
+
+        curve = []
+        if s.curve:
+            first = [p.connection for p in differing_connections(rf, lf, margin=0.0)]
+            sets = nested_sets(first, conns)
+            bar = ctx.progress.task("im_full agreement curve", len(sets))
+            for k, subset in enumerate(sets):
+                sub = _spec(_interpreter(rf, subset, mul, s), rf, lf, s, meta)
+                row: dict[str, Any] = {"connections": [str(c) for c in subset]}
+                for rule, short in (("right", "rf"), ("left", "lf")):
+                    got, _, _ = run_loaded_trials(
+                        mazes["_jitter"],
+                        specs[rule]["_jitter"],
+                        make_controller(sub, rule, where="im_full curve"),
+                    )
+                    row[f"agreement_{short}"] = agreement(got, references[rule]["_jitter"])
+                    row[f"success_{short}"] = summary(got)
+                curve.append(row)
+                ctx.progress.update(bar, completed=k + 1, info=f"{len(subset)} connections")
+
+        def holds(row: dict[str, Any]) -> bool:
+            return all(
+                row[f"agreement_{x}"]["rate"] >= AGREEMENT_TARGET
+                and row[f"success_{x}"]["success_rate"] >= ROBUST_TARGET
+                for x in ("rf", "lf")
+            )
+
+        largest = max((len(r["connections"]) for r in curve if holds(r)), default=None)
+        return {
+            "connections": [str(c) for c in interp.connections],
+            "connections_paper_notation": [c.paper_name for c in interp.connections],
+            "bound": s.bound,
+            "neurons": int(interp.num_neurons),
+            "multiplier_neurons": int(interp.mul_size),
+            "tau_ratio": s.tau_ratio,
+            "multiplier_tau": float(s.tau_ratio * float(np.asarray(rf.tau).reshape(-1)[0])),
+            "substeps": s.substeps,
+            "step": 0.1 / s.substeps,
+            "sha256": interp.digest(),
+            "programs": spec.programs,
+            "tests": tests,
+            "agreement": agree,
+            "curve": curve,
+            "largest_set_meeting_targets": largest,
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        t, a = data["tests"], data["agreement"]
+        return (
+            f"{len(data['connections'])} programmable, {data['neurons']} neurons; LF's program "
+            f"{t['im_full_lf_jitter']['success_rate']:.1%} jittered, agreement "
+            f"{a['im_full_lf_jitter']['rate']:.1%} (RF's {a['im_full_rf_jitter']['rate']:.1%})"
+        )

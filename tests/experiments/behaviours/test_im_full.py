@@ -1,0 +1,113 @@
+"""Tests of the ``im_full`` stage of ``mbn run new-behaviours``: the fully programmable
+interpreter built from a run's RF, its file, its tests and the agreement curve."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from mbn.controllers import read_controller_spec
+from mbn.errors import MbnInputError
+from mbn.experiments.behaviours import NEW_BEHAVIOURS
+from mbn.experiments.behaviours.stages.im_full import (
+    FULL_CONNECTIONS,
+    IMFullSettings,
+    agreement,
+    nested_sets,
+)
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.networks.programmable import Connection, differing_connections
+
+
+def test_the_stages_before_im_full_are_the_reproductions_with_their_keys():
+    from mbn.experiments.reproduce import STAGES as REPRODUCE_STAGES
+
+    names = NEW_BEHAVIOURS.registry.names
+    assert names[:4] == ("multiplier", "rf", "lf_search", "lf")
+    for n in names[:4]:
+        assert NEW_BEHAVIOURS.registry[n].key_id == REPRODUCE_STAGES[n].key_id
+    assert NEW_BEHAVIOURS.registry["im_full"].key_id not in {s.key_id for s in REPRODUCE_STAGES}
+
+
+def test_nested_sets_grow_one_connection_at_a_time_from_the_papers_set():
+    c = [Connection.parse(x) for x in ("W[1,2]", "WE[1,0]", "W[0,0]", "W[1,1]")]
+    sets = nested_sets([c[0], c[1]], [c[2], c[0], c[3], c[1]])
+    assert [len(s) for s in sets] == [2, 3, 4]
+    assert sets[0] == [c[0], c[1]] and sets[-1] == [c[0], c[1], c[2], c[3]]
+
+
+def test_agreement_counts_trials_with_every_exit_the_same():
+    a = {"exits": np.array([[0, 1, 2], [0, 1, 2], [2, 2, -1]])}
+    b = {"exits": np.array([[0, 1, 2], [0, 2, 2], [2, 2, -1]])}
+    assert agreement(a, b) == {"trials": 3, "same_branches": 2, "rate": 2 / 3}
+
+
+def test_settings_refuse_bad_connections():
+    with pytest.raises(MbnInputError, match=r"im_full\.connections"):
+        IMFullSettings(connections=("W[1,1]", "V[0,0]"))
+    with pytest.raises(MbnInputError, match="listed twice"):
+        IMFullSettings(connections=("W[1,1]", "W[1,1]"))
+    assert len(FULL_CONNECTIONS) == 14  # the default: the genome's 12 and the turning neuron's
+    assert IMFullSettings().connections == FULL_CONNECTIONS
+
+
+@pytest.fixture(scope="module")
+def im_full_run(quick_run, tmp_path_factory):
+    """The quick reproduction's folder with the ``im_full`` stage run on it (quick settings;
+    the stages before it are the reproduction's)."""
+    out, _ = quick_run
+    folder = tmp_path_factory.mktemp("nb") / "run"
+    shutil.copytree(out, folder)
+    rundir = RunDir(folder)
+    rf = read_controller_spec(rundir.controller_file("rf")).net
+    lf = read_controller_spec(rundir.controller_file("lf")).net
+    # a short curve (the connections where LF differs, then two more) keeps the test quick
+    differ = [str(p.connection) for p in differing_connections(rf, lf, margin=0.0)]
+    extra = [c for c in FULL_CONNECTIONS if c not in differ][:2]
+    config = NEW_BEHAVIOURS.config(quick=True)
+    section = config["im_full"].replace(curve=True, connections=(*extra, *differ))
+    data = run_stage(
+        NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=replace_section(config, section)
+    )
+    return rundir, data, [*extra, *differ]
+
+
+def test_im_full_writes_a_programmable_interpreter_of_rf(im_full_run):
+    rundir, data, conns = im_full_run
+    spec = read_controller_spec(rundir.controller_file("im_full"))
+    interp = spec.interpreter
+    assert [str(c) for c in interp.connections] == conns
+    assert interp.num_neurons == 3 + len(conns) * 6 == data["neurons"]
+    np.testing.assert_allclose(np.asarray(interp.lower), -20.0)
+    np.testing.assert_allclose(np.asarray(interp.upper), 20.0)
+    assert spec.simulation == "blocks" and spec.substeps == 80
+    assert spec.metadata["sha256"] == interp.digest() == data["sha256"]
+    # its programs are RF's and LF's weights, encoded (eq. 2)
+    rf = read_controller_spec(rundir.controller_file("rf")).net
+    lf = read_controller_spec(rundir.controller_file("lf")).net
+    np.testing.assert_allclose(spec.programs["right"], np.asarray(interp.program_of(rf)))
+    np.testing.assert_allclose(spec.programs["left"], np.asarray(interp.program_of(lf)))
+    decoded = np.asarray(interp.decode(np.asarray(spec.programs["left"])))
+    np.testing.assert_allclose(decoded, [c.value(lf) for c in interp.connections], atol=1e-5)
+
+
+def test_im_full_records_tests_agreement_and_the_curve(im_full_run):
+    _, data, conns = im_full_run
+    for short in ("rf", "lf"):
+        for suffix in ("", "_jitter", "_heldout"):
+            t = data["tests"][f"im_full_{short}{suffix}"]
+            a = data["agreement"][f"im_full_{short}{suffix}"]
+            assert t["trials"] == a["trials"] > 0
+            assert 0 <= a["same_branches"] <= a["trials"]
+    curve = data["curve"]
+    sizes = [len(r["connections"]) for r in curve]
+    assert sizes == list(range(len(conns) - 2, len(conns) + 1))  # LF's set, then one by one
+    # the full set's row is the stage's own interpreter (its connections in another order: the
+    # same network, summed in another order) on the jittered test
+    full = data["agreement"]["im_full_lf_jitter"]["same_branches"]
+    assert abs(curve[-1]["agreement_lf"]["same_branches"] - full) <= 1
+    assert data["step"] == pytest.approx(0.1 / 80)
+    assert data["multiplier_tau"] == pytest.approx(0.025 * 0.5)
