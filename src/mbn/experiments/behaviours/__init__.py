@@ -8,6 +8,9 @@ Stages:
 8. ``im_full``: a fully programmable interpreter of RF (every connection of the follower genome,
    and LF's), simulated by its structure; its tests with RF's and LF's programs, and agreement
    against the number of programmable connections.
+9. ``programs``: new rules (straight-right, straight-left) learned by DE over the programs of the
+   fixed ``im_full`` interpreter alone (its sha256 checked), each checked through the interpreter
+   and as the network it encodes.
 
 Each stage is one module (the first four ``mbn.experiments.reproduce.stages``'s, the others
 :mod:`mbn.experiments.behaviours.stages`'s); ``docs/behaviours.md`` describes them.
@@ -18,6 +21,7 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.behaviours.stages.im_full import IMFullStage
+from mbn.experiments.behaviours.stages.programs import ProgramsStage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.reproduce.settings import (
     QUICK as REPRODUCE_QUICK,
@@ -38,12 +42,15 @@ __all__ = ["NEW_BEHAVIOURS", "RUN_KIND", "STAGES"]
 
 RUN_KIND = "mbn.new-behaviours"
 
-STAGES = Registry([MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMFullStage()])
+STAGES = Registry(
+    [MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMFullStage(), ProgramsStage()]
+)
 
 #: The quick preset: the reproduction's, and a short agreement curve.
 QUICK: dict[str, dict[str, Any]] = {
     **REPRODUCE_QUICK,
     "im_full": {"curve": False},
+    "programs": {"generations": 10, "variants": 1},
 }
 
 

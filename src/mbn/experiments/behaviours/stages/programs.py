@@ -1,0 +1,243 @@
+"""Stage ``programs``: new behaviours learned by programs only. With the fully programmable
+interpreter of ``im_full`` fixed (its sha256 checked before and after), DE searches only its
+program — one value in [0, 1] per programmable connection — for each new rule (straight-right
+and straight-left by default) on the crossroads, with that rule's fitness. A program is scored
+through the exact products (the network it encodes: the program *is* a network), averaged over
+perturbed copies as RF and LF are, and then checked through the interpreter itself, multipliers
+and all, on the validation maze; a rule whose program falls short is searched again from
+another key, up to ``[validation] attempts`` times, and the best kept."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    read_controller_spec,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig
+from mbn.experiments.crossroads import CrossroadTask
+from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.stages.common import (
+    MADE_BY,
+    read_network,
+    stage_perturbations,
+    validate,
+)
+from mbn.networks.ctrnn import CTRNN
+from mbn.networks.programmable import Interpreter
+from mbn.world.rules import parse_rule
+
+__all__ = ["ProgramsSettings", "ProgramsStage", "check_digest", "program_network"]
+
+#: Folded (plus the attempt's number) into a rule's key for each further attempt.
+ATTEMPT_KEY = 100
+
+
+@dataclass(frozen=True)
+class ProgramsSettings(Settings):
+    """The new rules and the search for their programs."""
+
+    section = "programs"
+    rules: tuple[str, ...] = setting(
+        ("straight-right", "straight-left"),
+        doc="the rules learned by programs alone (names or orders such as 'SRL')",
+        source="issue: straight-right and straight-left",
+    )
+    generations: int = setting(
+        300, doc="DE generations per rule", low=0, high=100_000, source="as [rf] generations"
+    )
+    variants: int = setting(
+        4, doc="starts per crossroad", low=1, high=100, source="as [rf] variants"
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        names = []
+        for r in self.rules:
+            try:
+                names.append(parse_rule(r).name)
+            except MbnInputError as exc:
+                raise MbnInputError(f"programs.rules: {exc}") from None
+        if len(set(names)) != len(names):
+            raise MbnInputError("programs.rules: a rule is listed twice")
+        if set(names) & {"right", "left"}:
+            raise MbnInputError("programs.rules: right and left are RF's and LF's programs")
+
+
+def check_digest(interp: Interpreter, expected: str, where: str) -> None:
+    """Refuse an interpreter whose weights are not the run's (its sha256 differs)."""
+    got = interp.digest()
+    if got != expected:
+        raise MbnInputError(
+            f"{where}: the interpreter's sha256 is {got[:12]}…, the run's {expected[:12]}…: its "
+            "weights were changed"
+        )
+
+
+def program_network(interp: Interpreter, base: CTRNN, program: Any) -> CTRNN:
+    """The network a program encodes: ``base`` with each programmable weight decoded."""
+    genome = Genome.around(base, interp.connections)
+    return genome.network(jnp.asarray(interp.decode(jnp.asarray(program, base.W.dtype))))
+
+
+def _program_fitness(
+    ctx: StageContext, interp: Interpreter, base: CTRNN, rule: str, variants: int
+) -> Callable[[jax.Array], jax.Array]:
+    """Fitness of a population of programs ``(P, K)``: the rule's crossroad fitness of the
+    networks they encode (exact products), averaged over perturbed copies of the weights."""
+    genome = Genome.around(base, interp.connections)
+    followers = ctx.section("followers")
+    task = CrossroadTask(
+        rule=rule,
+        variants=variants,
+        seconds=followers.episode_seconds,
+        seed=ctx.seeds["crossroad_jitter"],
+    )
+    by_weights = robust_fitness(
+        crossroad_fitness(genome, task), stage_perturbations(ctx, genome.size)
+    )
+    lower, span = interp.lower, interp.upper - interp.lower
+
+    def fitness(programs: jax.Array) -> jax.Array:
+        return by_weights(lower + programs * span)
+
+    return fitness
+
+
+class ProgramsStage(Stage):
+    name = "programs"
+    key_id = 9
+    outputs = ("controllers/im_full_programs.json",)
+    needs = ("rf", "im_full")
+    settings = ProgramsSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: ProgramsSettings = ctx.settings
+        spec = read_controller_spec(ctx.rundir.controller_file("im_full"))
+        if not isinstance(spec, InterpreterControllerSpec):
+            raise MbnInputError(f"{ctx.rundir.controller_file('im_full')}: not an interpreter")
+        interp = spec.interpreter
+        digest = ctx.read("im_full")["sha256"]
+        check_digest(interp, digest, "programs")
+        base = read_network(ctx, "rf")
+        k = interp.num_programs
+        de = ctx.section("de")
+        config = DEConfig(
+            num_dims=k,
+            popsize=de.popsize,
+            F=de.F,
+            CR=de.CR,
+            maximize=True,
+            lower=0.0,
+            upper=1.0,
+            init_low=0.0,
+            init_high=1.0,
+        )
+        attempts = ctx.section("validation").attempts
+        found: dict[str, Any] = {}
+        programs = dict(spec.programs)
+        for r, rule_text in enumerate(s.rules):
+            rule = parse_rule(rule_text).name
+            fitness = _program_fitness(ctx, interp, base, rule, s.variants)
+            tries = []
+            for a in range(attempts):
+                key = jax.random.fold_in(ctx.key, r)
+                if a:
+                    key = jax.random.fold_in(key, ATTEMPT_KEY + a)
+                run = ctx.evolve(
+                    f"program_{rule}" + (f"_attempt{a}" if a else ""),
+                    config,
+                    fitness,
+                    key,
+                    s.generations,
+                    f"program for {rule}" + (f" (attempt {a + 1})" if a else ""),
+                )
+                program = np.clip(np.asarray(run.data["best_genome"], dtype=float), 0.0, 1.0)
+                net = program_network(interp, base, program)
+                candidate = InterpreterControllerSpec(
+                    interpreter=interp,
+                    programs={rule: program.tolist()},
+                    sensors=spec.sensors,
+                    motor=spec.motor,
+                    dt=spec.dt,
+                    substeps=spec.substeps,
+                    method=spec.method,
+                    simulation=spec.simulation,
+                )
+                v_im = validate(ctx, candidate, rule, rule)
+                v_net = validate(ctx, CTRNNControllerSpec(net=net), rule)
+                tries.append(
+                    {
+                        "program": program.tolist(),
+                        "best_fitness": run.data["best_fitness"],
+                        "history": run.data["history"],
+                        "validation_im": v_im,
+                        "validation_network": v_net,
+                    }
+                )
+                if v_im["meets_target"] and v_net["meets_target"]:
+                    break
+
+            def rank(i: int, tries: list[dict[str, Any]] = tries) -> tuple[Any, ...]:
+                t = tries[i]
+                worst = min(
+                    t["validation_im"]["success_rate"], t["validation_network"]["success_rate"]
+                )
+                return (worst, t["best_fitness"], -i)
+
+            chosen = max(range(len(tries)), key=rank)
+            best = tries[chosen]
+            programs[rule] = best["program"]
+            net = program_network(interp, base, best["program"])
+            found[rule] = {
+                **best,
+                "attempts": [
+                    {key: t[key] for key in ("best_fitness", "validation_im", "validation_network")}
+                    for t in tries
+                ],
+                "chosen_attempt": chosen,
+                "weights": {
+                    str(c): float(w)
+                    for c, w in zip(
+                        interp.connections, np.asarray(interp.decode(best["program"])), strict=True
+                    )
+                },
+                "network": net.to_dict(),
+            }
+            check_digest(interp, digest, f"programs ({rule})")
+        out = InterpreterControllerSpec(
+            interpreter=interp,
+            programs=programs,
+            sensors=spec.sensors,
+            motor=spec.motor,
+            dt=spec.dt,
+            substeps=spec.substeps,
+            method=spec.method,
+            simulation=spec.simulation,
+            metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest},
+        )
+        save_controller(ctx.rundir.controller_file("im_full_programs"), out)
+        # the file written holds the same interpreter: checked unchanged at the end
+        again = read_controller_spec(ctx.rundir.controller_file("im_full_programs"))
+        assert isinstance(again, InterpreterControllerSpec)
+        check_digest(again.interpreter, digest, "controllers/im_full_programs.json")
+        return {"rules": found, "sha256": digest, "sha256_checked": True}
+
+    def summary(self, data: dict[str, Any]) -> str:
+        parts = [
+            f"{rule}: validation {d['validation_im']['successes']}/{d['validation_im']['trials']}"
+            for rule, d in data["rules"].items()
+        ]
+        return "; ".join(parts)
