@@ -3,8 +3,6 @@ interpreter built from a run's RF, its file, its tests and the agreement curve."
 
 from __future__ import annotations
 
-import shutil
-
 import numpy as np
 import pytest
 
@@ -17,9 +15,7 @@ from mbn.experiments.behaviours.stages.im_full import (
     agreement,
     nested_sets,
 )
-from mbn.experiments.pipeline import RunDir
-from mbn.experiments.pipeline.runner import replace_section, run_stage
-from mbn.networks.programmable import Connection, differing_connections
+from mbn.networks.programmable import Connection
 
 
 def test_the_stages_before_im_full_are_the_reproductions_with_their_keys():
@@ -52,27 +48,6 @@ def test_settings_refuse_bad_connections():
         IMFullSettings(connections=("W[1,1]", "W[1,1]"))
     assert len(FULL_CONNECTIONS) == 14  # the default: the genome's 12 and the turning neuron's
     assert IMFullSettings().connections == FULL_CONNECTIONS
-
-
-@pytest.fixture(scope="module")
-def im_full_run(quick_run, tmp_path_factory):
-    """The quick reproduction's folder with the ``im_full`` stage run on it (quick settings;
-    the stages before it are the reproduction's)."""
-    out, _ = quick_run
-    folder = tmp_path_factory.mktemp("nb") / "run"
-    shutil.copytree(out, folder)
-    rundir = RunDir(folder)
-    rf = read_controller_spec(rundir.controller_file("rf")).net
-    lf = read_controller_spec(rundir.controller_file("lf")).net
-    # a short curve (the connections where LF differs, then two more) keeps the test quick
-    differ = [str(p.connection) for p in differing_connections(rf, lf, margin=0.0)]
-    extra = [c for c in FULL_CONNECTIONS if c not in differ][:2]
-    config = NEW_BEHAVIOURS.config(quick=True)
-    section = config["im_full"].replace(curve=True, connections=(*extra, *differ))
-    data = run_stage(
-        NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=replace_section(config, section)
-    )
-    return rundir, data, [*extra, *differ]
 
 
 def test_im_full_writes_a_programmable_interpreter_of_rf(im_full_run):

@@ -1,0 +1,45 @@
+"""A quick reproduction's folder with the ``im_full`` stage of ``mbn run new-behaviours`` run on
+it, shared by the tests of this folder."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from mbn.controllers import read_controller_spec
+from mbn.experiments.behaviours import NEW_BEHAVIOURS
+from mbn.experiments.behaviours.stages.im_full import FULL_CONNECTIONS
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.networks.programmable import differing_connections
+
+
+@pytest.fixture(scope="session")
+def im_full_run(quick_run, tmp_path_factory):
+    """The quick reproduction's folder with the ``im_full`` stage run on it (quick settings;
+    the stages before it are the reproduction's)."""
+    out, _ = quick_run
+    folder = tmp_path_factory.mktemp("nb") / "run"
+    shutil.copytree(out, folder)
+    rundir = RunDir(folder)
+    rf = read_controller_spec(rundir.controller_file("rf")).net
+    lf = read_controller_spec(rundir.controller_file("lf")).net
+    # a short curve (the connections where LF differs, then two more) keeps the test quick
+    differ = [str(p.connection) for p in differing_connections(rf, lf, margin=0.0)]
+    extra = [c for c in FULL_CONNECTIONS if c not in differ][:2]
+    config = NEW_BEHAVIOURS.config(quick=True)
+    section = config["im_full"].replace(curve=True, connections=(*extra, *differ))
+    data = run_stage(
+        NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=replace_section(config, section)
+    )
+    return rundir, data, [*extra, *differ]
+
+
+@pytest.fixture
+def nb_copy(im_full_run, tmp_path):
+    """A copy of the ``im_full`` run's folder (a test may change it)."""
+    rundir, _, conns = im_full_run
+    folder = tmp_path / "run"
+    shutil.copytree(rundir.root, folder)
+    return RunDir(folder), conns

@@ -1,0 +1,60 @@
+"""Tests of the ``programs`` stage: new rules learned by the fixed interpreter's programs alone."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mbn.controllers import read_controller_spec
+from mbn.errors import MbnInputError
+from mbn.experiments.behaviours import NEW_BEHAVIOURS
+from mbn.experiments.behaviours.stages.programs import ProgramsSettings, program_network
+from mbn.experiments.pipeline.runner import run_stage
+
+
+def test_programs_are_found_for_the_new_rules_with_the_interpreter_unchanged(nb_copy):
+    rundir, conns = nb_copy
+    before = read_controller_spec(rundir.controller_file("im_full"))
+    data = run_stage(
+        NEW_BEHAVIOURS, rundir, "programs", seed=3, config=NEW_BEHAVIOURS.config(quick=True)
+    )
+    assert set(data["rules"]) == {"straight-right", "straight-left"}
+    assert data["sha256"] == before.interpreter.digest() and data["sha256_checked"]
+    out = read_controller_spec(rundir.controller_file("im_full_programs"))
+    assert out.interpreter.digest() == before.interpreter.digest()
+    assert set(out.programs) == {"right", "left", "straight-right", "straight-left"}
+    base = read_controller_spec(rundir.controller_file("rf")).net
+    for rule, found in data["rules"].items():
+        program = np.asarray(out.programs[rule])
+        assert program.shape == (len(conns),)
+        assert np.all((program >= 0) & (program <= 1))
+        # the program is a network: decoded, its weights are the recorded ones
+        net = program_network(out.interpreter, base, program)
+        np.testing.assert_allclose(np.asarray(net.W), found["network"]["W"], atol=1e-6)
+        for c in out.interpreter.connections:
+            assert float(c.value(net)) == pytest.approx(found["weights"][str(c)], abs=1e-5)
+        for key in ("validation_im", "validation_network"):
+            assert found[key]["trials"] > 0
+
+
+def test_an_interpreter_whose_weights_changed_is_refused(nb_copy):
+    rundir, _ = nb_copy
+    path = rundir.controller_file("im_full")
+    data = json.loads(path.read_text())
+    data["interpreter"]["net"]["W"][0][0] += 0.5
+    path.write_text(json.dumps(data))
+    with pytest.raises(MbnInputError, match=r"sha256 .* weights were changed"):
+        run_stage(
+            NEW_BEHAVIOURS, rundir, "programs", seed=3, config=NEW_BEHAVIOURS.config(quick=True)
+        )
+
+
+def test_rules_are_checked():
+    with pytest.raises(MbnInputError, match=r"programs\.rules: unknown rule"):
+        ProgramsSettings(rules=("sideways",))
+    with pytest.raises(MbnInputError, match="listed twice"):
+        ProgramsSettings(rules=("straight-right", "SRL"))
+    with pytest.raises(MbnInputError, match="RF's and LF's"):
+        ProgramsSettings(rules=("right",))
