@@ -99,7 +99,8 @@ class ValidationSettings(Settings):
     agreement: float = setting(
         0.98,
         doc="share of the trials in which the interpreter with LF's program must take LF's "
-        "exits (the tests' agreement target)",
+        "exits (the tests' agreement target; met unless the upper end of its Wilson 95 % "
+        "interval falls short)",
         low=0.0,
         high=1.0,
         source="the per-run targets (docs/sweep.md)",

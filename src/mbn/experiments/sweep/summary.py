@@ -21,12 +21,10 @@ from typing import Any
 import numpy as np
 
 from mbn.experiments.reproduce.protocol import TEST_NAMES
+from mbn.experiments.stats import Z95, wilson_interval
 from mbn.experiments.sweep.targets import TARGETS, measure, meets
 
 __all__ = ["Z95", "describe", "seed_verdict", "summarize", "wilson_interval"]
-
-#: The standard normal quantile of a two-sided 95 % interval.
-Z95 = 1.959963984540054
 
 
 #: What a run's claim names of its own (the LF's connections, "; here W_21, W_22, WE_22"): left
@@ -38,20 +36,6 @@ def claim_key(claim: str) -> str:
     """A claim as the runs share it: its text without what one run names of its own (the LF's
     connections), so that the claims of runs that chose other connections count together."""
     return _RUN_SPECIFIC.sub("", claim)
-
-
-def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
-    """The Wilson score interval of ``successes`` in ``trials`` (``(nan, nan)`` without
-    trials)."""
-    if trials <= 0:
-        return math.nan, math.nan
-    if not 0 <= successes <= trials:
-        raise ValueError(f"successes {successes} not in [0, {trials}]")
-    n, p = float(trials), successes / trials
-    denom = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def describe(values: Sequence[float]) -> dict[str, float]:
