@@ -217,8 +217,8 @@ def test_bad_flags_exit_with_status_2(files, capsys, flag, value, message):
 
 def test_evaluation_leaves_the_files_alone(files, capsys):
     before = {p.name: p.read_bytes() for p in files.iterdir()}
-    with pytest.raises(SystemExit):
-        run(capsys, "--controller", files / "im.json", *BASE, "--program", "up")
+    status, _, err = run(capsys, "--controller", files / "im.json", *BASE, "--program", "up")
+    assert status == 2 and "no program 'up'" in err and len(err.strip().splitlines()) == 1
     run(capsys, "--controller", files / "mul.json", *BASE)
     assert {p.name: p.read_bytes() for p in files.iterdir()} == before
 

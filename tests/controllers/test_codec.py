@@ -284,7 +284,7 @@ CTRNN_CASES = [
     (_set("dt", 1e6), r"dt must be a number in \(0, 1\] s, got 1000000.0"),
     (_set("network", "W", [["1", 0, 0], [0, 0, 0], [0, 0, 0]]), r"network.W: expected numbers"),
     (_set("method", "leapfrog"), r"method must be euler or rk4"),
-    (_set("behavior", "up"), r"behavior must be right, left or null"),
+    (_set("behavior", "up"), r"behavior: unknown rule 'up'"),
     (_set("weights", []), r"unknown field\(s\) 'weights'"),
     (_set("metadata", [1, 2]), r"metadata must be an object"),
 ]
@@ -339,7 +339,7 @@ MBN_CASES = [
     (_set("program_module", "camera", "zoom", 2.0), r"unknown field\(s\) 'zoom'"),
     (
         _set("program_module", "initial", {"rule": "up", "potentials": [0.0] * 3}),
-        r"program_module.initial: rule must be right or left, got 'up'",
+        r"program_module.initial: unknown rule 'up'",
     ),
     (
         _set("program_module", "initial", {"rule": "right", "potentials": [0.0] * 2}),

@@ -75,18 +75,20 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument(
         "--initial",
-        choices=("right", "left", "none"),
+        type=_initial,
         default=None,
+        metavar="{right,left,...,none}",
         help="rule before the first tile, for --behavior tiles (default: the rule the mbn file "
         "starts with, its 'initial'; right for a file without one); none: judge only the "
         "junctions after the first tile",
     )
     ev.add_argument(
         "--program",
-        choices=("right", "left"),
         default=None,
-        help="program of an interpreter file (default: the one named by --behavior); for an mbn "
-        "file, run its interpreter alone with this stored program",
+        metavar="NAME",
+        help="program of an interpreter file (default: the one named by --behavior, e.g. right, "
+        "left, straight-right); for an mbn file, run its interpreter alone with this stored "
+        "program",
     )
     ev.add_argument(
         "--repeats",
@@ -116,6 +118,11 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument("--json", action="store_true", help="print one JSON object")
     ev.set_defaults(func=_cmd_evaluate, precision=ROBOT)
+
+
+def _initial(text: str) -> str:
+    """``--initial``: 'none' or a rule (kept as its name)."""
+    return "none" if text == "none" else _behavior(text)
 
 
 def _behavior(text: str) -> str:
@@ -177,8 +184,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from mbn.world.mazes.load import load_maze
 
     maze = as_grid_maze(load_maze(args.maze))  # TOML and Stage mazes on a lattice of corridors
-    TrialSpec(behavior=args.behavior).check_maze(maze)
     controller_spec = read_controller_spec(args.controller)
+    # the rule each tile kind puts in force: the mbn file's (the paper's: right, left)
+    tile_rules = getattr(controller_spec, "tile_rules", ("right", "left"))
+    TrialSpec(behavior=args.behavior, tile_rules=tile_rules).check_maze(maze)
     loaded = make_controller(
         controller_spec,
         _program_for(args, controller_spec.kind),
@@ -194,6 +203,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         repeats=args.repeats,
         junctions=args.junctions,
         seed=args.seed,
+        tile_rules=tile_rules,
     )
     spec.check_maze(maze)
     seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)

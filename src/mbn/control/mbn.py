@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap, ProgrammedState, interpreter_controller
 from mbn.errors import MbnInputError
@@ -37,17 +38,21 @@ def make_mbn_controller(
     pm_substeps: int = 4,
     motor: MotorMap | None = None,
     method: str = "euler",
+    readout: ArrayLike | None = None,
 ) -> Callable[[MBNControllerState, Any], tuple[MBNControllerState, tuple[Array, Array]]]:
     """The MBN as a controller ``(state, obs) -> (state, (v, w))`` for one robot.
 
-    Each step the program module integrates the camera reading ``[camera == 1, camera == 2]``
-    for ``dt`` (``pm_substeps`` Euler steps); the firing rates of ``program_neurons`` are the
-    program; then the interpreter integrates I1..I3 and that program for ``dt`` as
+    Each step the program module integrates the camera reading ``[camera == 1, camera == 2,
+    ...]`` (one input per tile kind: as many as the PM's inputs) for ``dt`` (``pm_substeps``
+    Euler steps); the firing rates of ``program_neurons`` are the program — or, with a
+    ``readout`` ``(K, P)``, the code whose program is ``clip(readout @ code, 0, 1)``; then the
+    interpreter integrates I1..I3 and that program for ``dt`` as
     :func:`mbn.control.ctrnn.interpreter_controller` does (``substeps`` steps of ``method``).
     """
     if pm_substeps < 1:
         raise MbnInputError(f"pm_substeps must be >= 1, got {pm_substeps}")
     index = jnp.asarray(tuple(program_neurons), jnp.int32)
+    R = None if readout is None else jnp.asarray(readout)
     h = dt / pm_substeps
     interpret = interpreter_controller(dt=dt, substeps=substeps, motor=motor, method=method)
 
@@ -55,11 +60,13 @@ def make_mbn_controller(
         state: MBNControllerState, obs: Any
     ) -> tuple[MBNControllerState, tuple[Array, Array]]:
         dtype = state.pm_y.dtype
-        camera = jnp.stack([obs.camera == 1, obs.camera == 2], axis=-1).astype(dtype)
-        y = state.pm_y
         pm = cast(CTRNN, state.pm)  # the rollout hands a controller plain networks
-        y = euler_steps(pm, y, camera, h, pm_substeps)
+        kinds = pm.WE.shape[-1]
+        camera = jnp.stack([obs.camera == t for t in range(1, kinds + 1)], axis=-1)
+        y = euler_steps(pm, state.pm_y, camera.astype(dtype), h, pm_substeps)
         program = firing_rate(pm, y)[..., index]
+        if R is not None:
+            program = jnp.clip(program @ R.T.astype(dtype), 0.0, 1.0)
         im_state, vw = interpret(ProgrammedState(state.im, state.im_y, program), obs)
         return MBNControllerState(state.pm, y, state.im, im_state.y), vw
 

@@ -130,6 +130,11 @@ def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
             "substeps": spec.pm_substeps,
             "camera": {"fov_deg": spec.camera.fov_deg, "range": spec.camera.range},
         }
+        # written only when not the paper's, so that older files read and write unchanged
+        if spec.tile_rules != ("right", "left"):
+            pm["tile_rules"] = list(spec.tile_rules)
+        if spec.readout is not None:
+            pm["readout"] = [list(row) for row in spec.readout]
         if spec.initial is not None:
             pm["initial"] = {
                 "rule": spec.initial.rule,
@@ -356,7 +361,12 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         return im_spec
     here = f"{where}: program_module"
     pm_data = expect_object(data["program_module"], here)
-    check_fields(pm_data, here, ["network", "program_neurons", "substeps"], ["camera", "initial"])
+    check_fields(
+        pm_data,
+        here,
+        ["network", "program_neurons", "substeps"],
+        ["camera", "initial", "tile_rules", "readout"],
+    )
     pm = _network_from_dict(pm_data["network"], f"{here}.network")
     neurons_t = tuple(expect_int_list(pm_data["program_neurons"], f"{here}.program_neurons"))
     pm_substeps = expect_int(pm_data["substeps"], f"{here}.substeps")
@@ -367,6 +377,18 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         fov = expect_number(cam["fov_deg"], f"{here}.camera.fov_deg")
         rng = expect_number(cam["range"], f"{here}.camera.range")
         camera = _build(f"{here}.camera", lambda: CameraConfig(fov_deg=fov, range=rng))
+    tile_rules: tuple[str, ...] = ("right", "left")
+    if "tile_rules" in pm_data:
+        rules = pm_data["tile_rules"]
+        if not isinstance(rules, list) or not all(isinstance(r, str) for r in rules):
+            raise MbnInputError(f"{where}: {here}.tile_rules: expected a list of rule names")
+        tile_rules = tuple(rules)
+    readout = None
+    if "readout" in pm_data:
+        rows = pm_data["readout"]
+        if not isinstance(rows, list):
+            raise MbnInputError(f"{where}: {here}.readout: expected a list of rows")
+        readout = [expect_number_list(r, f"{here}.readout[{i}]") for i, r in enumerate(rows)]
     spec: MBNControllerSpec = _build(
         where,
         lambda: MBNControllerSpec(
@@ -376,6 +398,8 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
             pm_substeps=pm_substeps,
             camera=camera,
             metadata=metadata,
+            readout=readout,
+            tile_rules=tile_rules,
         ),
     )
     if "initial" not in pm_data:  # files written before the field: the PM starts at rest

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 
 from mbn.control.ctrnn import CTRNNState, ProgrammedState, ctrnn_controller, interpreter_controller
@@ -56,6 +57,8 @@ class LoadedController:
         behavior: the behaviour a plain CTRNN file declares (else None).
         initial_rule: for the whole MBN, the rule it follows before its first tile (its file's
             ``initial``; None for a file without one: it starts at rest with no rule).
+        tile_rules: for the whole MBN, the rule a tile of 1, 2, ... colours puts in force (its
+            file's; the paper's right, left); None for the others.
         spec: the parsed file.
     """
 
@@ -71,6 +74,7 @@ class LoadedController:
     behavior: str | None
     initial_rule: str | None
     spec: ControllerSpec
+    tile_rules: tuple[str, ...] | None = None
 
 
 def _programs_of(spec: InterpreterControllerSpec) -> dict[str, tuple[float, ...]]:
@@ -107,6 +111,7 @@ def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], An
     im, pm = _simulated(im_spec), spec.program_module
     control = make_mbn_controller(
         program_neurons=spec.program_neurons,
+        readout=None if spec.readout is None else np.asarray(spec.readout, np.float64),
         dt=im_spec.dt,
         substeps=im_spec.substeps,
         pm_substeps=spec.pm_substeps,
@@ -235,6 +240,7 @@ def make_controller(
         behavior=spec.behavior if isinstance(spec, CTRNNControllerSpec) else None,
         initial_rule=initial_rule,
         spec=spec,
+        tile_rules=spec.tile_rules if isinstance(spec, MBNControllerSpec) else None,
     )
 
 

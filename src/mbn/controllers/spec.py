@@ -28,6 +28,8 @@ from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.world.engine import CameraConfig
+from mbn.world.mazes.model import TILE_COLORS
+from mbn.world.rules import parse_rule
 from mbn.world.sensors import PAPER_SONARS, SensorConfig
 
 __all__ = [
@@ -59,7 +61,8 @@ FORMAT_VERSION = 1
 MULTIPLIER_KIND = "mbn.multiplier"
 #: Number of data inputs every controller reads: the paper's I1..I3 (eq. 3).
 NUM_INPUTS = 3
-#: Inputs of the program module: a one-colour tile in view, a two-colour tile in view.
+#: Inputs of the paper's program module: a one-colour tile in view, a two-colour tile in view
+#: (an MBN of more tile kinds has one input per kind, ``MBNControllerSpec.tile_rules``).
 PM_INPUTS = 2
 
 # --------------------------------------------------------------------------------------------
@@ -158,8 +161,11 @@ class CTRNNControllerSpec:
         _check_sensors(self.sensors)
         _check_motor(self.motor, self.net.num_neurons, "the network")
         _check_run_settings(self.dt, self.substeps, self.method)
-        if self.behavior not in (None, "right", "left"):
-            raise MbnInputError(f"behavior must be right, left or null, got {self.behavior!r}")
+        if self.behavior is not None:
+            try:
+                object.__setattr__(self, "behavior", parse_rule(self.behavior).name)
+            except MbnInputError as exc:
+                raise MbnInputError(f"behavior: {exc}") from None
         _check_metadata(self.metadata)
         object.__setattr__(self, "metadata", dict(self.metadata))
 
@@ -317,8 +323,8 @@ class PMInitial:
     tile.
 
     Attributes:
-        rule: "right" or "left": the rule the state stands for (the state the PM latches after a
-            one-colour tile stands for "right").
+        rule: the rule the state stands for (the state the PM latches after a one-colour tile
+            stands for "right"); one of the MBN's ``tile_rules``.
         potentials: the PM's initial membrane potentials, one per PM neuron.
     """
 
@@ -326,8 +332,7 @@ class PMInitial:
     potentials: tuple[float, ...]
 
     def __post_init__(self) -> None:
-        if self.rule not in ("right", "left"):
-            raise MbnInputError(f"rule must be right or left, got {self.rule!r}")
+        object.__setattr__(self, "rule", parse_rule(self.rule).name)
         try:
             arr = np.asarray(self.potentials, dtype=np.float64)
         except (TypeError, ValueError):
@@ -344,9 +349,16 @@ class MBNControllerSpec:
     Attributes:
         interpreter_spec: the interpreter (IM), with its sensors, motor, dt and sub-steps; its
             ``programs`` are kept for reference (and to run the IM alone with one of them).
-        program_module: a CTRNN with 2 inputs ``[camera == 1, camera == 2]``.
+        program_module: a CTRNN with one input per tile kind, ``[camera == 1, camera == 2,
+            ...]`` (2 in the paper).
         program_neurons: PM neurons whose firing rates are the program, one per programmable
-            connection, in program order.
+            connection, in program order; or, with a ``readout``, the PM's code.
+        readout: None (the paper's: the rates are the program), or a fixed ``(K, P)`` matrix
+            whose columns are programs: the program is ``clip(readout @ code, 0, 1)`` for the
+            code of the ``P`` program neurons (a PM that latches the code ``e_k`` sends column
+            k) — a program memory read by the PM's output layer; the interpreter is unchanged.
+        tile_rules: the rule a tile of 1, 2, ... colours puts in force (the paper's: right,
+            left); the PM has one camera input per tile kind.
         pm_substeps: Euler steps of the PM per robot step.
         camera: the blob-finding camera the PM reads (field of view and range).
         initial: where the PM starts and the rule that stands for (:class:`PMInitial`); None:
@@ -365,8 +377,20 @@ class MBNControllerSpec:
     camera: CameraConfig = field(default_factory=CameraConfig)
     initial: PMInitial | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    readout: Sequence[Sequence[float]] | None = None
+    tile_rules: tuple[str, ...] = ("right", "left")
 
     def __post_init__(self) -> None:
+        try:
+            rules = tuple(parse_rule(r).name for r in self.tile_rules)
+        except MbnInputError as exc:
+            raise MbnInputError(f"program_module.tile_rules: {exc}") from None
+        if not 1 <= len(rules) <= len(TILE_COLORS):
+            raise MbnInputError(
+                f"program_module.tile_rules: one rule per tile kind (1 to {len(TILE_COLORS)}), "
+                f"got {len(rules)}"
+            )
+        object.__setattr__(self, "tile_rules", rules)
         if not isinstance(self.camera, CameraConfig):
             raise MbnInputError(f"camera must be a CameraConfig, got {type(self.camera).__name__}")
         if not isinstance(self.interpreter_spec, InterpreterControllerSpec):
@@ -376,10 +400,10 @@ class MBNControllerSpec:
             )
         _check_single(self.program_module, "program_module.network")
         pm = self.program_module
-        if pm.num_inputs != PM_INPUTS:
+        if pm.num_inputs != len(rules):
             raise MbnInputError(
-                f"program_module.network: the program module reads {PM_INPUTS} camera inputs "
-                f"(one-colour, two-colour tile in view), but WE has {pm.num_inputs} columns"
+                f"program_module.network: the program module reads {len(rules)} camera inputs "
+                f"(one per tile kind of tile_rules), but WE has {pm.num_inputs} columns"
             )
         neurons = tuple(self.program_neurons)
         if not all(isinstance(i, int) and not isinstance(i, bool) for i in neurons):
@@ -387,7 +411,20 @@ class MBNControllerSpec:
                 f"program_module.program_neurons must be integers, got {list(neurons)}"
             )
         k = len(self.interpreter_spec.interpreter.connections)
-        if len(neurons) != k:
+        if self.readout is not None:
+            try:
+                R = np.asarray(self.readout, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise MbnInputError("program_module.readout: not a matrix of numbers") from None
+            if R.shape != (k, len(neurons)) or not np.all(np.isfinite(R)):
+                raise MbnInputError(
+                    f"program_module.readout: expected a finite {k} x {len(neurons)} matrix "
+                    f"(programmable connections x program neurons), got shape {R.shape}"
+                )
+            if np.any((R < 0) | (R > 1)):
+                raise MbnInputError("program_module.readout: its columns are programs, in [0, 1]")
+            object.__setattr__(self, "readout", tuple(tuple(float(v) for v in r) for r in R))
+        elif len(neurons) != k:
             raise MbnInputError(
                 f"program_module.program_neurons: the interpreter has {k} programmable "
                 f"connections, got {len(neurons)} program neurons"
@@ -414,6 +451,11 @@ class MBNControllerSpec:
             if not isinstance(self.initial, PMInitial):
                 raise MbnInputError(
                     f"initial must be a PMInitial or None, got {type(self.initial).__name__}"
+                )
+            if self.initial.rule not in rules:
+                raise MbnInputError(
+                    f"program_module.initial.rule: {self.initial.rule} is none of the tile "
+                    f"rules ({', '.join(rules)})"
                 )
             if len(self.initial.potentials) != self.program_module.num_neurons:
                 raise MbnInputError(

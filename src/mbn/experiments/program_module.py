@@ -16,7 +16,7 @@ junction comes 2.4 m later, out of the tile's sight — so the program must be r
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -42,6 +42,7 @@ __all__ = [
     "MemoryReward",
     "PMGenome",
     "camera_inputs",
+    "code_fitness",
     "latch_after_tile",
     "mbn_controller",
     "memory_reward_maximum",
@@ -50,36 +51,41 @@ __all__ = [
     "pm_program_fitness",
     "prime",
     "start_mismatch",
+    "tile_sequences",
 ]
 
 
 @dataclass(frozen=True)
 class PMGenome:
-    """Genes of a program module with ``programs`` output neurons: W (K x K), WE (K x 2) and
-    biases (K), row-major; all neurons share ``tau`` (seconds)."""
+    """Genes of a program module with ``programs`` output neurons and ``inputs`` camera inputs
+    (one per tile kind: 2 in the paper): W (K x K), WE (K x inputs) and biases (K), row-major;
+    all neurons share ``tau`` (seconds)."""
 
     programs: int = 3
     tau: float = DEFAULT_TAU
+    inputs: int = 2
 
     def __post_init__(self) -> None:
         if self.programs < 1:
             raise MbnInputError(f"programs must be >= 1, got {self.programs}")
         if not self.tau > 0:
             raise MbnInputError(f"tau must be > 0, got {self.tau}")
+        if self.inputs < 1:
+            raise MbnInputError(f"inputs must be >= 1, got {self.inputs}")
 
     @property
     def size(self) -> int:
         k = self.programs
-        return k * k + 2 * k + k
+        return k * k + self.inputs * k + k
 
     def network(self, genes: Array) -> CTRNN:
         """The PM network(s) of genes ``(..., size)``."""
         genes = jnp.asarray(genes)
-        k = self.programs
+        k, m = self.programs, self.inputs
         batch = genes.shape[:-1]
         W = genes[..., : k * k].reshape(*batch, k, k)
-        WE = genes[..., k * k : k * k + 2 * k].reshape(*batch, k, 2)
-        bias = genes[..., k * k + 2 * k :]
+        WE = genes[..., k * k : k * k + m * k].reshape(*batch, k, m)
+        bias = genes[..., k * k + m * k :]
         return CTRNN(
             W=W,
             WE=WE,
@@ -356,24 +362,72 @@ def pm_program_fitness(
     k = genome.programs
     if right.shape != (k,) or left.shape != (k,):
         raise MbnInputError(f"programs must have {k} values each, got {len(right)} and {len(left)}")
-    target_of = {_ONE: right, _TWO: left}
     seqs = [v for name, v in sorted(reward.sequences().items()) if name != "rest"]
+    return code_fitness(
+        genome, seqs, {_ONE: right, _TWO: left}, dt=dt, substeps=substeps, switch=switch
+    )
+
+
+def tile_sequences(
+    kinds: int, reward: MemoryReward | None = None
+) -> list[list[tuple[tuple[float, ...], float]]]:
+    """Camera sequences for ``kinds`` tile kinds (inputs one-hot, one per kind), as the memory
+    reward's for two: each tile alone and then held (``see``, then ``hold`` seconds), and each
+    tile after each other one (``see``, ``gap``, ``see``, ``memory``)."""
+    reward = reward or MemoryReward()
+    eye = [tuple(float(i == t) for i in range(kinds)) for t in range(kinds)]
+    none = (0.0,) * kinds
+    out = [[(eye[t], reward.see), (none, reward.hold)] for t in range(kinds)]
+    for a in range(kinds):
+        for b in range(kinds):
+            if a != b:
+                out.append(
+                    [
+                        (eye[a], reward.see),
+                        (none, reward.gap),
+                        (eye[b], reward.see),
+                        (none, reward.memory),
+                    ]
+                )
+    return out
+
+
+def code_fitness(
+    genome: PMGenome,
+    sequences: Sequence[Sequence[tuple[tuple[float, ...], float]]],
+    target_of: Mapping[tuple[float, ...], np.ndarray],
+    *,
+    dt: float = 0.1,
+    substeps: int = 4,
+    switch: float = 0.3,
+) -> Callable[[Array], Array]:
+    """A jitted map from a PM population to how well each sends the code of the last tile it
+    was shown (``target_of[input]``, ``(programs,)``), without the robot: minus the mean squared
+    difference over ``sequences`` of ``(input, seconds)`` (an input of zeros: no tile in view),
+    scored every step without input once a tile has been shown, and every step with a tile in
+    view once it has been seen for ``switch`` seconds (:func:`pm_program_fitness`)."""
+    k, m = genome.programs, genome.inputs
+    none = (0.0,) * m
     inputs, targets, weights = [], [], []
-    for seq in seqs:
+    for seq in sequences:
         rows, goal, w = [], [], []
         last = None
         for x, secs in seq:
+            if len(x) != m:
+                raise MbnInputError(f"a camera input of {len(x)} values for a PM of {m} inputs")
             n = round(secs / dt)
             rows += [x] * n
-            if x != _NONE:
-                last = target_of[x]
+            if tuple(x) != none:
+                last = np.asarray(target_of[tuple(x)], np.float64)
+                if last.shape != (k,):
+                    raise MbnInputError(f"codes must have {k} values each, got {last.shape}")
                 # in view: scored once it has been seen for ``switch`` seconds
                 wait = min(round(switch / dt), n)
                 w += [0.0] * wait + [1.0] * (n - wait)
             else:  # no input: scored once a tile has been shown
                 w += [1.0 if last is not None else 0.0] * n
             goal += [last if last is not None else np.zeros(k)] * n
-        inputs.append(np.asarray(rows, np.float32).reshape(-1, 2))
+        inputs.append(np.asarray(rows, np.float32).reshape(-1, m))
         targets.append(np.asarray(goal, np.float32))
         weights.append(np.asarray(w, np.float32))
     length = max(len(r) for r in inputs)
@@ -381,7 +435,7 @@ def pm_program_fitness(
     def pad(a: np.ndarray) -> np.ndarray:
         return np.concatenate([a, np.zeros((length - len(a), *a.shape[1:]), a.dtype)])
 
-    x_all = np.stack([pad(a) for a in inputs], 1)  # (T, S, 2)
+    x_all = np.stack([pad(a) for a in inputs], 1)  # (T, S, m)
     t_all = np.stack([pad(a) for a in targets], 1)  # (T, S, k)
     w_all = np.stack([pad(a) for a in weights], 1)  # (T, S)
     total = float(w_all.sum())
@@ -398,7 +452,7 @@ def pm_program_fitness(
         def step(y: Array, row: tuple[Array, Array, Array]) -> tuple[Array, Array]:
             x, goal, w = row
             for _ in range(substeps):
-                y = euler_step(nets, y, jnp.broadcast_to(x, (p, s, 2)), h)
+                y = euler_step(nets, y, jnp.broadcast_to(x, (p, s, m)), h)
             rates = firing_rate(nets, y)[..., :k]
             err = jnp.sum((rates - goal) ** 2, -1) * w  # (P, S)
             return y, err.sum(-1)

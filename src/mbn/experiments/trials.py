@@ -81,7 +81,8 @@ class TrialSpec:
         behavior: a rule (:mod:`mbn.world.rules`: "right", "left", "straight-right", ... or an
             order such as "SRL"; kept as its name) or "tiles" (the rule of the last tile driven
             over).
-        initial: the rule before the first tile ("tiles" only): "right", "left", or "none" —
+        initial: the rule before the first tile ("tiles" only): a rule ("right", "left", ...)
+            or "none" —
             junctions passed before the first tile are then not judged (the J judged junctions
             are the first J after it).
         repeats: trials per start mark: the first from the mark exactly, the others jittered.
@@ -122,8 +123,11 @@ class TrialSpec:
                 f"{self.tile_rules!r}"
             )
         object.__setattr__(self, "tile_rules", tuple(parse_rule(r).name for r in self.tile_rules))
-        if self.initial not in ("right", "left", "none"):
-            raise MbnInputError(f"initial must be right, left or none, got {self.initial!r}")
+        if self.initial != "none":
+            try:
+                object.__setattr__(self, "initial", parse_rule(self.initial).name)
+            except MbnInputError as exc:
+                raise MbnInputError(f"initial: {exc} (or none)") from None
         if not (isinstance(self.repeats, int) and self.repeats >= 1):
             raise MbnInputError(f"repeats must be an integer >= 1, got {self.repeats!r}")
         if not (isinstance(self.junctions, int) and 1 <= self.junctions <= 32):
