@@ -307,10 +307,14 @@ class MemoryReward:
         return out
 
 
-def camera_inputs(sequence: list[tuple[tuple[float, float], float]], dt: float = 0.1) -> np.ndarray:
-    """A camera sequence ``[(input, seconds), ...]`` as one input row per robot step."""
+def camera_inputs(
+    sequence: Sequence[tuple[tuple[float, ...], float]], dt: float = 0.1
+) -> np.ndarray:
+    """A camera sequence ``[(input, seconds), ...]`` as one input row per robot step (as many
+    columns as the inputs have: one per tile kind)."""
+    width = len(sequence[0][0]) if sequence else 2
     rows = [x for x, secs in sequence for _ in range(round(secs / dt))]
-    return np.array(rows, np.float32).reshape(-1, 2)
+    return np.array(rows, np.float32).reshape(-1, width)
 
 
 def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 4) -> Array:
@@ -327,7 +331,7 @@ def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 
 
             def step(y: Array, x: Array) -> tuple[Array, None]:
                 for _ in range(substeps):
-                    y = euler_step(pm, y, jnp.broadcast_to(x, (p, 2)), h)
+                    y = euler_step(pm, y, jnp.broadcast_to(x, (p, x.shape[-1])), h)
                 return y, None
 
             y, _ = jax.lax.scan(step, y, jnp.asarray(seq, dtype))
@@ -499,16 +503,18 @@ def latch_after_tile(
     input move no program value by more than ``tol`` and no potential by more than
     ``100 tol``; else ``settle`` doubles, up to ``max_seconds``. Returns None when it never
     settles (a PM that oscillates has no state to start from)."""
-    if colors not in (1, 2):
-        raise MbnInputError(f"colors must be 1 or 2, got {colors!r}")
     if pm.W.ndim != 2:
         raise MbnInputError("latch_after_tile takes one network")
+    kinds = pm.WE.shape[-1]
+    if not (isinstance(colors, int) and 1 <= colors <= kinds):
+        raise MbnInputError(f"colors must be 1 to {kinds} (the PM's tile kinds), got {colors!r}")
     neurons = list(program_neurons)
-    tile = _ONE if colors == 1 else _TWO
+    tile = tuple(float(i == colors - 1) for i in range(kinds))
+    none = (0.0,) * kinds
     one = jax.tree.map(lambda a: jnp.asarray(a)[None], pm)
     wait = settle
     while wait <= max_seconds:
-        seqs = [[(tile, see), (_NONE, wait)], [(tile, see), (_NONE, wait + check)]]
+        seqs = [[(tile, see), (none, wait)], [(tile, see), (none, wait + check)]]
         y = np.asarray(prime(one, [camera_inputs(q, dt) for q in seqs], dt, substeps)[0])
         rates = np.asarray(firing_rate(pm, jnp.asarray(y, pm.W.dtype)))[:, neurons]
         if np.max(np.abs(rates[1] - rates[0])) <= tol and np.max(np.abs(y[1] - y[0])) <= 100 * tol:

@@ -11,6 +11,8 @@ Stages:
 9. ``programs``: new rules (straight-right, straight-left) learned by DE over the programs of the
    fixed ``im_full`` interpreter alone (its sha256 checked), each checked through the interpreter
    and as the network it encodes.
+10. ``mbn3``: a three-behaviour MBN, a program module evolved with the interpreter fixed that maps
+   one-, two- and three-colour tiles to RF's, LF's and straight-right's programs.
 
 Each stage is one module (the first four ``mbn.experiments.reproduce.stages``'s, the others
 :mod:`mbn.experiments.behaviours.stages`'s); ``docs/behaviours.md`` describes them.
@@ -21,6 +23,7 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.behaviours.stages.im_full import IMFullStage
+from mbn.experiments.behaviours.stages.mbn3 import MBN3Stage
 from mbn.experiments.behaviours.stages.programs import ProgramsStage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.reproduce.settings import (
@@ -43,7 +46,15 @@ __all__ = ["NEW_BEHAVIOURS", "RUN_KIND", "STAGES"]
 RUN_KIND = "mbn.new-behaviours"
 
 STAGES = Registry(
-    [MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMFullStage(), ProgramsStage()]
+    [
+        MultiplierStage(),
+        RFStage(),
+        LFSearchStage(),
+        LFStage(),
+        IMFullStage(),
+        ProgramsStage(),
+        MBN3Stage(),
+    ]
 )
 
 #: The quick preset: the reproduction's, and a short agreement curve.
@@ -51,6 +62,7 @@ QUICK: dict[str, dict[str, Any]] = {
     **REPRODUCE_QUICK,
     "im_full": {"curve": False},
     "programs": {"generations": 10, "variants": 1},
+    "mbn3": {"generations": 30},
 }
 
 

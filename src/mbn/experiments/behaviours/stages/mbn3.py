@@ -1,0 +1,176 @@
+"""Stage ``mbn3``: a three-behaviour MBN, learned incrementally: a program module that maps one-,
+two- and three-colour tiles to the RF, LF and straight-right programs of the fixed ``im_full``
+interpreter (its sha256 checked), evolved by DE without the robot on the program reward of
+``mbn reproduce`` (:func:`mbn.experiments.program_module.code_fitness`), for three tile kinds.
+
+The PM latches a code, one neuron per behaviour; its output layer, a fixed readout whose
+columns are the stored programs (``MBNControllerSpec.readout``), sends the code's program to
+the interpreter. Adding a behaviour adds a camera input, a code neuron and a column; the
+interpreter is not touched. The MBN starts as the behaviour of a one-colour tile (the state its
+PM latches after one)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    PMInitial,
+    read_controller_spec,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig
+from mbn.experiments.behaviours.stages.programs import check_digest
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.program_module import (
+    MemoryReward,
+    PMGenome,
+    code_fitness,
+    latch_after_tile,
+    tile_sequences,
+)
+from mbn.experiments.reproduce.stages.common import MADE_BY
+from mbn.world.engine import CameraConfig
+from mbn.world.rules import parse_rule
+
+__all__ = ["MBN3Settings", "MBN3Stage"]
+
+
+@dataclass(frozen=True)
+class MBN3Settings(Settings):
+    """The three-behaviour MBN."""
+
+    section = "mbn3"
+    tile_rules: tuple[str, ...] = setting(
+        ("right", "left", "straight-right"),
+        doc="the rule a tile of 1, 2, 3 colours puts in force (programs of im_full_programs)",
+        source="issue: one-, two-, three-colour tiles to RF, LF, straight-right",
+    )
+    generations: int = setting(
+        1500,
+        doc="DE generations",
+        low=0,
+        high=100_000,
+        source="docs/behaviours.md (300: the third code latched at 0.59; 1500: 0.995, 18 s)",
+    )
+    bound: float = setting(10.0, doc="genes are kept in [-bound, bound]", low=0.0, high=1e4)
+    switch_seconds: float = setting(
+        0.3,
+        doc="how soon after a tile comes into view the code must have switched",
+        unit="s",
+        low=0.0,
+        high=10.0,
+        source="as [pm] switch_seconds",
+    )
+    camera_range: float = setting(
+        0.8, doc="the camera's range", unit="m", low=0.1, high=10.0, source="as [pm]"
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        try:
+            names = [parse_rule(r).name for r in self.tile_rules]
+        except MbnInputError as exc:
+            raise MbnInputError(f"mbn3.tile_rules: {exc}") from None
+        if len(names) != 3:
+            raise MbnInputError(f"mbn3.tile_rules: one rule per tile kind (3), got {len(names)}")
+        if len(set(names)) != len(names):
+            raise MbnInputError("mbn3.tile_rules: a rule is listed twice")
+
+
+class MBN3Stage(Stage):
+    name = "mbn3"
+    key_id = 10
+    outputs = ("controllers/mbn3.json",)
+    needs = ("im_full", "programs")
+    settings = MBN3Settings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: MBN3Settings = ctx.settings
+        path = ctx.rundir.controller_file("im_full_programs")
+        im_spec = read_controller_spec(path)
+        if not isinstance(im_spec, InterpreterControllerSpec):
+            raise MbnInputError(f"{path}: not an interpreter")
+        digest = ctx.read("im_full")["sha256"]
+        check_digest(im_spec.interpreter, digest, "mbn3")
+        rules = tuple(parse_rule(r).name for r in s.tile_rules)
+        missing = [r for r in rules if r not in im_spec.programs]
+        if missing:
+            raise MbnInputError(
+                f"mbn3.tile_rules: {path} has no program for {', '.join(missing)} (it has "
+                f"{', '.join(im_spec.programs)})"
+            )
+        kinds = len(rules)
+        genome = PMGenome(programs=kinds, inputs=kinds)
+        codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
+        reward = MemoryReward()
+        fitness = code_fitness(
+            genome, tile_sequences(kinds, reward), codes, switch=s.switch_seconds
+        )
+        de = ctx.section("de")
+        config = DEConfig(
+            num_dims=genome.size,
+            popsize=de.popsize,
+            F=de.F,
+            CR=de.CR,
+            maximize=True,
+            lower=-s.bound,
+            upper=s.bound,
+            init_low=-s.bound,
+            init_high=s.bound,
+        )
+        run = ctx.evolve(
+            "mbn3_pm", config, fitness, ctx.key, s.generations, "three-behaviour PM: DE"
+        )
+        pm = genome.network(jnp.asarray(run.data["best_genome"]))
+        pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), pm)
+        readout = np.stack([np.asarray(im_spec.programs[r], np.float64) for r in rules], axis=1)
+        latch = latch_after_tile(pm, 1, range(kinds), see=reward.see)
+        initial = (
+            PMInitial(rule=rules[0], potentials=tuple(latch.potentials))
+            if latch is not None
+            else None
+        )
+        latched = {}
+        for t in range(kinds):
+            got = latch_after_tile(pm, t + 1, range(kinds), see=reward.see)
+            latched[rules[t]] = None if got is None else np.asarray(got.program).tolist()
+        spec = MBNControllerSpec(
+            interpreter_spec=im_spec,
+            program_module=pm,
+            program_neurons=tuple(range(kinds)),
+            camera=CameraConfig(range=s.camera_range),
+            initial=initial,
+            readout=readout.tolist(),
+            tile_rules=rules,
+            metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest},
+        )
+        save_controller(ctx.rundir.controller_file("mbn3"), spec)
+        again = read_controller_spec(ctx.rundir.controller_file("mbn3"))
+        assert isinstance(again, MBNControllerSpec)
+        check_digest(again.interpreter_spec.interpreter, digest, "controllers/mbn3.json")
+        return {
+            "best_genome": run.data["best_genome"],
+            "best_fitness": run.data["best_fitness"],
+            "generations": s.generations,
+            "history": run.data["history"],
+            "tile_rules": list(rules),
+            "latched_codes": latched,
+            "initial": None if initial is None else initial.rule,
+            "sha256": digest,
+            "sha256_checked": True,
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        return (
+            f"program reward {data['best_fitness']:.4f} after {data['generations']} generations; "
+            f"tiles {', '.join(data['tile_rules'])}"
+        )
