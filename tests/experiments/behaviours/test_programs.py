@@ -14,6 +14,7 @@ from mbn.experiments.behaviours.stages.programs import ProgramsSettings, program
 from mbn.experiments.pipeline.runner import run_stage
 
 
+@pytest.mark.slow
 def test_programs_are_found_for_the_new_rules_with_the_interpreter_unchanged(nb_copy):
     rundir, conns = nb_copy
     before = read_controller_spec(rundir.controller_file("im_full"))
@@ -58,3 +59,31 @@ def test_rules_are_checked():
         ProgramsSettings(rules=("straight-right", "SRL"))
     with pytest.raises(MbnInputError, match="RF's and LF's"):
         ProgramsSettings(rules=("right",))
+
+
+@pytest.mark.slow
+def test_the_quick_experiment_runs_end_to_end_and_resumes(tmp_path):
+    """``mbn run new-behaviours --quick``: every stage, the files ``mbn evaluate`` loads, the
+    interpreter's sha256 the same in each, and a second run with --resume changes nothing."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "nb"
+    cmd = [sys.executable, "-m", "mbn", "run", "new-behaviours", "--quick", "--quiet"]
+    proc = subprocess.run([*cmd, "--out", str(out), "--seed", "1"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((out / "results.json").read_text())
+    for name in ("im_full_rf_jitter", "im_full_straight_right", "mbn3_jitter", "mbn3_two_tiles"):
+        assert results["tests"][name]["trials"] > 0
+    digests = set()
+    for f in ("im_full", "im_full_programs", "mbn3"):
+        spec = read_controller_spec(out / "controllers" / f"{f}.json")
+        im = getattr(spec, "interpreter_spec", spec)
+        digests.add(im.interpreter.digest())
+    assert digests == {results["stages"]["im_full"]["sha256"]}
+    mbn3 = read_controller_spec(out / "controllers" / "mbn3.json")
+    assert mbn3.tile_rules == ("right", "left", "straight-right")
+    before = (out / "results.json").read_bytes()
+    again = subprocess.run([*cmd, "--out", str(out), "--resume"], capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert json.loads((out / "results.json").read_text())["tests"] == json.loads(before)["tests"]

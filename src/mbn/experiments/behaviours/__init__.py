@@ -13,6 +13,8 @@ Stages:
    and as the network it encodes.
 10. ``mbn3``: a three-behaviour MBN, a program module evolved with the interpreter fixed that maps
    one-, two- and three-colour tiles to RF's, LF's and straight-right's programs.
+11. ``tests3``: the new rules' programs and the three-behaviour MBN on the three-tile mazes, the
+   MBN on the paper's mazes, and the interpreter's sha256 in every file checked.
 
 Each stage is one module (the first four ``mbn.experiments.reproduce.stages``'s, the others
 :mod:`mbn.experiments.behaviours.stages`'s); ``docs/behaviours.md`` describes them.
@@ -25,6 +27,7 @@ from typing import Any
 from mbn.experiments.behaviours.stages.im_full import IMFullStage
 from mbn.experiments.behaviours.stages.mbn3 import MBN3Stage
 from mbn.experiments.behaviours.stages.programs import ProgramsStage
+from mbn.experiments.behaviours.stages.tests3 import Tests3Stage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.reproduce.settings import (
     QUICK as REPRODUCE_QUICK,
@@ -54,6 +57,7 @@ STAGES = Registry(
         IMFullStage(),
         ProgramsStage(),
         MBN3Stage(),
+        Tests3Stage(),
     ]
 )
 
@@ -69,7 +73,7 @@ QUICK: dict[str, dict[str, Any]] = {
 def _results(
     rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
 ) -> dict[str, Any]:
-    return {"tests": dict(stages["im_full"]["tests"])}
+    return {"tests": {**stages["im_full"]["tests"], **stages["tests3"]["tests"]}}
 
 
 #: The experiment ``mbn run new-behaviours`` runs.

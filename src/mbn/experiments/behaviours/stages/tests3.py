@@ -1,0 +1,137 @@
+"""Stage ``tests3``: the new behaviours' tests. Each new rule's program through the fully
+programmable interpreter on the three-tile test maze (its start marks; jittered starts) and the
+held-out one, judged by that rule, beside the network the program decodes to (agreement); the
+three-behaviour MBN on both three-tile mazes, and on the paper's two-tile mazes (the
+two-behaviour tests, which adding the third behaviour must keep); and, last, the interpreter's
+sha256 in every file the run wrote, checked against the one ``im_full`` recorded."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    make_controller,
+    read_controller_spec,
+)
+from mbn.experiments.behaviours.stages.im_full import agreement
+from mbn.experiments.behaviours.stages.programs import check_digest
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.protocol import SUFFIXES
+from mbn.experiments.trials import TrialSpec, run_loaded_trials, summary
+from mbn.networks.ctrnn import CTRNN
+from mbn.world.mazes.load import load_maze
+
+__all__ = ["Tests3Settings", "Tests3Stage"]
+
+
+@dataclass(frozen=True)
+class Tests3Settings(Settings):
+    """The mazes of the new behaviours' tests."""
+
+    section = "tests3"
+    maze: str = setting("tiles3", doc="the three-tile test maze", source="docs/mazes.md")
+    heldout_maze: str = setting(
+        "tiles3_heldout", doc="a three-tile maze no training sees", source="docs/mazes.md"
+    )
+
+
+def _specs(
+    behavior: str,
+    t: Any,
+    ctx: StageContext,
+    initial: str = "right",
+    tile_rules: tuple[str, ...] = ("right", "left"),
+) -> dict[str, TrialSpec]:
+    """The three tests (marks, jittered, held-out) of a controller judged by ``behavior``."""
+    seconds = t.mbn_seconds if behavior == "tiles" else t.seconds
+    base = TrialSpec(behavior=behavior, initial=initial, seconds=seconds, tile_rules=tile_rules)
+    return {
+        "": base,
+        "_jitter": dataclasses.replace(
+            base, repeats=t.jitter_per_mark, exact_first=False, seed=ctx.seeds["test_jitter"]
+        ),
+        "_heldout": dataclasses.replace(
+            base, repeats=t.heldout_repeats, seed=ctx.seeds["heldout_jitter"]
+        ),
+    }
+
+
+class Tests3Stage(Stage):
+    name = "tests3"
+    key_id = 11
+    needs = ("im_full", "programs", "mbn3")
+    settings = Tests3Settings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: Tests3Settings = ctx.settings
+        t = ctx.section("tests")
+        digest = ctx.read("im_full")["sha256"]
+        new = {"": load_maze(s.maze), "_jitter": load_maze(s.maze)}
+        new["_heldout"] = load_maze(s.heldout_maze)
+        old = {"": load_maze(t.maze), "_jitter": load_maze(t.maze)}
+        old["_heldout"] = load_maze(t.heldout_maze)
+        im = read_controller_spec(ctx.rundir.controller_file("im_full_programs"))
+        mbn3 = read_controller_spec(ctx.rundir.controller_file("mbn3"))
+        assert isinstance(im, InterpreterControllerSpec) and isinstance(mbn3, MBNControllerSpec)
+        rules = ctx.read("programs")["rules"]
+        tests: dict[str, Any] = {}
+        agree: dict[str, Any] = {}
+        bar = ctx.progress.task("tests3", len(rules) + 2)
+        for i, (rule, found) in enumerate(rules.items()):
+            short = rule.replace("-", "_")
+            net = CTRNN.from_dict(found["network"], where=f"programs.{rule}.network")
+            emulated = make_controller(im, rule, where="im_full_programs")
+            # the network at the interpreter's step: the same dynamics, the products exact
+            plain = make_controller(
+                CTRNNControllerSpec(net=net, substeps=im.substeps), None, where=f"{rule} network"
+            )
+            specs = _specs(rule, t, ctx)
+            for suffix in SUFFIXES:
+                got, _, _ = run_loaded_trials(new[suffix], specs[suffix], emulated)
+                ref, _, _ = run_loaded_trials(new[suffix], specs[suffix], plain)
+                tests[f"im_full_{short}{suffix}"] = summary(got)
+                tests[f"net_{short}{suffix}"] = summary(ref)
+                agree[f"im_full_{short}{suffix}"] = agreement(got, ref)
+            ctx.progress.update(bar, completed=i + 1, info=rule)
+        loaded = make_controller(mbn3, None, where="mbn3")
+        initial = loaded.initial_rule or "none"
+        for mazes, name in ((new, "mbn3"), (old, "mbn3_two_tiles")):
+            specs = _specs("tiles", t, ctx, initial, tuple(mbn3.tile_rules))
+            for suffix in SUFFIXES:
+                got, _, _ = run_loaded_trials(mazes[suffix], specs[suffix], loaded)
+                tests[f"{name}{suffix}"] = summary(got)
+            ctx.progress.update(bar, completed=len(rules) + (2 if name != "mbn3" else 1))
+        # the interpreter is the one im_full built, in every file the run wrote
+        checked = []
+        for f in ("im_full", "im_full_programs", "mbn3"):
+            spec = read_controller_spec(ctx.rundir.controller_file(f))
+            if isinstance(spec, MBNControllerSpec):
+                spec = spec.interpreter_spec
+            assert isinstance(spec, InterpreterControllerSpec)
+            interp = spec.interpreter
+            check_digest(interp, digest, f"controllers/{f}.json")
+            checked.append(f"controllers/{f}.json")
+        return {
+            "tests": tests,
+            "agreement": agree,
+            "sha256": digest,
+            "sha256_unchanged_in": checked,
+            "mazes": {"test": s.maze, "heldout": s.heldout_maze},
+            "marks": {"test": len(new[""].starts), "heldout": len(new["_heldout"].starts)},
+            "initial": initial,
+            "tile_rules": list(mbn3.tile_rules),
+            "rates": {k: float(np.round(v["success_rate"], 4)) for k, v in tests.items()},
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        r = data["rates"]
+        keys = [k for k in r if k.endswith("_jitter") and not k.startswith("net_")]
+        return "; ".join(f"{k} {r[k]:.1%}" for k in keys)
