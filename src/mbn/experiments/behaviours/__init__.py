@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mbn.experiments.behaviours.report import claims, write_report
 from mbn.experiments.behaviours.stages.im_full import IMFullStage
 from mbn.experiments.behaviours.stages.mbn3 import MBN3Stage
 from mbn.experiments.behaviours.stages.programs import ProgramsStage
@@ -73,7 +74,10 @@ QUICK: dict[str, dict[str, Any]] = {
 def _results(
     rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
 ) -> dict[str, Any]:
-    return {"tests": {**stages["im_full"]["tests"], **stages["tests3"]["tests"]}}
+    return {
+        "tests": {**stages["im_full"]["tests"], **stages["tests3"]["tests"]},
+        "claims": claims(stages),
+    }
 
 
 #: The experiment ``mbn run new-behaviours`` runs.
@@ -85,4 +89,5 @@ NEW_BEHAVIOURS = Experiment(
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,
+    report=write_report,
 )

@@ -25,7 +25,7 @@ from mbn.experiments.behaviours.stages.im_full import agreement
 from mbn.experiments.behaviours.stages.programs import check_digest
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES
-from mbn.experiments.trials import TrialSpec, run_loaded_trials, summary
+from mbn.experiments.trials import TrialSpec, run_loaded_trials, run_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
 
@@ -68,6 +68,7 @@ class Tests3Stage(Stage):
     name = "tests3"
     key_id = 11
     needs = ("im_full", "programs", "mbn3")
+    outputs = ("records/mbn3_marks.npz",)
     settings = Tests3Settings
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
@@ -106,7 +107,33 @@ class Tests3Stage(Stage):
         for mazes, name in ((new, "mbn3"), (old, "mbn3_two_tiles")):
             specs = _specs("tiles", t, ctx, initial, tuple(mbn3.tile_rules))
             for suffix in SUFFIXES:
-                got, _, _ = run_loaded_trials(mazes[suffix], specs[suffix], loaded)
+                if name == "mbn3" and suffix == "":
+                    # the start marks, recorded for the report's pictures
+                    got, result, _ = run_trials(
+                        mazes[suffix],
+                        specs[suffix],
+                        loaded.controller,
+                        loaded.initial_state,
+                        dt=loaded.dt,
+                        sensors=loaded.sensors,
+                        camera=loaded.camera,
+                        record_every=1,
+                        record_controller=True,
+                    )
+                    traj = result.trajectory
+                    assert traj is not None
+                    ctx.rundir.save_record(
+                        "mbn3_marks",
+                        {
+                            "t": np.asarray(traj.t),
+                            "pose": np.asarray(traj.pose),
+                            "tile": np.asarray(traj.tile),
+                            "pm_y": np.asarray(traj.controller.pm_y),
+                            "success": np.asarray(got["success"]),
+                        },
+                    )
+                else:
+                    got, _, _ = run_loaded_trials(mazes[suffix], specs[suffix], loaded)
                 tests[f"{name}{suffix}"] = summary(got)
             ctx.progress.update(bar, completed=len(rules) + (2 if name != "mbn3" else 1))
         # the interpreter is the one im_full built, in every file the run wrote

@@ -1,0 +1,253 @@
+"""The report of ``mbn run new-behaviours``, from the run folder alone: the claims table (the
+paper's claim, what was measured, whether it holds), every test, the agreement curve, and
+pictures — the three-behaviour MBN's paths in the three-tile maze coloured by the rule in force,
+and its three codes around the tile switches."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from mbn.controllers import MBNControllerSpec, read_controller_spec
+from mbn.experiments.behaviours.stages.im_full import AGREEMENT_TARGET, ROBUST_TARGET
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.document import Section, write_document
+from mbn.io import read_json
+from mbn.networks.ctrnn import firing_rate
+from mbn.world.mazes.load import load_maze
+
+__all__ = ["RULE_COLORS", "claims", "write_report"]
+
+TITLE = "mbn: new behaviours by programs alone"
+#: The colour of each rule's stretch of path.
+RULE_COLORS = {
+    "right": "#d95f02",
+    "left": "#1b66c9",
+    "straight-right": "#1a9850",
+    "straight-left": "#7b3294",
+}
+
+
+def _rate(t: dict[str, Any]) -> str:
+    return f"{t['successes']}/{t['trials']} ({t['success_rate']:.1%})"
+
+
+def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """Paper claim -> measured -> holds, from the stages' data."""
+    im, t3 = stages["im_full"], stages["tests3"]
+    tests = {**im["tests"], **t3["tests"]}
+    out = []
+    full_ok = all(
+        tests[f"im_full_{x}"]["success_rate"] == 1.0
+        and tests[f"im_full_{x}_jitter"]["success_rate"] >= ROBUST_TARGET
+        and tests[f"im_full_{x}_heldout"]["success_rate"] >= ROBUST_TARGET
+        and im["agreement"][f"im_full_{x}_jitter"]["rate"] >= AGREEMENT_TARGET
+        for x in ("rf", "lf")
+    )
+    a = im["agreement"]
+    out.append(
+        {
+            "claim": "an interpreter in which all the connections are programmable (discussion)",
+            "measured": (
+                f"{len(im['connections'])} programmable, {im['neurons']} neurons, tau_m "
+                f"{im['multiplier_tau'] * 1000:.1f} ms, step {im['step'] * 1000:.2f} ms; RF's "
+                f"program {_rate(tests['im_full_rf_jitter'])} jittered, agreement "
+                f"{a['im_full_rf_jitter']['rate']:.1%}; LF's {_rate(tests['im_full_lf_jitter'])}, "
+                f"agreement {a['im_full_lf_jitter']['rate']:.1%}"
+            ),
+            "target": "10/10, >= 95 % jittered and held-out, agreement >= 98 %",
+            "pass": bool(full_ok),
+        }
+    )
+    curve = im.get("curve") or []
+    if curve:
+        lf = [r["agreement_lf"]["rate"] for r in curve]
+        out.append(
+            {
+                "claim": "the more programmable connections, the likelier the interpreter's "
+                "dynamics drift from the network's (discussion)",
+                "measured": (
+                    f"agreement with LF {lf[0]:.1%} with {len(curve[0]['connections'])} "
+                    f"programmable, {lf[-1]:.1%} with {len(curve[-1]['connections'])}; lowest "
+                    f"{min(lf):.1%}"
+                ),
+                "target": "agreement falls as connections are added",
+                "pass": bool(lf[-1] < lf[0] - 0.01),
+            }
+        )
+    for rule in stages["programs"]["rules"]:
+        short = rule.replace("-", "_")
+        ok = (
+            tests[f"im_full_{short}"]["success_rate"] == 1.0
+            and tests[f"im_full_{short}_jitter"]["success_rate"] >= ROBUST_TARGET
+            and tests[f"im_full_{short}_heldout"]["success_rate"] >= ROBUST_TARGET
+        )
+        out.append(
+            {
+                "claim": f"a new behaviour ({rule}) acquired by a program alone, the interpreter "
+                "unchanged (abstract)",
+                "measured": (
+                    f"marks {_rate(tests[f'im_full_{short}'])}, jittered "
+                    f"{_rate(tests[f'im_full_{short}_jitter'])}, held-out "
+                    f"{_rate(tests[f'im_full_{short}_heldout'])}; sha256 unchanged; agreement "
+                    f"with its network {t3['agreement'][f'im_full_{short}_jitter']['rate']:.1%}"
+                ),
+                "target": "marks all, >= 95 % jittered and held-out",
+                "pass": bool(ok),
+            }
+        )
+    ok = all(
+        tests[f"{n}"]["success_rate"] == 1.0
+        and tests[f"{n}_jitter"]["success_rate"] >= ROBUST_TARGET
+        and tests[f"{n}_heldout"]["success_rate"] >= ROBUST_TARGET
+        for n in ("mbn3", "mbn3_two_tiles")
+    )
+    out.append(
+        {
+            "claim": "the MBN incrementally trained to show new behaviours by letting PM learn "
+            "new programs, without modifying IM (abstract)",
+            "measured": (
+                f"three tile kinds ({', '.join(t3['tile_rules'])}): marks {_rate(tests['mbn3'])}, "
+                f"jittered {_rate(tests['mbn3_jitter'])}, held-out "
+                f"{_rate(tests['mbn3_heldout'])}; the paper's two tile kinds: "
+                f"{_rate(tests['mbn3_two_tiles_jitter'])} jittered, "
+                f"{_rate(tests['mbn3_two_tiles_heldout'])} held-out"
+            ),
+            "target": "marks all, >= 95 % jittered and held-out, on both",
+            "pass": bool(ok),
+        }
+    )
+    return out
+
+
+def _paths_figure(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[str, str]]:
+    from matplotlib.lines import Line2D
+
+    from mbn.viz.maze import draw_maze, legend_below
+    from mbn.viz.style import new_figure, save_png
+
+    t3 = stages["tests3"]
+    rec = rundir.load_record("mbn3_marks")
+    maze = load_maze(t3["mazes"]["test"])
+    rules = t3["tile_rules"]
+    initial = t3["initial"] if t3["initial"] != "none" else rules[0]
+    pose, tile = rec["pose"], rec["tile"]
+    fig = new_figure((9, 7.5))
+    ax = fig.add_subplot()
+    draw_maze(maze, ax, junctions=False, title="")
+    for b in range(pose.shape[0]):
+        in_force = [initial if k <= 0 else rules[int(k) - 1] for k in tile[b]]
+        xy = pose[b, :, :2]
+        start = 0
+        for i in range(1, len(in_force) + 1):
+            if i == len(in_force) or in_force[i] != in_force[start]:
+                seg = xy[start : min(i + 1, len(xy))]
+                ax.plot(seg[:, 0], seg[:, 1], color=RULE_COLORS.get(in_force[start], "k"), lw=1.4)
+                start = i
+    ax.set_title(
+        f"Three-behaviour MBN in {maze.name}, from each start mark: the path coloured by the "
+        f"rule in force ({int(np.sum(rec['success']))}/{len(rec['success'])} succeed)",
+        fontsize=10,
+    )
+    handles = [Line2D([], [], color=RULE_COLORS[r], lw=2, label=r) for r in rules]
+    legend_below(fig, handles)
+    file = "figures/mbn3_paths.png"
+    save_png(fig, rundir.root / file)
+    images = [(file, "The three-behaviour MBN's paths, coloured by the rule in force")]
+
+    spec = read_controller_spec(rundir.controller_file("mbn3"))
+    assert isinstance(spec, MBNControllerSpec)
+    pm = spec.program_module
+    codes = np.asarray(firing_rate(pm, jnp.asarray(rec["pm_y"], pm.W.dtype)))
+    switches = (np.diff(tile, axis=1) != 0).sum(1)
+    b = int(np.argmax(switches))
+    fig = new_figure((10, 4.5))
+    ax = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [1, 2]})
+    t = rec["t"]
+    ax[0].step(t, tile[b], where="post", color="C3")
+    ax[0].set_yticks(range(len(rules) + 1), ["none", *[f"{k + 1} col." for k in range(len(rules))]])
+    ax[0].set_ylabel("tile in force")
+    for k, rule in enumerate(rules):
+        ax[1].plot(t, codes[b, :, k], color=RULE_COLORS.get(rule, f"C{k}"), label=f"code {rule}")
+    ax[1].set_ylim(-0.05, 1.05)
+    ax[1].set_xlabel("time (s)")
+    ax[1].set_ylabel("PM code neuron")
+    ax[1].legend(loc="center right", fontsize=8)
+    for change in np.flatnonzero(np.diff(tile[b]) != 0):
+        for panel in ax:
+            panel.axvline(t[int(change) + 1], color="C3", lw=0.8, alpha=0.5)
+    ax[0].set_title(
+        f"The PM's three codes from start mark {b + 1} (red: the tile in force changes)"
+    )
+    file = "figures/mbn3_codes.png"
+    save_png(fig, rundir.root / file)
+    images.append((file, "The program module's codes around the tile switches"))
+    return images
+
+
+def write_report(rundir: RunDir) -> None:
+    """``report.md``, ``report.html`` and the figures of a finished run."""
+    results = read_json(rundir.results)
+    stages = {name: rundir.read_stage(name) for name in results["stages"]}
+    rows = claims(stages)
+    secs = [
+        Section(
+            "What this run did",
+            [
+                f"Seed {results['seed']}. The reproduction's RF and LF; a fully programmable "
+                "interpreter of RF; new rules learned by DE over that fixed interpreter's "
+                "programs alone; a three-behaviour MBN whose program module alone was evolved. "
+                "The interpreter's sha256 "
+                f"({stages['im_full']['sha256'][:16]}…) was checked in every file written. "
+                "docs/behaviours.md describes each stage.",
+            ],
+        ),
+        Section(
+            "Claims",
+            table=(
+                ["claim", "measured", "target", "holds"],
+                [
+                    [c["claim"], c["measured"], c["target"], "yes" if c["pass"] else "no"]
+                    for c in rows
+                ],
+            ),
+            status=[c["pass"] for c in rows],
+        ),
+        Section(
+            "Tests",
+            table=(
+                ["test", "passed", "rate"],
+                [
+                    [name, f"{t['successes']}/{t['trials']}", f"{t['success_rate']:.1%}"]
+                    for name, t in results["tests"].items()
+                ],
+            ),
+        ),
+    ]
+    curve = stages["im_full"].get("curve") or []
+    if curve:
+        secs.append(
+            Section(
+                "Agreement against the number of programmable connections",
+                [
+                    "The interpreter's agreement with RF and LF on the jittered test, connections "
+                    "made programmable one by one from the paper's set."
+                ],
+                table=(
+                    ["programmable", "added", "agreement RF", "agreement LF"],
+                    [
+                        [
+                            str(len(r["connections"])),
+                            r["connections"][-1],
+                            f"{r['agreement_rf']['rate']:.1%}",
+                            f"{r['agreement_lf']['rate']:.1%}",
+                        ]
+                        for r in curve
+                    ],
+                ),
+            )
+        )
+    secs.append(Section("Pictures", images=_paths_figure(rundir, stages)))
+    write_document(rundir.root, "report", TITLE, secs)
