@@ -184,6 +184,27 @@ def _paths_figure(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tup
     file = "figures/mbn3_codes.png"
     save_png(fig, rundir.root / file)
     images.append((file, "The program module's codes around the tile switches"))
+    from mbn.viz.animate import animate_episode
+
+    file = "figures/mbn3.gif"
+    animate_episode(
+        maze,
+        pose[b],
+        rundir.root / file,
+        ranges=rec["ranges"][b],
+        sonars=spec.interpreter_spec.sensors.sonars,
+        camera=rec["camera"][b],
+        tile=tile[b],
+        stalled=rec["stalled"][b],
+        t=t,
+        fps=15.0,
+        max_frames=150,
+        dpi=60,
+        title=f"Three-behaviour MBN from start mark {b + 1}",
+        camera_fov_deg=spec.camera.fov_deg,
+        camera_range=spec.camera.range,
+    )
+    images.append((file, "The three-behaviour MBN switching behaviour at tiles"))
     return images
 
 
