@@ -25,9 +25,9 @@ def im_full_run(quick_run, tmp_path_factory):
     rundir = RunDir(folder)
     rf = read_controller_spec(rundir.controller_file("rf")).net
     lf = read_controller_spec(rundir.controller_file("lf")).net
-    # a short curve (the connections where LF differs, then two more) keeps the test quick
+    # a short curve (the connections where LF differs, then one more) keeps the test quick
     differ = [str(p.connection) for p in differing_connections(rf, lf, margin=0.0)]
-    extra = [c for c in FULL_CONNECTIONS if c not in differ][:2]
+    extra = [c for c in FULL_CONNECTIONS if c not in differ][:1]
     config = NEW_BEHAVIOURS.config(quick=True)
     section = config["im_full"].replace(curve=True, connections=(*extra, *differ))
     data = run_stage(
