@@ -16,7 +16,9 @@ MBN (program module, interpreter and camera) in ``fig4``, which has tiles; batch
 Beside them: the same 21-neuron interpreter simulated by its structure (``interpreter_blocks``:
 the neurons beside a batch of multipliers, :mod:`mbn.networks.structured`), and the fully
 programmable interpreter of the follower genome (its 12 connections, 75 neurons) simulated so
-(``interpreter_full``).
+(``interpreter_full``); and as ``mbn run new-behaviours`` runs it (14 connections, multipliers at
+tau/40, 80 sub-steps: ``interpreter_full_80``) beside the follower at 80 sub-steps
+(``follower_80``).
 
 Prints one JSON line; compile time is measured apart from run time.
 
@@ -160,11 +162,30 @@ def workload_specs() -> dict:
         programs={"right": np.asarray(full.program_of(rf), float).tolist()},
         simulation="blocks",
     )
+    # as `mbn run new-behaviours` runs it: 14 connections (the genome's and the turning
+    # neuron's two other inputs), multipliers at tau/40, 80 sub-steps; beside the follower at 80
+    fast = build_interpreter(
+        rf,
+        [
+            Programmable(c, -20.0, 20.0)
+            for c in (*genome, Connection("WE", 1, 0), Connection("WE", 1, 2))
+        ],
+        load_default(6),
+        tau_ratio=0.025,
+    )
+    fast_spec = InterpreterControllerSpec(
+        interpreter=fast,
+        programs={"right": np.asarray(fast.program_of(rf), float).tolist()},
+        simulation="blocks",
+        substeps=80,
+    )
     return {
         "follower": CTRNNControllerSpec(net=rf),
         "interpreter": im,
         "interpreter_blocks": dataclasses.replace(im, simulation="blocks"),
         "interpreter_full": full_spec,
+        "follower_80": CTRNNControllerSpec(net=rf, substeps=80),
+        "interpreter_full_80": fast_spec,
         "mbn": MBNControllerSpec(
             interpreter_spec=im,
             program_module=pm,
@@ -192,6 +213,8 @@ def workload(steps: int, repeats: int, parts: int = 1) -> dict:
         ("interpreter", crossroads),
         ("interpreter_blocks", crossroads),
         ("interpreter_full", crossroads),
+        ("follower_80", crossroads),
+        ("interpreter_full_80", crossroads),
         ("mbn", fig4),
     )
     for name, mazes in cases:
