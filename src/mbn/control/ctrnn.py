@@ -19,7 +19,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
-from mbn.networks.ctrnn import CTRNN, _rk4, euler_step, euler_steps, firing_rate, rk4_step
+from mbn.networks.ctrnn import CTRNN, euler_step, euler_steps, firing_rate, integrator, rk4_step
 from mbn.networks.structured import BlockNet, block_euler_steps, block_field, block_rates
 
 if TYPE_CHECKING:
@@ -113,9 +113,9 @@ def ctrnn_controller(
             if method == "euler":
                 y = block_euler_steps(held, y, u, h, substeps)
             else:
-                blocks = held
+                blocks, rk4 = held, integrator("rk4")
                 for _ in range(substeps):
-                    y = _rk4(lambda z: block_field(blocks, z, u), y, h)
+                    y = rk4(lambda z: block_field(blocks, z, u), y, h)
             rate = block_rates(held, y)
         else:
             net = cast(CTRNN, held)

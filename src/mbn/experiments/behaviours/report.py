@@ -18,16 +18,9 @@ from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["RULE_COLORS", "claims", "write_report"]
+__all__ = ["claims", "write_report"]
 
 TITLE = "mbn: new behaviours by programs alone"
-#: The colour of each rule's stretch of path.
-RULE_COLORS = {
-    "right": "#d95f02",
-    "left": "#1b66c9",
-    "straight-right": "#1a9850",
-    "straight-left": "#7b3294",
-}
 
 
 def _rate(t: dict[str, Any]) -> str:
@@ -122,70 +115,44 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
-def _paths_figure(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[str, str]]:
-    from matplotlib.lines import Line2D
-
-    from mbn.viz.maze import draw_maze, legend_below
-    from mbn.viz.style import new_figure, save_png
+def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[str, str]]:
+    from mbn.viz.animate import animate_episode
+    from mbn.viz.behaviours import code_traces, rule_paths
 
     t3 = stages["tests3"]
     rec = rundir.load_record("mbn3_marks")
     maze = load_maze(t3["mazes"]["test"])
     rules = t3["tile_rules"]
     initial = t3["initial"] if t3["initial"] != "none" else rules[0]
-    pose, tile = rec["pose"], rec["tile"]
-    fig = new_figure((9, 7.5))
-    ax = fig.add_subplot()
-    draw_maze(maze, ax, junctions=False, title="")
-    for b in range(pose.shape[0]):
-        in_force = [initial if k <= 0 else rules[int(k) - 1] for k in tile[b]]
-        xy = pose[b, :, :2]
-        start = 0
-        for i in range(1, len(in_force) + 1):
-            if i == len(in_force) or in_force[i] != in_force[start]:
-                seg = xy[start : min(i + 1, len(xy))]
-                ax.plot(seg[:, 0], seg[:, 1], color=RULE_COLORS.get(in_force[start], "k"), lw=1.4)
-                start = i
-    ax.set_title(
+    pose, tile, t = rec["pose"], rec["tile"], rec["t"]
+    images = []
+    file = "figures/mbn3_paths.png"
+    rule_paths(
+        maze,
+        pose,
+        tile,
+        rules,
+        initial,
         f"Three-behaviour MBN in {maze.name}, from each start mark: the path coloured by the "
         f"rule in force ({int(np.sum(rec['success']))}/{len(rec['success'])} succeed)",
-        fontsize=10,
+        rundir.root / file,
     )
-    handles = [Line2D([], [], color=RULE_COLORS[r], lw=2, label=r) for r in rules]
-    legend_below(fig, handles)
-    file = "figures/mbn3_paths.png"
-    save_png(fig, rundir.root / file)
-    images = [(file, "The three-behaviour MBN's paths, coloured by the rule in force")]
-
+    images.append((file, "The three-behaviour MBN's paths, coloured by the rule in force"))
     spec = read_controller_spec(rundir.controller_file("mbn3"))
     assert isinstance(spec, MBNControllerSpec)
     pm = spec.program_module
     codes = np.asarray(firing_rate(pm, jnp.asarray(rec["pm_y"], pm.W.dtype)))
-    switches = (np.diff(tile, axis=1) != 0).sum(1)
-    b = int(np.argmax(switches))
-    fig = new_figure((10, 4.5))
-    ax = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [1, 2]})
-    t = rec["t"]
-    ax[0].step(t, tile[b], where="post", color="C3")
-    ax[0].set_yticks(range(len(rules) + 1), ["none", *[f"{k + 1} col." for k in range(len(rules))]])
-    ax[0].set_ylabel("tile in force")
-    for k, rule in enumerate(rules):
-        ax[1].plot(t, codes[b, :, k], color=RULE_COLORS.get(rule, f"C{k}"), label=f"code {rule}")
-    ax[1].set_ylim(-0.05, 1.05)
-    ax[1].set_xlabel("time (s)")
-    ax[1].set_ylabel("PM code neuron")
-    ax[1].legend(loc="center right", fontsize=8)
-    for change in np.flatnonzero(np.diff(tile[b]) != 0):
-        for panel in ax:
-            panel.axvline(t[int(change) + 1], color="C3", lw=0.8, alpha=0.5)
-    ax[0].set_title(
-        f"The PM's three codes from start mark {b + 1} (red: the tile in force changes)"
-    )
+    b = int(np.argmax((np.diff(tile, axis=1) != 0).sum(1)))  # the mark with most switches
     file = "figures/mbn3_codes.png"
-    save_png(fig, rundir.root / file)
+    code_traces(
+        t,
+        tile[b],
+        codes[b],
+        rules,
+        f"The PM's three codes from start mark {b + 1} (red: the tile in force changes)",
+        rundir.root / file,
+    )
     images.append((file, "The program module's codes around the tile switches"))
-    from mbn.viz.animate import animate_episode
-
     file = "figures/mbn3.gif"
     animate_episode(
         maze,
@@ -270,5 +237,5 @@ def write_report(rundir: RunDir) -> None:
                 ),
             )
         )
-    secs.append(Section("Pictures", images=_paths_figure(rundir, stages)))
+    secs.append(Section("Pictures", images=_pictures(rundir, stages)))
     write_document(rundir.root, "report", TITLE, secs)
