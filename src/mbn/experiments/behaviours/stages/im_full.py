@@ -60,7 +60,7 @@ class IMFullSettings(Settings):
         FULL_CONNECTIONS,
         doc="the programmable connections, 0-based ('W[i,j]', 'WE[i,k]'), in the order the "
         "agreement curve adds them",
-        source="issue: every connection of the follower genome, and LF's",
+        source="docs/behaviours.md (every connection of the follower genome, and LF's)",
     )
     bound: float = setting(
         20.0,

@@ -52,7 +52,7 @@ class MBN3Settings(Settings):
     tile_rules: tuple[str, ...] = setting(
         ("right", "left", "straight-right"),
         doc="the rule a tile of 1, 2, 3 colours puts in force (programs of im_full_programs)",
-        source="issue: one-, two-, three-colour tiles to RF, LF, straight-right",
+        source="docs/behaviours.md",
     )
     generations: int = setting(
         1500,

@@ -53,7 +53,7 @@ class ProgramsSettings(Settings):
     rules: tuple[str, ...] = setting(
         ("straight-right", "straight-left"),
         doc="the rules learned by programs alone (names or orders such as 'SRL')",
-        source="issue: straight-right and straight-left",
+        source="docs/behaviours.md",
     )
     generations: int = setting(
         300, doc="DE generations per rule", low=0, high=100_000, source="as [rf] generations"
