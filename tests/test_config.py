@@ -14,6 +14,7 @@ from mbn.config import Settings, read_toml, setting, settings_to_dict
 from mbn.errors import MbnInputError
 from mbn.experiments.reproduce import REPRODUCE
 from mbn.experiments.reproduce.settings import QUICK
+from mbn.experiments.reproduce.stages.lf import LFSettings
 
 
 @dataclass(frozen=True)
@@ -80,7 +81,7 @@ def test_a_settings_file_overrides_the_defaults_and_the_quick_preset(tmp_path):
     assert config["lf"].generations == QUICK["lf"]["generations"]
     assert config.quick and config["run"].precision == "float32"
     full = REPRODUCE.config(document=read_toml(path))
-    assert full["lf"].generations == 200 and not full.quick
+    assert full["lf"].generations == LFSettings().generations and not full.quick
     # [run] quick = true in the file is --quick
     path.write_text("[run]\nquick = true\n")
     assert REPRODUCE.config(document=read_toml(path)) == REPRODUCE.config(quick=True)
