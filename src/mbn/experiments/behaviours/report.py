@@ -56,18 +56,20 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     )
     curve = im.get("curve") or []
     if curve:
+        rf = [r["agreement_rf"]["rate"] for r in curve]
         lf = [r["agreement_lf"]["rate"] for r in curve]
+        first, last = len(curve[0]["connections"]), len(curve[-1]["connections"])
+        worst = [min(a, b) for a, b in zip(rf, lf, strict=True)]
         out.append(
             {
                 "claim": "the more programmable connections, the likelier the interpreter's "
                 "dynamics drift from the network's (discussion)",
                 "measured": (
-                    f"agreement with LF {lf[0]:.1%} with {len(curve[0]['connections'])} "
-                    f"programmable, {lf[-1]:.1%} with {len(curve[-1]['connections'])}; lowest "
-                    f"{min(lf):.1%}"
+                    f"agreement with RF {rf[0]:.1%} with {first} programmable, {rf[-1]:.1%} with "
+                    f"{last}; with LF {lf[0]:.1%}, {lf[-1]:.1%}"
                 ),
-                "target": "agreement falls as connections are added",
-                "pass": bool(lf[-1] < lf[0] - 0.01),
+                "target": "agreement falls as connections are added (by more than a point)",
+                "pass": bool(worst[-1] < worst[0] - 0.01),
             }
         )
     for rule in stages["programs"]["rules"]:
