@@ -50,6 +50,7 @@ __all__ = [
     "TYPICAL_SPEED",
     "TrialGroup",
     "TrialSpec",
+    "agreement",
     "judge",
     "longest_route",
     "route_seconds",
@@ -253,6 +254,13 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         "stall": stall,
         "exits": np.where(passed, exits, -1),
     }
+
+
+def agreement(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:
+    """How often two controllers' verdicts on the same trials took the same exits at every
+    judged junction: ``trials``, ``same_branches``, ``rate``."""
+    same = np.all(np.asarray(a["exits"]) == np.asarray(b["exits"]), axis=1)
+    return {"trials": int(same.size), "same_branches": int(same.sum()), "rate": float(same.mean())}
 
 
 def summary(verdict: dict[str, np.ndarray]) -> dict[str, float | int]:

@@ -204,14 +204,14 @@ def _x1(net: BlockNet, r0: Array, data: Array) -> Array:
     return jnp.stack(cols, axis=-1)
 
 
-def _into(net: BlockNet, out: Array) -> Array:
-    """The multipliers' weighted outputs ``(..., K)`` summed into their targets ``(..., n)``."""
-    n = net.num_original
+def _into(net: BlockNet, out: Array, axis: int = -1) -> Array:
+    """The multipliers' weighted outputs (``K`` along ``axis``) summed into their targets
+    (``n`` along ``axis``)."""
     rows = []
-    for i in range(n):
-        terms = [out[..., c] for c in range(net.num_multipliers) if net.target[c] == i]
-        rows.append(sum(terms[1:], terms[0]) if terms else jnp.zeros_like(out[..., 0]))
-    return jnp.stack(rows, axis=-1)
+    for i in range(net.num_original):
+        terms = [jnp.take(out, c, axis) for c in range(net.num_multipliers) if net.target[c] == i]
+        rows.append(sum(terms[1:], terms[0]) if terms else jnp.zeros_like(jnp.take(out, 0, axis)))
+    return jnp.stack(rows, axis=axis)
 
 
 def block_field(net: BlockNet, y: ArrayLike, inputs: ArrayLike) -> Array:
@@ -341,7 +341,7 @@ def _neuron_major(net: BlockNet, yt: Array, u: Array, dt: float, steps: int) -> 
     target = np.asarray(net.target)
     k_out = (dt / c.tau)[target] * net.out_weight  # (K,)
     # a multiplier's output r = (1 + t) / 2 into its target: the constant half is fixed
-    fixed0 = fixed0 + _into_cols(net, 0.5 * k_out[:, None] * jnp.ones_like(data[:1]))
+    fixed0 = fixed0 + _into(net, 0.5 * k_out[:, None] * jnp.ones_like(data[:1]), axis=0)
     out_w = 0.5 * k_out[:, None]
     x1w = km * net.x1_weight[:, :, None]
     g0, gb0 = 0.5 * c.gain[:, None], 0.5 * (c.gain * c.bias)[:, None]
@@ -360,7 +360,7 @@ def _neuron_major(net: BlockNet, yt: Array, u: Array, dt: float, steps: int) -> 
                 for j, k in zip(net.x1_neuron, net.x1_input, strict=True)
             ]
         )  # (K, B)
-        into = _into_cols(net, out_w * tm[:, net.output])
+        into = _into(net, out_w * tm[:, net.output], axis=0)
         y0 = keep0 * y0 + _cols(W0, t0) + fixed0 + into
         mix = Wm[:, :, 0] * tm[:, None, 0]
         for l_ in range(1, q):
@@ -378,12 +378,3 @@ def _cols(a: Array, x: Array) -> Array:
     for j in range(1, a.shape[1]):
         out = out + a[:, j, None] * x[None, j]
     return out
-
-
-def _into_cols(net: BlockNet, out: Array) -> Array:
-    """:func:`_into` on columns: ``out (K, B)`` -> ``(n, B)``."""
-    rows = []
-    for i in range(net.num_original):
-        terms = [out[c] for c in range(net.num_multipliers) if net.target[c] == i]
-        rows.append(sum(terms[1:], terms[0]) if terms else jnp.zeros_like(out[0]))
-    return jnp.stack(rows)

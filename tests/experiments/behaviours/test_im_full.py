@@ -12,9 +12,9 @@ from mbn.experiments.behaviours import NEW_BEHAVIOURS
 from mbn.experiments.behaviours.stages.im_full import (
     FULL_CONNECTIONS,
     IMFullSettings,
-    agreement,
     nested_sets,
 )
+from mbn.experiments.trials import agreement
 from mbn.networks.programmable import Connection
 
 

@@ -23,7 +23,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES, test_specs
 from mbn.experiments.reproduce.stages.common import MADE_BY, read_network
-from mbn.experiments.trials import run_loaded_trials, summary
+from mbn.experiments.trials import agreement, run_loaded_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import (
@@ -35,7 +35,7 @@ from mbn.networks.programmable import (
 )
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["FULL_CONNECTIONS", "IMFullSettings", "IMFullStage", "agreement", "nested_sets"]
+__all__ = ["FULL_CONNECTIONS", "IMFullSettings", "IMFullStage", "nested_sets"]
 
 #: The follower genome (W 3 x 3, WE on the diagonal) and the turning neuron's two other inputs
 #: (the LF search's candidates reach them), 0-based.
@@ -109,12 +109,6 @@ def nested_sets(first: list[Connection], order: list[Connection]) -> list[list[C
             current.append(c)
             sets.append(list(current))
     return sets
-
-
-def agreement(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:
-    """How often two controllers took the same exits at every judged junction, trial by trial."""
-    same = np.all(np.asarray(a["exits"]) == np.asarray(b["exits"]), axis=1)
-    return {"trials": int(same.size), "same_branches": int(same.sum()), "rate": float(same.mean())}
 
 
 def _interpreter(rf: CTRNN, conns: list[Connection], mul: Any, s: IMFullSettings) -> Interpreter:

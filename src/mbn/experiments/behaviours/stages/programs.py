@@ -9,6 +9,7 @@ another key, up to ``[validation] attempts`` times, and the best kept."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -166,16 +167,7 @@ class ProgramsStage(Stage):
                 )
                 program = np.clip(np.asarray(run.data["best_genome"], dtype=float), 0.0, 1.0)
                 net = program_network(interp, base, program)
-                candidate = InterpreterControllerSpec(
-                    interpreter=interp,
-                    programs={rule: program.tolist()},
-                    sensors=spec.sensors,
-                    motor=spec.motor,
-                    dt=spec.dt,
-                    substeps=spec.substeps,
-                    method=spec.method,
-                    simulation=spec.simulation,
-                )
+                candidate = dataclasses.replace(spec, programs={rule: program.tolist()})
                 v_im = validate(ctx, candidate, rule, rule)
                 v_net = validate(ctx, CTRNNControllerSpec(net=net), rule)
                 tries.append(
@@ -217,17 +209,8 @@ class ProgramsStage(Stage):
                 "network": net.to_dict(),
             }
             check_digest(interp, digest, f"programs ({rule})")
-        out = InterpreterControllerSpec(
-            interpreter=interp,
-            programs=programs,
-            sensors=spec.sensors,
-            motor=spec.motor,
-            dt=spec.dt,
-            substeps=spec.substeps,
-            method=spec.method,
-            simulation=spec.simulation,
-            metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest},
-        )
+        meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest}
+        out = dataclasses.replace(spec, programs=programs, metadata=meta)
         save_controller(ctx.rundir.controller_file("im_full_programs"), out)
         # the file written holds the same interpreter: checked unchanged at the end
         again = read_controller_spec(ctx.rundir.controller_file("im_full_programs"))

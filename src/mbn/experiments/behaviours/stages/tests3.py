@@ -21,11 +21,10 @@ from mbn.controllers import (
     make_controller,
     read_controller_spec,
 )
-from mbn.experiments.behaviours.stages.im_full import agreement
 from mbn.experiments.behaviours.stages.programs import check_digest
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES
-from mbn.experiments.trials import TrialSpec, run_loaded_trials, run_trials, summary
+from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
 

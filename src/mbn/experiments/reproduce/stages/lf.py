@@ -37,6 +37,7 @@ from mbn.experiments.reproduce.stages.lf_search import (
 )
 from mbn.experiments.reproduce.stages.rf import evolution_summary
 from mbn.experiments.stats import wilson_interval
+from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection, build_interpreter, differing_connections
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
@@ -311,16 +312,14 @@ class LFStage(Stage):
         emulated = validation_verdict(ctx, im, "left", "left")
         data["validation"] = validation_record(ctx, alone)
         data["validation_im"] = validation_record(ctx, emulated)
-        same = np.all(np.asarray(alone["exits"]) == np.asarray(emulated["exits"]), axis=1)
+        same = agreement(alone, emulated)
         data["validation_agreement"] = {
-            "trials": int(same.size),
-            "same_branches": int(same.sum()),
-            "rate": float(same.mean()),
+            **same,
             # not significantly below the target: 80 trials cannot tell 98 % from 99 % (a
             # candidate that takes LF's exits in 98.5 % of all trials shows 79 of 80 or fewer
             # in 34 % of samples); the upper end of the Wilson 95 % interval must reach it
             "meets_target": bool(
-                wilson_interval(int(same.sum()), int(same.size))[1]
+                wilson_interval(same["same_branches"], same["trials"])[1]
                 >= ctx.section("validation").agreement
             ),
         }

@@ -29,6 +29,7 @@ from mbn.experiments.reproduce.protocol import (
     test_specs,
 )
 from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups, summary
+from mbn.experiments.trials import agreement as same_exits
 from mbn.networks.ctrnn import firing_rate
 from mbn.paper import published_lf, published_rf
 from mbn.world.mazes.load import load_maze
@@ -175,14 +176,9 @@ class TestsStage(Stage):
         agreement = {}
         for im_name, net_name in (("im_rf", "rf"), ("im_lf", "lf")):
             for suffix in SUFFIXES:
-                a = verdicts[f"{im_name}{suffix}"]["exits"]
-                bb = verdicts[f"{net_name}{suffix}"]["exits"]
-                same = np.all(a == bb, axis=1)
-                agreement[f"{im_name}{suffix}"] = {
-                    "trials": int(same.size),
-                    "same_branches": int(same.sum()),
-                    "rate": float(same.mean()),
-                }
+                agreement[f"{im_name}{suffix}"] = same_exits(
+                    verdicts[f"{im_name}{suffix}"], verdicts[f"{net_name}{suffix}"]
+                )
         details = {
             name: {
                 "success": verdicts[name]["success"].astype(int).tolist(),
