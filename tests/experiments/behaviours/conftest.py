@@ -25,11 +25,14 @@ def im_full_run(quick_run, tmp_path_factory):
     rundir = RunDir(folder)
     rf = read_controller_spec(rundir.controller_file("rf")).net
     lf = read_controller_spec(rundir.controller_file("lf")).net
-    # a short curve (the connections where LF differs, then one more) keeps the test quick
+    # a short curve (the connections where LF differs, then one more) and the reproduction's
+    # interpreter step (tau/10 at 20 sub-steps, not the default tau/40 at 80) keep it quick
     differ = [str(p.connection) for p in differing_connections(rf, lf, margin=0.0)]
     extra = [c for c in FULL_CONNECTIONS if c not in differ][:1]
     config = NEW_BEHAVIOURS.config(quick=True)
-    section = config["im_full"].replace(curve=True, connections=(*extra, *differ))
+    section = config["im_full"].replace(
+        curve=True, connections=(*extra, *differ), tau_ratio=0.1, substeps=20
+    )
     data = run_stage(
         NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=replace_section(config, section)
     )

@@ -48,6 +48,8 @@ def test_settings_refuse_bad_connections():
         IMFullSettings(connections=("W[1,1]", "W[1,1]"))
     assert len(FULL_CONNECTIONS) == 14  # the default: the genome's 12 and the turning neuron's
     assert IMFullSettings().connections == FULL_CONNECTIONS
+    # the default step: multipliers at tau/40, 80 sub-steps (h / tau_m = 0.1)
+    assert (IMFullSettings().tau_ratio, IMFullSettings().substeps) == (0.025, 80)
 
 
 def test_im_full_writes_a_programmable_interpreter_of_rf(im_full_run):
@@ -58,7 +60,7 @@ def test_im_full_writes_a_programmable_interpreter_of_rf(im_full_run):
     assert interp.num_neurons == 3 + len(conns) * 6 == data["neurons"]
     np.testing.assert_allclose(np.asarray(interp.lower), -20.0)
     np.testing.assert_allclose(np.asarray(interp.upper), 20.0)
-    assert spec.simulation == "blocks" and spec.substeps == 80
+    assert spec.simulation == "blocks" and spec.substeps == 20  # the fixture's
     assert spec.metadata["sha256"] == interp.digest() == data["sha256"]
     # its programs are RF's and LF's weights, encoded (eq. 2)
     rf = read_controller_spec(rundir.controller_file("rf")).net
@@ -84,5 +86,5 @@ def test_im_full_records_tests_agreement_and_the_curve(im_full_run):
     # same network, summed in another order) on the jittered test
     full = data["agreement"]["im_full_lf_jitter"]["same_branches"]
     assert abs(curve[-1]["agreement_lf"]["same_branches"] - full) <= 1
-    assert data["step"] == pytest.approx(0.1 / 80)
-    assert data["multiplier_tau"] == pytest.approx(0.025 * 0.5)
+    assert data["step"] == pytest.approx(0.1 / 20)  # the fixture's settings
+    assert data["multiplier_tau"] == pytest.approx(0.1 * 0.5)

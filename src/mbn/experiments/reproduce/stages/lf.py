@@ -64,17 +64,17 @@ def candidate_name(round_: int, index: int) -> str:
 
 
 def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:
-    """The key LF candidates are ranked by (the highest first): those that meet the validation
-    target alone and as the interpreter's program, and the agreement target between the two, by
-    their fitness; before the others, by the worse of their two successes there; the first of
-    equals."""
+    """The key LF candidates (and the members of one finalist's population) are ranked by (the
+    highest first): those that meet the validation target alone and as the interpreter's
+    program, and the agreement target between the two, by their fitness; before the others, by
+    the worse of their two successes there; the first of equals."""
     rates = (candidate["validation"]["success_rate"], candidate["validation_im"]["success_rate"])
     meets = (
         candidate["validation"]["meets_target"]
         and candidate["validation_im"]["meets_target"]
         and candidate["validation_agreement"]["meets_target"]
     )
-    return (meets, 0.0 if meets else min(rates), candidate["best_fitness"], -index)
+    return (meets, 0.0 if meets else min(rates), candidate["fitness"], -index)
 
 
 @dataclass(frozen=True)
@@ -104,6 +104,14 @@ class LFSettings(Settings):
         high=20,
         source="docs/reproduce.md (about half the RFs make no left-follower three connections "
         "away)",
+    )
+    members: int = setting(
+        3,
+        doc="of each finalist's final population, validated alone, the best this many by that "
+        "validation are checked as the interpreter's program; the one kept is the finalist",
+        low=1,
+        high=1000,
+        source="docs/reproduce.md (a population's fittest is not its best in a maze)",
     )
     variants: int = setting(
         4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
@@ -235,6 +243,8 @@ class LFStage(Stage):
                 "rf_restart": x["rf_restart"],
                 "connections": x["data"]["connections"],
                 "best_fitness": x["data"]["best_fitness"],
+                "member": x["data"]["member"],
+                "fitness": x["data"]["fitness"],
                 "validation": x["data"]["validation"],
                 "validation_im": x["data"]["validation_im"],
                 "validation_agreement": x["data"]["validation_agreement"],
@@ -282,8 +292,11 @@ class LFStage(Stage):
         checkpoint: str,
         mul: Any,
     ) -> dict[str, Any]:
-        """LF re-evolved on ``rf`` from one triple's search population, then checked alone
-        and as the interpreter's program on the validation maze."""
+        """LF re-evolved on ``rf`` from one triple's search population; every member of its final
+        population checked alone on the validation maze, the best ``[lf] members`` of them by
+        that also as the interpreter's program, and the best of those by :func:`candidate_rank`
+        kept (``member``, its ``fitness`` and ``genome``; ``best_fitness`` and ``best_genome``
+        stay the DE's)."""
         conns = tuple(Connection.parse(c) for c in row["connections"])
         genome = Genome.around(rf, conns)
         start = ctx.rundir.load_checkpoint(checkpoint)  # warm start: the search population
@@ -299,31 +312,80 @@ class LFStage(Stage):
             key=key,
             save=False,
         )
-        net = data.pop("network")
+        data.pop("network")
         data["connections_paper_notation"] = [c.paper_name for c in conns]
-        alone = validation_verdict(ctx, CTRNNControllerSpec(net=net, behavior="left"), "left")
-        # The interpreter built on RF with this LF, running LF's program: an LF whose behaviour
-        # the multipliers' small errors break fails here, or takes other exits than LF does.
+        # The fittest genome on the crossroads is not always the population's best in a maze:
+        # every member of the final population is validated alone, and the best ``members`` of
+        # them by that (the fitter first of equals) are checked as the interpreter's program.
+        final = ctx.rundir.load_checkpoint(name).state
+        population = np.asarray(final.population)
+        fitness = np.asarray(final.fitness, dtype=float)
+        by_fitness = sorted(range(len(fitness)), key=lambda i: (-fitness[i], i))
+        alone_all = {
+            i: validation_verdict(
+                ctx, CTRNNControllerSpec(net=genome.network(population[i]), behavior="left"), "left"
+            )
+            for i in by_fitness
+        }
+        successes = {i: int(np.sum(alone_all[i]["success"])) for i in by_fitness}
+        checked = sorted(by_fitness, key=lambda i: -successes[i])[: s.members]
+        members = []
+        for i in checked:
+            net = genome.network(population[i])
+            members.append(
+                {"member": i, "fitness": float(fitness[i]), "net": net}
+                | self._emulated(ctx, rf, net, alone_all[i], mul)
+            )
+        k = max(range(len(members)), key=lambda m: candidate_rank(members[m], m))
+        kept = members[k]
+        net = kept.pop("net")
+        data.update({key: kept[key] for key in ("member", "fitness")})
+        data.update(score(ctx, net, "left", s.variants, s.approaches))
+        data["genome"] = population[kept["member"]].tolist()
+        for key in ("validation", "validation_im", "validation_agreement"):
+            data[key] = kept[key]
+        data["population_validation"] = {
+            "successes": [successes[i] for i in by_fitness],
+            "by": "fitness, the fittest first",
+            "trials": len(alone_all[by_fitness[0]]["success"]),
+            "checked": [
+                {"member": m["member"], "fitness": m["fitness"]}
+                | {key: m[key]["successes"] for key in ("validation", "validation_im")}
+                | {"agreement": m["validation_agreement"]["same_branches"]}
+                for m in members
+            ],
+        }
+        return {"data": data, "net": net, "rf_restart": restart}
+
+    def _emulated(
+        self, ctx: StageContext, rf: Any, net: Any, alone: dict[str, np.ndarray], mul: Any
+    ) -> dict[str, Any]:
+        """The validation records of an LF (its verdict alone given) and of the interpreter
+        built on RF with it, running its program, and their agreement."""
+        # An LF whose behaviour the multipliers' small errors break fails here, or takes other
+        # exits than LF does.
         interp = build_interpreter(rf, differing_connections(rf, net, margin=0.0), mul)
         im = InterpreterControllerSpec(
             interpreter=interp,
             programs={"left": np.asarray(interp.program_of(net), dtype=float).tolist()},
         )
         emulated = validation_verdict(ctx, im, "left", "left")
-        data["validation"] = validation_record(ctx, alone)
-        data["validation_im"] = validation_record(ctx, emulated)
         same = agreement(alone, emulated)
-        data["validation_agreement"] = {
-            **same,
-            # not significantly below the target: 80 trials cannot tell 98 % from 99 % (a
-            # candidate that takes LF's exits in 98.5 % of all trials shows 79 of 80 or fewer
-            # in 34 % of samples); the upper end of the Wilson 95 % interval must reach it
-            "meets_target": bool(
-                wilson_interval(same["same_branches"], same["trials"])[1]
-                >= ctx.section("validation").agreement
-            ),
+        return {
+            "validation": validation_record(ctx, alone),
+            "validation_im": validation_record(ctx, emulated),
+            "validation_agreement": {
+                **same,
+                # not significantly below the target: 80 trials cannot tell 98 % from 99 % (a
+                # candidate that takes LF's exits in 98.5 % of all trials shows 79 of 80 or
+                # fewer in 34 % of samples); the upper end of the Wilson 95 % interval must
+                # reach it
+                "meets_target": bool(
+                    wilson_interval(same["same_branches"], same["trials"])[1]
+                    >= ctx.section("validation").agreement
+                ),
+            },
         }
-        return {"data": data, "net": net, "rf_restart": restart}
 
     def summary(self, data: dict[str, Any]) -> str:
         return evolution_summary(data, connections=True)
