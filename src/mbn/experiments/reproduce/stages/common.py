@@ -291,6 +291,40 @@ def validation_verdict(
     return verdict
 
 
+def validation_verdicts(ctx: StageContext, specs: list[Any], behavior: str) -> list[dict[str, Any]]:
+    """:func:`validation_verdict` of several controllers of one kind (e.g. a population of
+    followers), in one batched rollout: one compilation, the same trials for each."""
+    from mbn.controllers import make_controller
+    from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups
+    from mbn.world.mazes.load import load_maze
+
+    v = ctx.section("validation")
+    t = ctx.section("tests")
+    loaded = [
+        make_controller(spec, None, where=f"{ctx.name} candidate", check_stability=False)
+        for spec in specs
+    ]
+    trial = TrialSpec(
+        behavior=behavior,
+        initial="right",
+        repeats=v.jitter_per_mark,
+        seconds=t.seconds,
+        seed=ctx.seeds["validation_jitter"],
+    )
+    groups = [TrialGroup(f"c{i}", 0, trial, c.initial_state) for i, c in enumerate(loaded)]
+    first = loaded[0]
+    verdicts, _, _, _ = run_trial_groups(
+        [load_maze(v.maze)],
+        groups,
+        first.controller,
+        seconds=t.seconds,
+        dt=first.dt,
+        sensors=first.sensors,
+        camera=first.camera,
+    )
+    return [verdicts[g.name] for g in groups]
+
+
 def validation_record(ctx: StageContext, verdict: dict[str, np.ndarray]) -> dict[str, Any]:
     """What :func:`validate` records of a verdict: trials, successes, rate, target met."""
     from mbn.experiments.trials import summary

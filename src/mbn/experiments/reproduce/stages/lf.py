@@ -30,6 +30,7 @@ from mbn.experiments.reproduce.stages.common import (
     validate,
     validation_record,
     validation_verdict,
+    validation_verdicts,
 )
 from mbn.experiments.reproduce.stages.lf_search import (
     search_checkpoint,
@@ -321,12 +322,15 @@ class LFStage(Stage):
         population = np.asarray(final.population)
         fitness = np.asarray(final.fitness, dtype=float)
         by_fitness = sorted(range(len(fitness)), key=lambda i: (-fitness[i], i))
-        alone_all = {
-            i: validation_verdict(
-                ctx, CTRNNControllerSpec(net=genome.network(population[i]), behavior="left"), "left"
-            )
-            for i in by_fitness
-        }
+        verdicts = validation_verdicts(
+            ctx,
+            [
+                CTRNNControllerSpec(net=genome.network(population[i]), behavior="left")
+                for i in by_fitness
+            ],
+            "left",
+        )
+        alone_all = dict(zip(by_fitness, verdicts, strict=True))
         successes = {i: int(np.sum(alone_all[i]["success"])) for i in by_fitness}
         checked = sorted(by_fitness, key=lambda i: -successes[i])[: s.members]
         members = []
