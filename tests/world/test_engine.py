@@ -315,7 +315,10 @@ def _reference_camera(maze: Maze, pose: np.ndarray, cfg: E.CameraConfig):
     return seen, margin
 
 
-@pytest.mark.parametrize("view_range", [0.8, 3.0])
+@pytest.mark.parametrize(
+    "view_range",
+    [0.8, pytest.param(3.0, marks=pytest.mark.slow)],  # 0.8 m: the default camera
+)
 def test_camera_agrees_with_exact_geometry_in_the_test_mazes(view_range):
     """The engine's blob finder (field of view by the cosine of the angle off the axis, rays
     marched only as far as the camera reads) sees what exact geometry with angles sees, from

@@ -158,6 +158,7 @@ def _episode(world: E.World, mazes: list[Maze], start: np.ndarray, camera: E.Cam
     )
 
 
+@pytest.mark.slow  # 25 s; the cheaper equivalence tests above stay in CI
 def test_rollout_on_the_segment_path_equals_the_lattice(monkeypatch):
     maze = _tiled_maze()
     lat = E.compile_mazes([maze])

@@ -263,6 +263,7 @@ def test_quick_run_report_is_self_contained(quick_run):
     assert seconds < 300  # the target is < 2 min on 2 cores; this only catches a runaway
 
 
+@pytest.mark.slow  # 1.5 min; resuming is tested on small pipelines too (tests/experiments/pipeline)
 def test_resume_after_kill_gives_the_same_results(quick_run, tmp_path):
     """Kill -9 in the middle of the LF evolution, resume, compare results.json with the
     uninterrupted run of the same seed."""

@@ -184,7 +184,7 @@ def test_lf_keeps_the_member_of_its_final_population_that_is_best_in_the_validat
     )
 
 
-@pytest.mark.parametrize("name", ["lf", "pm"])
+@pytest.mark.parametrize("name", [pytest.param("lf", marks=pytest.mark.slow), "pm"])  # lf: 1-2 min
 def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_best(
     quick_run, tmp_path, name
 ):
