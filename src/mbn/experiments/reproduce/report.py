@@ -208,7 +208,15 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"LF: the 3 connections re-evolved are {', '.join(lf['connections'])} (paper "
                 f"notation {', '.join(lf['connections_paper_notation'])}; the paper changed "
                 f"W_23, WE_21, WE_22), chosen among {len(s['lf_search']['triples'])} triples; "
-                f"best fitness {lf['best_fitness']:.2f} (F_L {lf['paper_F_L']:.2f}).",
+                f"best fitness {lf['best_fitness']:.2f}"
+                + (
+                    f"; kept: member {lf['member']} of its final population, the best in the "
+                    f"validation maze ({lf['validation']['successes']}/"
+                    f"{lf['validation']['trials']}), fitness {lf['fitness']:.2f}"
+                    if "member" in lf
+                    else ""
+                )
+                + f" (F_L {lf['paper_F_L']:.2f}).",
                 f"IM: programmable {', '.join(im['connections_paper_notation'])}, "
                 f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
                 f"LF program {_vec(im['programs']['left'])}.",
