@@ -172,6 +172,10 @@ def test_lf_keeps_the_member_of_its_final_population_that_is_best_in_the_validat
     best = max(successes.values())
     expected = min((i for i in order if successes[i] == best), key=order.index)
     assert data["member"] == expected and len(pop["checked"]) == 1
+    # the interpreter built with it is checked with RF's program too, against RF
+    im_rf, agree_rf = data["validation_im_rf"], data["validation_agreement_rf"]
+    assert im_rf["trials"] == agree_rf["trials"] == data["validation"]["trials"]
+    assert 0 <= agree_rf["same_branches"] <= agree_rf["trials"]
     assert data["validation"]["successes"] == best == pop["checked"][0]["validation"]
     assert data["fitness"] == pytest.approx(float(fitness[expected]))
     assert data["best_fitness"] == pytest.approx(float(np.max(fitness)))
@@ -204,13 +208,15 @@ def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_
     attempts = data["attempts"]
     key = "validation_im" if name == "lf" else "validation"
 
+    # LF: alone, the interpreter with LF's program and with RF's, and both agreements
+    rated = ["validation", key] + (["validation_im_rf"] if name == "lf" else [])
+    agreed = ["validation_agreement", "validation_agreement_rf"] if name == "lf" else []
+
     def worst(a):
-        rates = [a["validation"]["success_rate"], a[key]["success_rate"]]
-        return min(rates)
+        return min(a[k]["success_rate"] for k in rated)
 
     def meets(a):
-        ok = a["validation"]["meets_target"] and a[key]["meets_target"]
-        return ok and (name == "pm" or a["validation_agreement"]["meets_target"])
+        return all(a[k]["meets_target"] for k in rated + agreed)
 
     if meets(attempts[0]):
         pytest.skip("the first candidate met even a 100 % target")

@@ -45,6 +45,15 @@ from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
 
+#: What an LF candidate's validation records (:func:`candidate_rank` asks all to be met): LF
+#: alone, the interpreter with LF's program, with RF's, and the agreement of each pair.
+VALIDATION_KEYS = (
+    "validation",
+    "validation_im",
+    "validation_im_rf",
+    "validation_agreement",
+    "validation_agreement_rf",
+)
 #: Folded (plus the round's number) into the stage's key for the finalists of each later round.
 ATTEMPT_KEY = 100
 #: Folded (plus the restart's number) into the stage's key for the triple search of another RF.
@@ -67,14 +76,12 @@ def candidate_name(round_: int, index: int) -> str:
 def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:
     """The key LF candidates (and the members of one finalist's population) are ranked by (the
     highest first): those that meet the validation target alone and as the interpreter's
-    program, and the agreement target between the two, by their fitness; before the others, by
-    the worse of their two successes there; the first of equals."""
-    rates = (candidate["validation"]["success_rate"], candidate["validation_im"]["success_rate"])
-    meets = (
-        candidate["validation"]["meets_target"]
-        and candidate["validation_im"]["meets_target"]
-        and candidate["validation_agreement"]["meets_target"]
-    )
+    program, the interpreter with RF's program too, and the agreement target between each network
+    and the interpreter, by their fitness; before the others, by the worst of their successes
+    there; the first of equals."""
+    checks = [k for k in VALIDATION_KEYS if k in candidate]
+    rates = [candidate[k]["success_rate"] for k in checks if not k.startswith("validation_agree")]
+    meets = all(candidate[k]["meets_target"] for k in checks)
     return (meets, 0.0 if meets else min(rates), candidate["fitness"], -index)
 
 
@@ -246,9 +253,7 @@ class LFStage(Stage):
                 "best_fitness": x["data"]["best_fitness"],
                 "member": x["data"]["member"],
                 "fitness": x["data"]["fitness"],
-                "validation": x["data"]["validation"],
-                "validation_im": x["data"]["validation_im"],
-                "validation_agreement": x["data"]["validation_agreement"],
+                **{k: x["data"][k] for k in VALIDATION_KEYS},
             }
             for x in candidates
         ]
@@ -332,13 +337,14 @@ class LFStage(Stage):
         )
         alone_all = dict(zip(by_fitness, verdicts, strict=True))
         successes = {i: int(np.sum(alone_all[i]["success"])) for i in by_fitness}
+        rf_alone = validation_verdict(ctx, CTRNNControllerSpec(net=rf, behavior="right"), "right")
         checked = sorted(by_fitness, key=lambda i: -successes[i])[: s.members]
         members = []
         for i in checked:
             net = genome.network(population[i])
             members.append(
                 {"member": i, "fitness": float(fitness[i]), "net": net}
-                | self._emulated(ctx, rf, net, alone_all[i], mul)
+                | self._emulated(ctx, rf, net, alone_all[i], rf_alone, mul)
             )
         k = max(range(len(members)), key=lambda m: candidate_rank(members[m], m))
         kept = members[k]
@@ -346,7 +352,7 @@ class LFStage(Stage):
         data.update({key: kept[key] for key in ("member", "fitness")})
         data.update(score(ctx, net, "left", s.variants, s.approaches))
         data["genome"] = population[kept["member"]].tolist()
-        for key in ("validation", "validation_im", "validation_agreement"):
+        for key in VALIDATION_KEYS:
             data[key] = kept[key]
         data["population_validation"] = {
             "successes": [successes[i] for i in by_fitness],
@@ -354,41 +360,60 @@ class LFStage(Stage):
             "trials": len(alone_all[by_fitness[0]]["success"]),
             "checked": [
                 {"member": m["member"], "fitness": m["fitness"]}
-                | {key: m[key]["successes"] for key in ("validation", "validation_im")}
-                | {"agreement": m["validation_agreement"]["same_branches"]}
+                | {key: m[key]["successes"] for key in VALIDATION_KEYS[:3]}
+                | {key: m[key]["same_branches"] for key in VALIDATION_KEYS[3:]}
                 for m in members
             ],
         }
         return {"data": data, "net": net, "rf_restart": restart}
 
     def _emulated(
-        self, ctx: StageContext, rf: Any, net: Any, alone: dict[str, np.ndarray], mul: Any
+        self,
+        ctx: StageContext,
+        rf: Any,
+        net: Any,
+        alone: dict[str, np.ndarray],
+        rf_alone: dict[str, np.ndarray],
+        mul: Any,
     ) -> dict[str, Any]:
         """The validation records of an LF (its verdict alone given) and of the interpreter
-        built on RF with it, running its program, and their agreement."""
+        built on RF with it, running LF's program and RF's (RF's verdict alone given), and the
+        agreement of each network with the interpreter running its program."""
         # An LF whose behaviour the multipliers' small errors break fails here, or takes other
         # exits than LF does.
         interp = build_interpreter(rf, differing_connections(rf, net, margin=0.0), mul)
         im = InterpreterControllerSpec(
             interpreter=interp,
-            programs={"left": np.asarray(interp.program_of(net), dtype=float).tolist()},
+            programs={
+                "left": np.asarray(interp.program_of(net), dtype=float).tolist(),
+                "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
+            },
         )
         emulated = validation_verdict(ctx, im, "left", "left")
-        same = agreement(alone, emulated)
-        return {
-            "validation": validation_record(ctx, alone),
-            "validation_im": validation_record(ctx, emulated),
-            "validation_agreement": {
+        # the interpreter is built with this LF's connections and ranges: RF's program must
+        # still drive as RF (the next stages run both)
+        emulated_rf = validation_verdict(ctx, im, "right", "right")
+        target = ctx.section("validation").agreement
+
+        def agree(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:
+            same = agreement(a, b)
+            return {
                 **same,
                 # not significantly below the target: 80 trials cannot tell 98 % from 99 % (a
                 # candidate that takes LF's exits in 98.5 % of all trials shows 79 of 80 or
                 # fewer in 34 % of samples); the upper end of the Wilson 95 % interval must
                 # reach it
                 "meets_target": bool(
-                    wilson_interval(same["same_branches"], same["trials"])[1]
-                    >= ctx.section("validation").agreement
+                    wilson_interval(same["same_branches"], same["trials"])[1] >= target
                 ),
-            },
+            }
+
+        return {
+            "validation": validation_record(ctx, alone),
+            "validation_im": validation_record(ctx, emulated),
+            "validation_im_rf": validation_record(ctx, emulated_rf),
+            "validation_agreement": agree(alone, emulated),
+            "validation_agreement_rf": agree(rf_alone, emulated_rf),
         }
 
     def summary(self, data: dict[str, Any]) -> str:
