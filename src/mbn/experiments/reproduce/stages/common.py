@@ -263,6 +263,21 @@ def validate(
     return validation_record(ctx, validation_verdict(ctx, spec, behavior, program))
 
 
+def _validation_trial(ctx: StageContext, behavior: str, initial: str) -> Any:
+    """The trials of the ``[validation]`` maze: every mark, ``jitter_per_mark`` starts each (the
+    run's ``validation_jitter`` seed), the tests' time limits."""
+    from mbn.experiments.trials import TrialSpec
+
+    t = ctx.section("tests")
+    return TrialSpec(
+        behavior=behavior,
+        initial=initial,
+        repeats=ctx.section("validation").jitter_per_mark,
+        seconds=t.mbn_seconds if behavior == "tiles" else t.seconds,
+        seed=ctx.seeds["validation_jitter"],
+    )
+
+
 def validation_verdict(
     ctx: StageContext,
     spec: Any,
@@ -271,23 +286,13 @@ def validation_verdict(
 ) -> dict[str, np.ndarray]:
     """The judge's verdict (per trial: success, exits, ...) of :func:`validate`'s trials."""
     from mbn.controllers import make_controller
-    from mbn.experiments.trials import TrialSpec, run_loaded_trials
+    from mbn.experiments.trials import run_loaded_trials
     from mbn.world.mazes.load import load_maze
 
-    v = ctx.section("validation")
-    t = ctx.section("tests")
     loaded = make_controller(spec, program, where=f"{ctx.name} candidate", check_stability=False)
-    initial = "right"
-    if behavior == "tiles":
-        initial = loaded.initial_rule or "none"
-    trial = TrialSpec(
-        behavior=behavior,
-        initial=initial,
-        repeats=v.jitter_per_mark,
-        seconds=t.mbn_seconds if behavior == "tiles" else t.seconds,
-        seed=ctx.seeds["validation_jitter"],
-    )
-    verdict, _, _ = run_loaded_trials(load_maze(v.maze), trial, loaded)
+    initial = (loaded.initial_rule or "none") if behavior == "tiles" else "right"
+    trial = _validation_trial(ctx, behavior, initial)
+    verdict, _, _ = run_loaded_trials(load_maze(ctx.section("validation").maze), trial, loaded)
     return verdict
 
 
@@ -295,29 +300,21 @@ def validation_verdicts(ctx: StageContext, specs: list[Any], behavior: str) -> l
     """:func:`validation_verdict` of several controllers of one kind (e.g. a population of
     followers), in one batched rollout: one compilation, the same trials for each."""
     from mbn.controllers import make_controller
-    from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups
+    from mbn.experiments.trials import TrialGroup, run_trial_groups
     from mbn.world.mazes.load import load_maze
 
-    v = ctx.section("validation")
-    t = ctx.section("tests")
     loaded = [
         make_controller(spec, None, where=f"{ctx.name} candidate", check_stability=False)
         for spec in specs
     ]
-    trial = TrialSpec(
-        behavior=behavior,
-        initial="right",
-        repeats=v.jitter_per_mark,
-        seconds=t.seconds,
-        seed=ctx.seeds["validation_jitter"],
-    )
+    trial = _validation_trial(ctx, behavior, "right")
     groups = [TrialGroup(f"c{i}", 0, trial, c.initial_state) for i, c in enumerate(loaded)]
     first = loaded[0]
     verdicts, _, _, _ = run_trial_groups(
-        [load_maze(v.maze)],
+        [load_maze(ctx.section("validation").maze)],
         groups,
         first.controller,
-        seconds=t.seconds,
+        seconds=trial.seconds,
         dt=first.dt,
         sensors=first.sensors,
         camera=first.camera,
