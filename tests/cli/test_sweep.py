@@ -118,11 +118,33 @@ def test_seeds_required_unless_summarize(capsys, tmp_path):
     assert code == 2 and "no sweep there" in err
 
 
+#: Budgets under the quick preset's, for the tiny sweep of CI.
+TINY = """\
+[rf]
+generations = 4
+restarts = 1
+
+[lf]
+generations = 4
+
+[pm]
+generations = 4
+
+[tests]
+jitter_per_mark = 1
+heldout_repeats = 1
+"""
+
+
 def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
-    """CI: 2 quick seeds on a local Ray through the command line, then the same command."""
+    """CI: 2 quick seeds on a local Ray through the command line, then the same command. A
+    config trims the quick budgets further (every stage still runs, and the report)."""
     pytest.importorskip("ray")
     out = tmp_path / "sweep"
+    tiny = tmp_path / "tiny.toml"
+    tiny.write_text(TINY)
     cmd = [sys.executable, "-m", "mbn", "sweep", "--seeds", "0-1", "--quick", "--out", str(out)]
+    cmd += ["--config", str(tiny)]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "sweep: " in proc.stdout and "seeds meet every target" in proc.stdout

@@ -1,8 +1,9 @@
 """The ``mbn`` command line: one module per command group (``networks``, ``world``,
 ``evaluate``, ``reproduce``, ``sweep``), each adding its sub-parsers with ``set_defaults(func=...,
 precision=..., writes=...)``; :func:`main` parses, checks that an output file can be written
-before any work, runs the command in its precision (:func:`mbn.precision.scope`) and turns every
-bad input and every system error into one line and exit status 2.
+before any work, turns the persistent compilation cache on (:mod:`mbn.compile_cache`), runs the
+command in its precision (:func:`mbn.precision.scope`) and turns every bad input and every
+system error into one line and exit status 2.
 
 Every subcommand validates its input; a bad input prints one line ``mbn: error: ...`` naming what
 is wrong (file and line where there is one) and exits with status 2. Files are written atomically.
@@ -16,7 +17,7 @@ import warnings
 from collections.abc import Sequence
 from typing import TextIO
 
-from mbn import __version__
+from mbn import __version__, compile_cache
 from mbn.cli import evaluate, networks, reproduce, run, sweep, world
 from mbn.errors import MbnInputError, MbnWarning
 from mbn.io import check_writable
@@ -80,6 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if getattr(args, "writes", None) == "file":
             check_writable(args.out)  # before any long work
+        compile_cache.enable()
         with warnings.catch_warnings(), scope(args.precision):
             warnings.showwarning = _show_warning
             return int(args.func(args))

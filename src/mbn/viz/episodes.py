@@ -426,7 +426,8 @@ def plot_episodes(
         rows = math.ceil(len(idx) / cols)
         pw, ph = maze_figsize(maze, longest=4.2, extra_h=0.5)
         fig = new_figure((pw * cols, ph * rows + 0.6))
-        axes = fig.subplots(rows, cols, squeeze=False)
+        # one maze in every panel: shared axes, tick labels and axis labels on the outer ones
+        axes = fig.subplots(rows, cols, squeeze=False, sharex=True, sharey=True)
         for j, i in enumerate(idx):
             ax = axes[j // cols][j % cols]
             draw_maze(
@@ -448,6 +449,14 @@ def plot_episodes(
             )
         for j in range(len(idx), rows * cols):
             axes[j // cols][j % cols].set_visible(False)
+        for j in range(len(idx)):
+            ax = axes[j // cols][j % cols]
+            if j + cols < len(idx):  # a panel below it: no x labels
+                ax.tick_params(labelbottom=False)
+                ax.set_xlabel("")
+            if j % cols:
+                ax.tick_params(labelleft=False)
+                ax.set_ylabel("")
         handles = maze_legend_handles(maze, junctions=True, starts=True, tiles=True)
         handles.append(Line2D([], [], color=PATH_COLORS[0], lw=1.6, label="path"))
         if st is not None and st[idx].any():

@@ -92,7 +92,7 @@ def test_trajectories(
         for k in range(n)
     ]
     fig = plot_episodes(maze, trajectory, list(range(n)), titles=titles, ncols=5, title=title)
-    save_png(fig, path, dpi=70, tight=True)
+    save_png(fig, path, dpi=70)  # the constrained layout fits it: no second, tight pass
 
 
 def mbn_traces(

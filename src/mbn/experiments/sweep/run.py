@@ -110,6 +110,17 @@ def thread_env(cpus: int, base: Mapping[str, str] | None = None) -> dict[str, st
     }
 
 
+def task_env(cpus: int, base: Mapping[str, str]) -> dict[str, str]:
+    """A Ray task's environment: :func:`thread_env`, and the caller's choice of compilation
+    cache (``MBN_COMPILE_CACHE``, :mod:`mbn.compile_cache`) where it made one."""
+    from mbn.compile_cache import VARIABLE
+
+    env = thread_env(cpus, base)
+    if base.get(VARIABLE):
+        env[VARIABLE] = base[VARIABLE]
+    return env
+
+
 # -- the sweep folder ----------------------------------------------------------------------------
 
 
@@ -233,7 +244,10 @@ def run_seed(
     }
     notices: list[str] = []
     try:
+        from mbn import compile_cache
         from mbn.experiments.pipeline.runner import run_experiment
+
+        worker["compile_cache"] = str(compile_cache.enable() or "off")
         from mbn.precision import ROBOT, scope
 
         if experiment is None:
@@ -374,7 +388,7 @@ class RayExecutor:
         self._remote = ray.remote(task).options(
             num_cpus=cpus_per_run,
             max_retries=0,
-            runtime_env={"env_vars": thread_env(cpus_per_run, os.environ)},
+            runtime_env={"env_vars": task_env(cpus_per_run, os.environ)},
         )
         self._seed: dict[Any, int] = {}
 
