@@ -1,10 +1,11 @@
 """Stage ``lf``: the left-follower, 3 connections of RF re-evolved (paper 3.1). The search's best
 triples (``[lf] finalists`` of them) are each re-evolved from that triple's final search
 population and checked on the validation maze, the LF alone and the interpreter running its
-program (both successes, and the interpreter taking LF's exits); the fittest finalist that meets
-every target is kept. If none does, another round is evolved — on the rf stage's other RF (its
-triples searched then), then on fresh RFs this stage evolves — up to ``[lf] rounds``, and the
-best kept. An LF built on another RF makes that RF the run's (``controllers/rf.json``)."""
+program (both successes, and the interpreter taking LF's exits); of the finalists that meet
+every target, the one whose worst validation figure is best is kept (:func:`candidate_rank`).
+If none does, another round is evolved — on the rf stage's other RF (its triples searched
+then), then on fresh RFs this stage evolves — up to ``[lf] rounds``, and the best kept. An LF
+built on another RF makes that RF the run's (``controllers/rf.json``)."""
 
 from __future__ import annotations
 
@@ -73,16 +74,26 @@ def candidate_name(round_: int, index: int) -> str:
     return f"lf_attempt{round_}" + (f"_{index}" if index else "")
 
 
+def _rate(record: dict[str, Any]) -> float:
+    """A validation record's figure: its success rate, or the share of trials an agreement
+    record's two controllers took the same exits in."""
+    if "success_rate" in record:
+        return float(record["success_rate"])
+    return record["same_branches"] / record["trials"]
+
+
 def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:
     """The key LF candidates (and the members of one finalist's population) are ranked by (the
-    highest first): those that meet the validation target alone and as the interpreter's
+    highest first): those that meet every validation target — alone and as the interpreter's
     program, the interpreter with RF's program too, and the agreement target between each network
-    and the interpreter, by their fitness; before the others, by the worst of their successes
-    there; the first of equals."""
+    and the interpreter — before the others; then by the worst of those validation figures
+    (successes and agreements, as rates), then by fitness; the first of equals. The crossroads'
+    fitness does not rank candidates as a maze does (docs/reproduce.md): of two that validate,
+    the one with fewer failures in the validation maze is kept."""
     checks = [k for k in VALIDATION_KEYS if k in candidate]
-    rates = [candidate[k]["success_rate"] for k in checks if not k.startswith("validation_agree")]
     meets = all(candidate[k]["meets_target"] for k in checks)
-    return (meets, 0.0 if meets else min(rates), candidate["fitness"], -index)
+    worst = min(_rate(candidate[k]) for k in checks)
+    return (meets, worst, candidate["fitness"], -index)
 
 
 @dataclass(frozen=True)
@@ -99,7 +110,7 @@ class LFSettings(Settings):
     )
     finalists: int = setting(
         3,
-        doc="the search's best triples re-evolved in each round; the fittest validated is kept",
+        doc="the search's best triples re-evolved in each round; the best validated is kept",
         low=1,
         high=20,
         source="docs/reproduce.md (LF's quality is set by the triple's basin, not by length)",
