@@ -26,12 +26,12 @@ __all__ = ["MAX_BYTES", "MIN_COMPILE_SECONDS", "VARIABLE", "cache_dir", "enable"
 VARIABLE = "MBN_COMPILE_CACHE"
 #: Values of :data:`VARIABLE` that turn the cache off.
 OFF = ("off", "0", "no", "false", "none")
-#: Programs compiled faster than this are not cached (JAX's default is 1 s; a quick
-#: reproduction's time with a warm cache was measured at 0.1 s, ``docs/speed.md``).
+#: Programs compiled faster than this are not cached (JAX's default is 1 s; the time a warm
+#: cache saves a quick reproduction, ``docs/speed.md``, was measured at 0.1 s).
 MIN_COMPILE_SECONDS = 0.1
 #: The cache's size bound, where the file lock JAX needs to bound it (and to let several
 #: processes, a sweep's seeds, share the folder safely) is installed (``filelock``, which Ray
-#: brings); else unbounded, as JAX has it. A full reproduction adds about 10 MB.
+#: brings); else unbounded, as JAX has it. A full reproduction adds about 4 MB (76 programs).
 MAX_BYTES = 2 * 1024**3
 
 

@@ -246,9 +246,9 @@ def run_seed(
     try:
         from mbn import compile_cache
         from mbn.experiments.pipeline.runner import run_experiment
+        from mbn.precision import ROBOT, scope
 
         worker["compile_cache"] = str(compile_cache.enable() or "off")
-        from mbn.precision import ROBOT, scope
 
         if experiment is None:
             from mbn.experiments.reproduce import REPRODUCE
