@@ -272,7 +272,8 @@ def _candidate(fitness: float, *figures: int, trials: int = 80) -> dict:
     out: dict = {"fitness": fitness}
     for key, k in zip(VALIDATION_KEYS, figures, strict=True):
         if "agreement" in key:
-            out[key] = {"same_branches": k, "trials": trials, "meets_target": True}
+            out[key] = {"same_branches": k, "trials": trials, "rate": k / trials}  # as agreement()
+            out[key]["meets_target"] = True
         else:
             out[key] = {"successes": k, "trials": trials, "success_rate": k / trials}
             out[key]["meets_target"] = True

@@ -48,13 +48,9 @@ __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
 
 #: What an LF candidate's validation records (:func:`candidate_rank` asks all to be met): LF
 #: alone, the interpreter with LF's program, with RF's, and the agreement of each pair.
-VALIDATION_KEYS = (
-    "validation",
-    "validation_im",
-    "validation_im_rf",
-    "validation_agreement",
-    "validation_agreement_rf",
-)
+SUCCESS_KEYS = ("validation", "validation_im", "validation_im_rf")
+AGREEMENT_KEYS = ("validation_agreement", "validation_agreement_rf")
+VALIDATION_KEYS = SUCCESS_KEYS + AGREEMENT_KEYS
 #: Folded (plus the round's number) into the stage's key for the finalists of each later round.
 ATTEMPT_KEY = 100
 #: Folded (plus the restart's number) into the stage's key for the triple search of another RF.
@@ -75,11 +71,8 @@ def candidate_name(round_: int, index: int) -> str:
 
 
 def _rate(record: dict[str, Any]) -> float:
-    """A validation record's figure: its success rate, or the share of trials an agreement
-    record's two controllers took the same exits in."""
-    if "success_rate" in record:
-        return float(record["success_rate"])
-    return record["same_branches"] / record["trials"]
+    """A validation record's figure: its success rate, or an agreement record's ``rate``."""
+    return float(record["success_rate"] if "success_rate" in record else record["rate"])
 
 
 def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:
@@ -182,6 +175,7 @@ class LFStage(Stage):
         }
         used: set[tuple[int, int]] = set()
         candidates: list[dict[str, Any]] = []
+        rf_verdicts: dict[int, dict[str, np.ndarray]] = {}  # RF's verdict alone, by restart
 
         def by_search(pool: list[tuple[int, int]]) -> list[tuple[int, int]]:
             free = [c for c in pool if c not in used]
@@ -224,6 +218,9 @@ class LFStage(Stage):
             for f, (r, t) in enumerate(chosen_pairs):
                 used.add((r, t))
                 rows, checkpoint = searched[r]
+                if r not in rf_verdicts:  # RF alone: one verdict for all its finalists
+                    spec = CTRNNControllerSpec(net=rfs[r], behavior="right")
+                    rf_verdicts[r] = validation_verdict(ctx, spec, "right")
                 key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
                 cand = self._candidate(
                     ctx,
@@ -235,6 +232,7 @@ class LFStage(Stage):
                     rows[t],
                     checkpoint(t),
                     mul,
+                    rf_verdicts[r],
                 )
                 cand["round"] = a
                 candidates.append(cand)
@@ -308,10 +306,12 @@ class LFStage(Stage):
         row: dict[str, Any],
         checkpoint: str,
         mul: Any,
+        rf_alone: dict[str, np.ndarray],
     ) -> dict[str, Any]:
         """LF re-evolved on ``rf`` from one triple's search population; every member of its final
         population checked alone on the validation maze, the best ``[lf] members`` of them by
-        that also as the interpreter's program, and the best of those by :func:`candidate_rank`
+        that also as the interpreter's program (and the interpreter with RF's program against
+        ``rf_alone``, RF's verdict there), and the best of those by :func:`candidate_rank`
         kept (``member``, its ``fitness`` and ``genome``; ``best_fitness`` and ``best_genome``
         stay the DE's)."""
         conns = tuple(Connection.parse(c) for c in row["connections"])
@@ -348,9 +348,8 @@ class LFStage(Stage):
         )
         alone_all = dict(zip(by_fitness, verdicts, strict=True))
         successes = {i: int(np.sum(alone_all[i]["success"])) for i in by_fitness}
-        rf_alone = validation_verdict(ctx, CTRNNControllerSpec(net=rf, behavior="right"), "right")
         checked = sorted(by_fitness, key=lambda i: -successes[i])[: s.members]
-        members = []
+        members: list[dict[str, Any]] = []
         for i in checked:
             net = genome.network(population[i])
             members.append(
@@ -360,19 +359,18 @@ class LFStage(Stage):
         k = max(range(len(members)), key=lambda m: candidate_rank(members[m], m))
         kept = members[k]
         net = kept.pop("net")
-        data.update({key: kept[key] for key in ("member", "fitness")})
+        data.update({k: kept[k] for k in ("member", "fitness")})
         data.update(score(ctx, net, "left", s.variants, s.approaches))
         data["genome"] = population[kept["member"]].tolist()
-        for key in VALIDATION_KEYS:
-            data[key] = kept[key]
+        data.update({k: kept[k] for k in VALIDATION_KEYS})
         data["population_validation"] = {
             "successes": [successes[i] for i in by_fitness],
             "by": "fitness, the fittest first",
             "trials": len(alone_all[by_fitness[0]]["success"]),
             "checked": [
                 {"member": m["member"], "fitness": m["fitness"]}
-                | {key: m[key]["successes"] for key in VALIDATION_KEYS[:3]}
-                | {key: m[key]["same_branches"] for key in VALIDATION_KEYS[3:]}
+                | {key: m[key]["successes"] for key in SUCCESS_KEYS}
+                | {key: m[key]["same_branches"] for key in AGREEMENT_KEYS}
                 for m in members
             ],
         }
