@@ -233,3 +233,29 @@ def test_connection_search_fitness_equals_the_genome_fitness_for_every_triple():
         np.testing.assert_array_equal(np.asarray(search(pop, trip)), np.asarray(expected))
     with pytest.raises(MbnInputError, match="2 connections for genomes of 3 genes"):
         search(pop, triples[0][:2])
+
+
+def test_a_group_of_connection_choices_evaluated_as_one_batch_gives_each_choices_fitness():
+    """Genome i of the batch re-evolves choices[owner[i]]: exactly the fitness of its choice's
+    own population of the same size (the networks are the same, bit for bit)."""
+    from mbn.experiments.evolve import connection_group_fitness, connection_search_fitness
+    from mbn.networks.programmable import Connection
+    from mbn.paper import published_rf
+
+    base = published_rf()
+    task = CrossroadTask(rule="left", variants=1, seconds=4.0)
+    arrays = task.arrays()
+    choices = [
+        (Connection("W", 1, 0), Connection("WE", 1, 1), Connection("WE", 1, 2)),
+        (Connection("W", 0, 2), Connection("W", 2, 2), Connection("WE", 0, 0)),
+    ]
+    group = connection_group_fitness(base, task, choices, arrays)
+    search = connection_search_fitness(base, task, arrays)
+    pop = jax.random.uniform(jax.random.key(2), (4, 3), minval=-20.0, maxval=20.0)
+    # the same genomes under each choice, and a batch of the same size for each alone
+    together = np.asarray(group(pop, np.array([0, 1, 0, 1])))
+    for k in range(2):
+        alone = np.asarray(search(pop, choices[k]))
+        np.testing.assert_array_equal(together[k::2], alone[k::2])
+    with pytest.raises(MbnInputError, match="one size expected"):
+        connection_group_fitness(base, task, [choices[0], choices[1][:2]], arrays)

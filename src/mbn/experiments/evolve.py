@@ -11,7 +11,7 @@ one would.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -40,6 +40,7 @@ __all__ = [
     "FITNESS_PARTS",
     "RF_CONNECTIONS",
     "Genome",
+    "connection_group_fitness",
     "connection_search_fitness",
     "crossroad_fitness",
     "emulated_fitness",
@@ -194,26 +195,27 @@ def perturbations(key: Array, copies: int, size: int, sigma: float) -> Array:
     return sigma * jax.random.normal(key, (copies, size))
 
 
-def robust_fitness(fitness: Callable[[Array], Array], noise: Array) -> Callable[[Array], Array]:
+def robust_fitness(fitness: Callable[..., Array], noise: Array) -> Callable[..., Array]:
     """``fitness`` averaged over each genome and its perturbed copies ``genome + noise[k]``.
 
     Networks evolved this way keep their behaviour when their weights move by about ``sigma``,
     which is what the interpreter does to them: its trained multipliers are off by up to 0.008,
     times the range of the programmable weight (``docs/reproduce.md``). With no perturbation
     (``noise`` of shape ``(0, size)``) it is ``fitness`` itself. One call evaluates all copies
-    in one batch.
+    in one batch. Arrays after the population (one row per genome) go with each copy.
     """
     noise = jnp.asarray(noise)
     copies = noise.shape[0]
     if copies == 0:
         return fitness
 
-    def averaged(population: Array) -> Array:
+    def averaged(population: Array, *per_genome: Array) -> Array:
         p, d = population.shape
         if noise.shape[1] != d:
             raise MbnInputError(f"perturbations of {noise.shape[1]} genes for genomes of {d}")
         shifted = (population[None] + noise[:, None].astype(population.dtype)).reshape(-1, d)
-        values = fitness(jnp.concatenate([population, shifted]))
+        tiled = (jnp.tile(x, (copies + 1,) + (1,) * (x.ndim - 1)) for x in per_genome)
+        values = fitness(jnp.concatenate([population, shifted]), *tiled)
         return values.reshape(copies + 1, p).mean(0)
 
     return averaged
@@ -227,17 +229,18 @@ FITNESS_PARTS = 2
 
 
 def split_fitness(
-    fitness: Callable[[Array], Array],
+    fitness: Callable[..., Array],
     workers: int,
     pool: Executor | None = None,
     parts: int = FITNESS_PARTS,
-) -> Callable[[Array], Array]:
+) -> Callable[..., Array]:
     """``fitness`` of a population computed in ``parts`` parts (contiguous, as equal as they
     can be), ``min(workers, parts)`` of them at once in threads: each genome's fitness depends on
     its own episodes only, and XLA runs one computation on about one core, so parts evaluated
     side by side use the cores. The parts are the same for any ``workers``, so the values are
     too, bit for bit (a test compares them); ``workers <= 1`` evaluates them one after the
-    other. ``parts <= 1``: ``fitness`` itself."""
+    other. ``parts <= 1``: ``fitness`` itself. Arrays after the population (one row per genome,
+    e.g. which DE run of a group it belongs to) are cut into the same parts."""
     if parts <= 1:
         return fitness
     threads = max(1, min(workers, parts))
@@ -245,14 +248,16 @@ def split_fitness(
         ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") if threads > 1 else None
     )
 
-    def parted(population: Array) -> Array:
+    def parted(population: Array, *per_genome: Array) -> Array:
         p = int(population.shape[0])
         bounds = np.linspace(0, p, min(parts, p) + 1).round().astype(int)
-        pieces = [population[a:b] for a, b in itertools.pairwise(bounds)]
+        pieces = [
+            (population[a:b], *(x[a:b] for x in per_genome)) for a, b in itertools.pairwise(bounds)
+        ]
         if executor is None or threads == 1:
-            values = [fitness(x) for x in pieces]
+            values = [fitness(*x) for x in pieces]
         else:
-            values = [f.result() for f in [executor.submit(fitness, x) for x in pieces]]
+            values = [f.result() for f in [executor.submit(fitness, *x) for x in pieces]]
         return jnp.concatenate([jnp.asarray(v) for v in values])
 
     return parted
@@ -263,23 +268,42 @@ def set_connections(
 ) -> tuple[Array, Array]:
     """``(W, WE)`` ``(P, 3, 3)``: the base weights with connection g (``WE`` when
     ``is_input[g]``, else ``W``; at ``rows[g], cols[g]``) set to ``genes[:, g]``. The connections
-    are arrays, not constants, so one compiled function serves every choice of connections."""
-    p = genes.shape[0]
+    are arrays, not constants, so one compiled function serves every choice of connections; they
+    are ``(G,)`` (the same for every genome) or ``(P, G)`` (one choice per genome)."""
+    p, n_genes = genes.shape
+    is_input, rows, cols = (
+        jnp.broadcast_to(jnp.asarray(a), (p, n_genes)) for a in (is_input, rows, cols)
+    )
     W = jnp.broadcast_to(base_W.astype(genes.dtype), (p, 3, 3))
     WE = jnp.broadcast_to(base_WE.astype(genes.dtype), (p, 3, 3))
-    for g in range(genes.shape[1]):
-        r, c = rows[g], cols[g]
-        W = W.at[:, r, c].set(jnp.where(is_input[g], W[:, r, c], genes[:, g]))
-        WE = WE.at[:, r, c].set(jnp.where(is_input[g], genes[:, g], WE[:, r, c]))
+    idx = jnp.arange(3)
+    for g in range(n_genes):
+        at = (rows[:, g, None, None] == idx[:, None]) & (cols[:, g, None, None] == idx[None, :])
+        into_we = is_input[:, g, None, None]
+        value = genes[:, g, None, None]
+        W = jnp.where(at & ~into_we, value, W)
+        WE = jnp.where(at & into_we, value, WE)
     return W, WE
 
 
-def connection_search_fitness(
-    base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None = None
-) -> Callable[[Array, tuple[Connection, ...]], Array]:
-    """Fitness of populations that re-evolve a few connections of ``base`` (as
-    :func:`crossroad_fitness` with ``Genome.around(base, connections)``), compiled once for all
-    choices of the same number of connections: ``fitness(population, connections)``."""
+def _connection_tables(connections: Sequence[Connection], width: int) -> tuple[Array, ...]:
+    """``(is_input, rows, cols)`` of ``connections`` for genomes of ``width`` genes, refusing a
+    choice that does not fit 3 neurons and 3 inputs."""
+    if len(connections) != width:
+        raise MbnInputError(f"{len(connections)} connections for genomes of {width} genes")
+    for c in connections:
+        if c.i >= 3 or c.j >= 3:
+            raise MbnInputError(f"connection {c}: out of range for 3 neurons and 3 inputs")
+    return (
+        jnp.asarray([c.kind == "WE" for c in connections]),
+        jnp.asarray([c.i for c in connections]),
+        jnp.asarray([c.j for c in connections]),
+    )
+
+
+def _connection_run(
+    base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None
+) -> Callable[[Array, Array, Array, Array], Array]:
     arrays = arrays or task.arrays()
     tiled_fitness = tile_fitness(arrays)
     tau = float(np.asarray(base.tau).reshape(-1)[0])
@@ -292,20 +316,42 @@ def connection_search_fitness(
         per_episode = tiled_fitness(stats, task)
         return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
 
+    return run
+
+
+def connection_search_fitness(
+    base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None = None
+) -> Callable[[Array, tuple[Connection, ...]], Array]:
+    """Fitness of populations that re-evolve a few connections of ``base`` (as
+    :func:`crossroad_fitness` with ``Genome.around(base, connections)``), compiled once for all
+    choices of the same number of connections: ``fitness(population, connections)``."""
+    run = _connection_run(base, task, arrays)
+
     def fitness(population: Array, connections: tuple[Connection, ...]) -> Array:
-        if len(connections) != population.shape[1]:
-            raise MbnInputError(
-                f"{len(connections)} connections for genomes of {population.shape[1]} genes"
-            )
-        for c in connections:
-            if c.i >= 3 or c.j >= 3:
-                raise MbnInputError(f"connection {c}: out of range for 3 neurons and 3 inputs")
-        return run(
-            population,
-            jnp.asarray([c.kind == "WE" for c in connections]),
-            jnp.asarray([c.i for c in connections]),
-            jnp.asarray([c.j for c in connections]),
-        )
+        return run(population, *_connection_tables(connections, population.shape[1]))
+
+    return fitness
+
+
+def connection_group_fitness(
+    base: CTRNN,
+    task: CrossroadTask,
+    choices: Sequence[tuple[Connection, ...]],
+    arrays: TaskArrays | None = None,
+) -> Callable[[Array, Array], Array]:
+    """:func:`connection_search_fitness` of a group of populations, one per choice of
+    connections, evaluated as one batch: ``fitness(population, owner)``, genome ``i`` re-evolving
+    ``choices[owner[i]]`` (a group of DE runs, :meth:`StageContext.evolve_group`)."""
+    run = _connection_run(base, task, arrays)
+    widths = {len(c) for c in choices}
+    if len(widths) != 1:
+        raise MbnInputError(f"choices of {sorted(widths)} connections: one size expected")
+    tables = [_connection_tables(c, len(c)) for c in choices]
+    is_input, rows, cols = (jnp.stack([t[k] for t in tables]) for k in range(3))
+
+    def fitness(population: Array, owner: Array) -> Array:
+        owner = jnp.asarray(owner)
+        return run(population, is_input[owner], rows[owner], cols[owner])
 
     return fitness
 

@@ -186,6 +186,10 @@ def test_lf_keeps_the_member_of_its_final_population_that_is_best_in_the_validat
     im_rf, agree_rf = data["validation_im_rf"], data["validation_agreement_rf"]
     assert im_rf["trials"] == agree_rf["trials"] == data["validation"]["trials"]
     assert 0 <= agree_rf["same_branches"] <= agree_rf["trials"]
+    # an agreement meets its target as a plain share of the trials (docs/reproduce.md)
+    target = config["validation"].agreement
+    for agree in (agree_rf, data["validation_agreement"]):
+        assert agree["meets_target"] == (agree["same_branches"] >= target * agree["trials"])
     assert data["validation"]["successes"] == best == pop["checked"][0]["validation"]
     assert data["fitness"] == pytest.approx(float(fitness[expected]))
     assert data["best_fitness"] == pytest.approx(float(np.max(fitness)))

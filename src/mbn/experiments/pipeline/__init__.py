@@ -8,13 +8,14 @@ share. Adding a stage is one module with a :class:`~mbn.experiments.pipeline.reg
 one line in its registry.
 """
 
-from mbn.experiments.pipeline.context import StageContext
+from mbn.experiments.pipeline.context import DERun, StageContext
 from mbn.experiments.pipeline.registry import Registry, Stage
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.pipeline.runner import Experiment, run_experiment
 
 __all__ = [
+    "DERun",
     "Experiment",
     "Registry",
     "RunConfig",

@@ -3,12 +3,13 @@ it needs, progress bars, and DE checkpointed after every generation."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from mbn.errors import MbnInputError
@@ -17,7 +18,7 @@ from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.runconfig import RunConfig
 from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
 
-__all__ = ["DEResult", "StageContext", "generation_stats"]
+__all__ = ["DEResult", "DERun", "StageContext", "generation_stats"]
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,28 @@ class DEResult:
 
     data: dict[str, Any]
     state: DEState
+
+
+@dataclass(frozen=True)
+class DERun:
+    """One DE run of a group (:meth:`StageContext.evolve_group`): its checkpoint name, settings,
+    key and, optionally, its generation 0."""
+
+    name: str
+    config: DEConfig
+    key: jax.Array
+    population: np.ndarray | None = None
+
+
+def _result(state: DEState, history: list[tuple[float, float]], generations: int) -> DEResult:
+    h = np.asarray(history, dtype=float)
+    data = {
+        "best_genome": np.asarray(state.best_genome, dtype=float).tolist(),
+        "best_fitness": float(state.best_fitness),
+        "generations": generations,
+        "history": {"best": h[:, 0].tolist(), "mean": h[:, 1].tolist()},
+    }
+    return DEResult(data, state)
 
 
 def generation_stats(state: DEState) -> tuple[float, float]:
@@ -142,11 +165,85 @@ class StageContext:
                 history.append(generation_stats(state))
                 self.rundir.save_checkpoint(name, Checkpoint(state, history))
                 self.progress.update(bar, completed=g, info=f"best {history[-1][0]:.2f}")
-            h = np.asarray(history, dtype=float)
-            data = {
-                "best_genome": np.asarray(state.best_genome, dtype=float).tolist(),
-                "best_fitness": float(state.best_fitness),
-                "generations": generations,
-                "history": {"best": h[:, 0].tolist(), "mean": h[:, 1].tolist()},
-            }
-            return DEResult(data, state)
+            return _result(state, history, generations)
+
+    def evolve_group(
+        self,
+        runs: Sequence[DERun],
+        fitness: Callable[[jax.Array, jax.Array], jax.Array],
+        generations: int,
+        description: str,
+    ) -> list[DEResult]:
+        """Independent DE runs of one population size and genome length advanced side by side:
+        each generation, every run's trials are evaluated in one batch, ``fitness(population,
+        owner)`` (``owner[i]``: the run genome ``i`` belongs to), cut into
+        :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts as :meth:`evolve` does. Run ``r``
+        is what :meth:`evolve` would make of it with a fitness giving each genome the values
+        it gets here (its own checkpoint ``checkpoints/NAME.npz``, its generation ``g`` from
+        ``fold_in(key, g)``). Few large batches cost less per robot-step than many small ones
+        (``docs/speed.md``). The batch always holds every run, in order (a run already past a
+        generation, after a resume, stands in with its population and its values are
+        dropped), so its shape, and with it every float, is that of an uninterrupted run."""
+        from mbn.evolution.de import ask, from_population, init, initialize_fitness, tell
+        from mbn.experiments.evolve import FITNESS_PARTS, split_fitness
+
+        if not runs:
+            return []
+        configs = {(r.config.popsize, r.config.num_dims) for r in runs}
+        if len(configs) != 1:
+            raise MbnInputError(f"a DE group needs one population shape, got {sorted(configs)}")
+        ((popsize, _),) = configs
+        owner = np.repeat(np.arange(len(runs)), popsize)
+        cut = [slice(r * popsize, (r + 1) * popsize) for r in range(len(runs))]
+        threads = max(1, min(self.workers, FITNESS_PARTS))
+        with ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") as pool:
+            values_of = split_fitness(fitness, self.workers, pool)
+
+            def evaluate(populations: list[jax.Array]) -> list[jax.Array]:
+                values = values_of(jnp.concatenate(populations), jnp.asarray(owner))
+                return [values[c] for c in cut]
+
+            states: list[DEState | None] = []
+            histories: list[list[tuple[float, float]]] = []
+            for run in runs:
+                cp = self._resumable(run.name, run.config)
+                states.append(None if cp is None else cp.state)
+                histories.append([] if cp is None else list(cp.history))
+            fresh = [i for i, st in enumerate(states) if st is None]
+            if fresh:
+                first = [
+                    (
+                        init(jax.random.fold_in(run.key, 0), run.config)
+                        if run.population is None
+                        else from_population(jnp.asarray(run.population), run.config)
+                    )
+                    if st is None
+                    else st
+                    for run, st in zip(runs, states, strict=True)
+                ]
+                values = evaluate([st.population for st in first])
+                for i in fresh:
+                    st = initialize_fitness(first[i], values[i], runs[i].config)
+                    states[i], histories[i] = st, [generation_stats(st)]
+                    self.rundir.save_checkpoint(runs[i].name, Checkpoint(st, histories[i]))
+            done: list[DEState] = [st for st in states if st is not None]
+            g0 = min(int(st.generation) for st in done)
+            bar = self.progress.task(description, generations)
+            best = max(h[-1][0] for h in histories)
+            self.progress.update(bar, completed=g0, info=f"best {best:.2f}")
+            for g in range(g0 + 1, generations + 1):
+                behind = [i for i, st in enumerate(done) if int(st.generation) < g]
+                trials = [
+                    ask(jax.random.fold_in(run.key, g), st, run.config)
+                    if i in behind
+                    else st.population
+                    for i, (run, st) in enumerate(zip(runs, done, strict=True))
+                ]
+                values = evaluate(trials)
+                for i in behind:
+                    done[i] = tell(done[i], trials[i], values[i], runs[i].config)
+                    histories[i].append(generation_stats(done[i]))
+                    self.rundir.save_checkpoint(runs[i].name, Checkpoint(done[i], histories[i]))
+                best = max(h[-1][0] for h in histories)
+                self.progress.update(bar, completed=g, info=f"best {best:.2f}")
+            return [_result(st, h, generations) for st, h in zip(done, histories, strict=True)]

@@ -38,7 +38,6 @@ from mbn.experiments.reproduce.stages.lf_search import (
     search_triples,
 )
 from mbn.experiments.reproduce.stages.rf import evolution_summary
-from mbn.experiments.stats import wilson_interval
 from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection, build_interpreter, differing_connections
@@ -406,16 +405,12 @@ class LFStage(Stage):
 
         def agree(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:
             same = agreement(a, b)
-            return {
-                **same,
-                # not significantly below the target: 80 trials cannot tell 98 % from 99 % (a
-                # candidate that takes LF's exits in 98.5 % of all trials shows 79 of 80 or
-                # fewer in 34 % of samples); the upper end of the Wilson 95 % interval must
-                # reach it
-                "meets_target": bool(
-                    wilson_interval(same["same_branches"], same["trials"])[1] >= target
-                ),
-            }
+            # The tests ask for 98 % of 200 jittered trials; only an interpreter that takes
+            # the network's exits in about 99 % of all trials passes that most of the time
+            # (at 98 % it fails in 37 % of samples), so the validation's sample must show at
+            # least ``agreement`` (0.99 by default: on 80 trials, all of them;
+            # docs/reproduce.md)
+            return {**same, "meets_target": bool(same["rate"] >= target)}
 
         return {
             "validation": validation_record(ctx, alone),

@@ -12,12 +12,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from mbn.config import Settings, setting
 from mbn.errors import MbnInputError
-from mbn.experiments.evolve import connection_search_fitness, robust_fitness
-from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.evolve import connection_group_fitness, robust_fitness, split_fitness
+from mbn.experiments.pipeline import DERun, Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     de_config,
     read_network,
@@ -68,42 +69,37 @@ def search_checkpoint(index: int) -> str:
     return f"lf_search_{index:02d}"
 
 
-def _bind(
-    search: Callable[[jax.Array, tuple[Any, ...]], jax.Array], connections: tuple[Any, ...]
-) -> Callable[[jax.Array], jax.Array]:
-    """The fitness of a connection search for one choice of connections."""
-    return lambda population: search(population, connections)
-
-
 def search_triples(
     ctx: StageContext, rf: Any, key: jax.Array, checkpoint: Callable[[int], str]
 ) -> list[dict[str, Any]]:
     """Every triple of ``[lf_search] candidates`` of ``rf`` evolved briefly for the left rule
-    (triple ``t`` from ``fold_in(key, t)``, checkpoint ``checkpoint(t)``), each final population
-    scored again with perturbed copies on the crossroads entered round a corner too: a row per
-    triple with its best plain and best robust genome and fitness."""
+    (triple ``t`` from ``fold_in(key, t)``, checkpoint ``checkpoint(t)``), the triples' DE runs
+    side by side (:meth:`StageContext.evolve_group`: one batch of every triple's genomes per
+    generation), each final population scored again with perturbed copies on the crossroads
+    entered round a corner too: a row per triple with its best plain and best robust genome and
+    fitness."""
     s: LFSearchSettings = ctx.section("lf_search")
     followers = ctx.section("followers")
     approaches = ctx.section("lf").approaches
-    search = connection_search_fitness(rf, task(ctx, "left", s.variants))
     cands = [Connection.parse(c) for c in s.candidates]
     triples = list(itertools.combinations(cands, 3))
+    search = connection_group_fitness(rf, task(ctx, "left", s.variants), triples)
     noise = stage_perturbations(ctx, 3)
-    # Choosing: the crossroads entered round a corner too, as in a maze.
-    choose = connection_search_fitness(rf, task(ctx, "left", s.variants, approaches))
+    config = de_config(ctx, 3, followers.weight_bound)
+    runs = [DERun(checkpoint(t), config, jax.random.fold_in(key, t)) for t in range(len(triples))]
+    results = ctx.evolve_group(
+        runs, search, s.generations, f"LF search: {len(triples)} triples side by side"
+    )
+    # The final populations scored with perturbed copies too, on the crossroads entered round a
+    # corner as in a maze: an LF that keeps its behaviour when its weights move is one the
+    # interpreter can emulate. One batch of every triple's, in parts as DE's.
+    choose = connection_group_fitness(rf, task(ctx, "left", s.variants, approaches), triples)
+    final = jnp.concatenate([r.state.population for r in results])
+    owner = jnp.repeat(jnp.arange(len(triples)), config.popsize)
+    robust_all = np.asarray(split_fitness(robust_fitness(choose, noise), ctx.workers)(final, owner))
     rows = []
-    for t, trip in enumerate(triples):
-        de = ctx.evolve(
-            checkpoint(t),
-            de_config(ctx, 3, followers.weight_bound),
-            _bind(search, trip),
-            jax.random.fold_in(key, t),
-            s.generations,
-            f"LF search {t + 1}/{len(triples)}: {', '.join(map(str, trip))}",
-        )
-        # The final population scored with perturbed copies too: an LF that keeps its
-        # behaviour when its weights move is one the interpreter can emulate.
-        robust = np.asarray(robust_fitness(_bind(choose, trip), noise)(de.state.population))
+    for t, (trip, de) in enumerate(zip(triples, results, strict=True)):
+        robust = robust_all[t * config.popsize : (t + 1) * config.popsize]
         i = int(np.argmax(robust))
         rows.append(
             {
