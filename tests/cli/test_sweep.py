@@ -120,12 +120,16 @@ def test_seeds_required_unless_summarize(capsys, tmp_path):
 
 #: Budgets under the quick preset's, for the tiny sweep of CI.
 TINY = """\
+[followers]
+episode_seconds = 10.0
+
 [rf]
 generations = 4
 restarts = 1
 
 [lf]
 generations = 4
+members = 1
 
 [pm]
 generations = 4
@@ -133,6 +137,8 @@ generations = 4
 [tests]
 jitter_per_mark = 1
 heldout_repeats = 1
+seconds = 30.0
+mbn_seconds = 40.0
 """
 
 

@@ -122,6 +122,7 @@ def _fine_tune_shipped_3(objective: str, iterations: int) -> tuple[Multiplier, M
     return base, tuned, metrics
 
 
+@pytest.mark.slow  # 10 s of training
 def test_minimax_fine_tuning_lowers_the_largest_grid_error():
     # The shipped 3-neuron multiplier is 0.15 off at (1, 1); the minimax objective goes for it.
     base, _, after = _fine_tune_shipped_3("minimax", 200)

@@ -99,6 +99,7 @@ def test_exact_mode_reproduces_the_published_networks(mul):
 SMALL_CHECK = EmulationConfig(num_sequences=40, seconds=10.0)
 
 
+@pytest.mark.slow  # 10 s, and a known miss (xfail)
 @pytest.mark.xfail(
     strict=True,
     reason="target not met: median 0.15, p95 0.59 with the shipped 3-neuron multiplier; the "

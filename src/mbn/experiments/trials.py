@@ -392,14 +392,22 @@ def run_trial_groups(
         max_junctions=max(8, *(g.spec.junctions for g in groups)),
     )
     all_poses = np.concatenate(poses)
+    # the mazes are arguments, not constants folded into the program: it compiles faster and
+    # serves any mazes of the same array shapes
     run = jax.jit(
-        lambda state, p, m: rollout(world, controller, state, p, m, config, junctions=junctions)
+        lambda world, junctions, state, p, m: rollout(
+            world, controller, state, p, m, config, junctions=junctions
+        )
     )
     result = run(
-        state, jnp.asarray(all_poses, jnp.zeros(()).dtype), jnp.asarray(np.concatenate(index))
+        world,
+        junctions,
+        state,
+        jnp.asarray(all_poses, jnp.zeros(()).dtype),
+        jnp.asarray(np.concatenate(index)),
     )
+    stats = jax.tree.map(np.asarray, result.stats)  # sliced by group on the host
     verdicts = {
-        g.name: judge(jax.tree.map(lambda a, s=slices[g.name]: a[s], result.stats), g.spec)
-        for g in groups
+        g.name: judge(jax.tree.map(lambda a, s=slices[g.name]: a[s], stats), g.spec) for g in groups
     }
     return verdicts, result, slices, all_poses

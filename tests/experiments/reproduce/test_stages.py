@@ -45,7 +45,14 @@ def test_the_registry_lists_the_paper_pipeline_in_order():
     assert set(OUTPUTS) == set(STAGES.names)
 
 
-@pytest.mark.parametrize("name", STAGES.names)
+#: The stages CI runs alone; the others (10-20 s each on 2 cores) with ``-m slow``.
+_ALONE_IN_CI = {"multiplier", "im", "pm"}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [n if n in _ALONE_IN_CI else pytest.param(n, marks=pytest.mark.slow) for n in STAGES.names],
+)
 def test_each_stage_runs_alone_against_a_run_folder(quick_run, tmp_path, name):
     rundir, seed, config = _copy(quick_run, tmp_path)
     before = rundir.read_stage(name)
@@ -119,6 +126,7 @@ def _with(config, section, **changes):
     return type(config)(sections)
 
 
+@pytest.mark.slow  # 20 s; the ranking has a unit test, the LF stage the member test below
 def test_lf_evolves_the_searchs_best_triples_and_keeps_the_best_that_validates(quick_run, tmp_path):
     """With ``finalists`` = 2 and a target every candidate meets, the LF stage evolves the
     search's chosen triple and its next best by the search's robust score, on the kept RF, in one

@@ -169,7 +169,7 @@ class TestsStage(Stage):
             for n in names:
                 sl = slices[n]
                 trajectories[n] = jax.tree.map(
-                    lambda a, sl=sl: np.asarray(a[sl]), result.trajectory
+                    lambda a, sl=sl: np.asarray(a)[sl], result.trajectory
                 )
             ctx.progress.update(bar, completed=b + 1, info=what)
         tests = {name: summary(verdicts[name]) for name in TEST_NAMES}
