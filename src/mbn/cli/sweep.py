@@ -11,7 +11,11 @@ from mbn.cli.args import positive_int
 from mbn.errors import MbnInputError
 from mbn.precision import ROBOT
 
-__all__ = ["EPILOG", "add_commands", "seed_list"]
+__all__ = ["EPILOG", "EXPERIMENT_NAMES", "add_commands", "seed_list"]
+
+#: What ``--experiment`` takes (``mbn.experiments.sweep.specs.SWEEP_EXPERIMENTS``; named here so
+#: that ``mbn --help`` imports no experiment).
+EXPERIMENT_NAMES = ("new-behaviours", "reproduce")
 
 EPILOG = """\
   mbn sweep --seeds 0-9 --out runs/sweep        10 seeds on a local Ray, one per core
@@ -19,8 +23,9 @@ EPILOG = """\
 """
 
 _SWEEP_EPILOG = """\
-Each seed K runs `mbn reproduce --seed K` into DIR/seed-K (a normal run folder: `mbn evaluate`
-loads its controllers) as one Ray task asking for --cpus-per-run CPUs, its XLA and BLAS threads
+Each seed K runs `mbn reproduce --seed K` (or, with --experiment new-behaviours, `mbn run
+new-behaviours --seed K`) into DIR/seed-K (a normal run folder: `mbn evaluate` loads its
+controllers) as one Ray task asking for --cpus-per-run CPUs, its XLA and BLAS threads
 pinned to that many. Without --address a local Ray is started with one CPU per core of this
 machine; with one, the sweep joins that cluster (`ray start --head` on one machine, `ray start
 --address HEAD:6379` on the others; DIR must be on a file system every machine sees at the same
@@ -28,7 +33,7 @@ path).
 
 Run the same command again to continue: finished seeds are skipped, interrupted ones resume from
 their checkpoints; a seed that crashed is reported (sweep.json) and the others finish. An --out
-holding a sweep with other --seeds, --quick or --config is refused.
+holding a sweep with other --seeds, --quick, --config or --experiment is refused.
 
 outputs in DIR: seed-K/ (one per seed), sweep.json (settings, each seed's state, the statistics),
 sweep.md, sweep.html (self-contained), figures/
@@ -36,6 +41,7 @@ sweep.md, sweep.html (self-contained), figures/
 examples:
   mbn sweep --seeds 0-9 --out runs/sweep
   mbn sweep --seeds 0,2,5-7 --quick --out runs/q
+  mbn sweep --seeds 0-4 --experiment new-behaviours --out runs/nb-sweep
   mbn sweep --seeds 0-99 --out /shared/sweep --address head-node:6379
   mbn sweep --summarize --out runs/sweep
 """
@@ -71,6 +77,13 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="the sweep folder")
     sw.add_argument(
+        "--experiment",
+        choices=EXPERIMENT_NAMES,
+        default=None,
+        help="the experiment each seed runs: reproduce (default, `mbn reproduce`) or "
+        "new-behaviours (`mbn run new-behaviours`)",
+    )
+    sw.add_argument(
         "--config",
         type=Path,
         default=None,
@@ -104,7 +117,12 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     from mbn.experiments.sweep.report import summarize_folder, summary_line
 
     if args.summarize:
-        if args.seeds is not None or args.config is not None or args.quick:
+        if (
+            args.seeds is not None
+            or args.config is not None
+            or args.quick
+            or args.experiment is not None
+        ):
             raise MbnInputError(
                 "--summarize reads the settings from DIR/sweep.json: pass --out alone"
             )
@@ -114,15 +132,27 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     if args.seeds is None:
         raise MbnInputError("--seeds is required (e.g. --seeds 0-9), unless --summarize")
     from mbn.cli.reproduce import effective_config
-    from mbn.experiments.reproduce import STAGES
+    from mbn.config import read_toml
     from mbn.experiments.sweep.monitor import SweepMonitor
     from mbn.experiments.sweep.run import RayExecutor, SweepSettings, run_sweep
+    from mbn.experiments.sweep.specs import sweep_spec
 
-    settings = SweepSettings(tuple(args.seeds), effective_config(args.config, args.quick))
+    spec = sweep_spec(args.experiment)
+    experiment = spec.load()
+    if spec.name == "reproduce":
+        config = effective_config(args.config, args.quick)
+    else:
+        document = read_toml(args.config) if args.config is not None else None
+        config = experiment.config(quick=args.quick, document=document)
+    settings = SweepSettings(tuple(args.seeds), config, spec.name)
     monitor = None
     if not args.quiet:
         monitor = SweepMonitor(
-            args.out, settings.seeds, STAGES.names, live=sys.stdout.isatty(), stream=sys.stdout
+            args.out,
+            settings.seeds,
+            experiment.registry.names,
+            live=sys.stdout.isatty(),
+            stream=sys.stdout,
         )
     data = run_sweep(
         args.out,

@@ -75,6 +75,14 @@ def test_the_quick_experiment_runs_end_to_end_and_resumes(tmp_path):
     results = json.loads((out / "results.json").read_text())
     for name in ("im_full_rf_jitter", "im_full_straight_right", "mbn3_jitter", "mbn3_two_tiles"):
         assert results["tests"][name]["trials"] > 0
+    # every per-run target of a sweep of this experiment finds its record (mbn sweep
+    # --experiment new-behaviours)
+    from mbn.experiments.sweep.specs import NEW_BEHAVIOURS_SPEC
+    from mbn.experiments.sweep.targets import measure
+
+    for target in NEW_BEHAVIOURS_SPEC.targets:
+        assert measure(target, results)[1] > 0, target.name
+    assert set(NEW_BEHAVIOURS_SPEC.tests) == set(results["tests"])
     digests = set()
     for f in ("im_full", "im_full_programs", "mbn3"):
         spec = read_controller_spec(out / "controllers" / f"{f}.json")

@@ -3,9 +3,10 @@
 ``results.json``, ``stages/`` and ``checkpoints/``); it never simulates, so ``mbn sweep
 --summarize`` rebuilds it at any time.
 
-The DE curves are read where the stages record them: ``stages/rf.json``, ``lf.json`` and
-``pm.json`` (``history.best``: the kept RF restart's), and for the LF search the chosen triple's
-checkpoint ``checkpoints/lf_search_NN.npz`` (its history of best and mean fitness).
+The DE curves are read where the stages record them (:mod:`~mbn.experiments.sweep.specs`): for
+a reproduction ``stages/rf.json``, ``lf.json`` and ``pm.json`` (``history.best``: the kept RF
+restart's), and for the LF search the chosen triple's checkpoint ``checkpoints/lf_search_NN.npz``
+(its history of best and mean fitness).
 """
 
 from __future__ import annotations
@@ -13,11 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.experiments.reproduce.protocol import TEST_NAMES
-from mbn.experiments.reproduce.stages.lf_search import search_checkpoint
 from mbn.experiments.sweep.run import (
     SWEEP_FILE,
     read_sweep,
@@ -26,43 +24,31 @@ from mbn.experiments.sweep.run import (
     write_sweep,
 )
 from mbn.experiments.sweep.seeds import format_seeds
+from mbn.experiments.sweep.specs import REPRODUCE_SPEC, SweepSpec, sweep_spec
 from mbn.experiments.sweep.summary import summarize
-from mbn.experiments.sweep.targets import TARGETS
 from mbn.io import read_json
 from mbn.viz.sweep import de_bands, rate_boxes
 
 __all__ = ["DE_STAGES", "TITLE", "de_curves", "summarize_folder", "summary_line"]
 
-TITLE = "mbn sweep: the reproduction over seeds"
+TITLE = REPRODUCE_SPEC.title
 
-#: The stages whose DE best-fitness curves the report draws, and their titles.
-DE_STAGES = {
-    "rf": "RF (12 genes)",
-    "lf_search": "LF search (the chosen triple)",
-    "lf": "LF (3 genes)",
-    "pm": "PM (program module)",
-}
+#: The stages whose DE best-fitness curves a reproduction's report draws, and their titles.
+DE_STAGES = REPRODUCE_SPEC.de_stages
 
 
-def de_curves(out: Path, seeds: list[int]) -> dict[str, dict[int, list[float]]]:
+def de_curves(
+    out: Path, seeds: list[int], spec: SweepSpec = REPRODUCE_SPEC
+) -> dict[str, dict[int, list[float]]]:
     """``stage -> seed -> best fitness per generation`` of the finished seeds, as recorded in
     their folders (stages without a record are left out)."""
-    curves: dict[str, dict[int, list[float]]] = {name: {} for name in DE_STAGES}
+    curves: dict[str, dict[int, list[float]]] = {name: {} for name in spec.de_stages}
     for s in seeds:
         rundir = RunDir(seed_dir(out, s))
-        for name in ("rf", "lf", "pm"):
-            if rundir.stage_done(name):
-                h = rundir.read_stage(name).get("history")
-                if isinstance(h, dict) and h.get("best"):
-                    curves[name][s] = [float(x) for x in h["best"]]
-        if rundir.stage_done("lf_search"):
-            index = rundir.read_stage("lf_search").get("chosen_index")
-            if isinstance(index, int) and rundir.checkpoint_file(search_checkpoint(index)).exists():
-                try:
-                    cp = rundir.load_checkpoint(search_checkpoint(index))
-                except MbnInputError:
-                    continue
-                curves["lf_search"][s] = [b for b, _ in cp.history]
+        for name in spec.de_stages:
+            curve = spec.curve(rundir, name)
+            if curve:
+                curves[name][s] = curve
     return {k: v for k, v in curves.items() if v}
 
 
@@ -96,7 +82,9 @@ def summary_line(data: dict[str, Any]) -> str:
     return line
 
 
-def _sections(out: Path, data: dict[str, Any], images: list[tuple[str, str]]) -> list[Section]:
+def _sections(
+    out: Path, data: dict[str, Any], images: list[tuple[str, str]], spec: SweepSpec
+) -> list[Section]:
     summ = data["summary"]
     settings = data["settings"]
     seeds = summ["seeds"]
@@ -109,16 +97,16 @@ def _sections(out: Path, data: dict[str, Any], images: list[tuple[str, str]]) ->
         Section(
             "Sweep",
             [
-                f"{n} seeds ({format_seeds(seeds)}), each a full `mbn reproduce` run in "
+                f"{n} seeds ({format_seeds(seeds)}), each a full `{spec.command}` run in "
                 f"`seed-K/`; {summ['finished']} finished, {len(summ['failed'])} failed. "
                 f"**{summ['meet_every_target']} of {n} seeds meet every target.**" + quick,
                 summary_line(data) + ".",
             ],
         )
     )
-    target_of = {t.test: t for t in TARGETS if t.source == "tests"}
+    target_of = {t.test: t for t in spec.targets if t.source == "tests"}
     rows, status = [], []
-    for name in TEST_NAMES:
+    for name in spec.tests:
         t = summ["tests"][name]
         tg = target_of.get(name)
         met = summ["targets"][tg.name]["seeds_meeting"] if tg else None
@@ -135,7 +123,7 @@ def _sections(out: Path, data: dict[str, Any], images: list[tuple[str, str]]) ->
             ]
         )
         status.append(None if met is None else met == summ["finished"] and met > 0)
-    for tg in TARGETS:
+    for tg in spec.targets:
         if tg.source != "agreement":
             continue
         a = summ["targets"][tg.name]
@@ -158,11 +146,7 @@ def _sections(out: Path, data: dict[str, Any], images: list[tuple[str, str]]) ->
             [
                 "Per test: its per-run target, how many seeds meet it, the success rates over "
                 "the seeds (median [interquartile range], min), and the trials of every seed "
-                "pooled with a Wilson 95 % interval. The targets (`mbn.experiments.sweep."
-                "targets`): the paper protocol in every trial for RF, LF, the IM with each "
-                "program and the MBN; at least 95 % on the jittered starts and on the held-out "
-                "maze for each; the interpreter takes its network's exits in at least 98 % of "
-                "the jittered trials. The published weights have no target.",
+                "pooled with a Wilson 95 % interval. " + spec.targets_text,
             ],
             table=(
                 ["test", "target", "seeds meeting", "median [IQR]", "min", "pooled", "Wilson 95 %"],
@@ -230,12 +214,11 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     ``sweep.html``. Returns ``sweep.json``."""
     out = Path(out)
     data = read_sweep(out)
-    from mbn.experiments.reproduce import REPRODUCE
-
     settings = data["settings"]
+    spec = sweep_spec(settings.get("experiment"))
     seeds = [int(s) for s in settings.get("seeds", [])]
     # the sweep's recorded config, checked as this version reads it, compared as recorded
-    REPRODUCE.config_from_dict(settings.get("config"), str(out / SWEEP_FILE))
+    spec.load().config_from_dict(settings.get("config"), str(out / SWEEP_FILE))
     runs: dict[int, dict[str, Any] | None] = {}
     for s in seeds:
         done = seed_state(out, s, dict(settings.get("config") or {})) == "done"
@@ -245,15 +228,15 @@ def summarize_folder(out: Path) -> dict[str, Any]:
         for s in seeds
         if runs[s] is None and data.get("runs", {}).get(str(s), {}).get("state") == "failed"
     }
-    summ = summarize(runs, errors)
+    summ = summarize(runs, errors, spec)
     data["summary"] = summ
     finished = [s for s in seeds if runs[s] is not None]
     images: list[tuple[str, str]] = []
     (out / "figures").mkdir(exist_ok=True)
     if finished:
-        curves = de_curves(out, finished)
+        curves = de_curves(out, finished, spec)
         if curves:
-            de_bands(curves, DE_STAGES, out / "figures" / "sweep_de.png")
+            de_bands(curves, dict(spec.de_stages), out / "figures" / "sweep_de.png")
             images.append(
                 (
                     "figures/sweep_de.png",
@@ -261,19 +244,16 @@ def summarize_folder(out: Path) -> dict[str, Any]:
                     "over the seeds, the median run drawn",
                 )
             )
-        rates = {n: summ["tests"][n]["rates"] for n in TEST_NAMES}
-        thresholds = {t.test: float(t.threshold) for t in TARGETS if t.source == "tests"}
-        for t in TARGETS:
+        rates = {n: summ["tests"][n]["rates"] for n in spec.tests}
+        thresholds = {t.test: float(t.threshold) for t in spec.targets if t.source == "tests"}
+        for t in spec.targets:
             if t.source == "agreement":
                 rates[f"agree {t.test}"] = summ["targets"][t.name]["rates"]
                 thresholds[f"agree {t.test}"] = float(t.threshold)
-        followers = ("rf", "lf", "im_rf", "im_lf", "mbn", "published_rf", "published_lf")
-        groups = [
-            ("Paper protocol", list(followers)),
-            ("Jittered starts", [f"{n}_jitter" for n in followers]),
-            ("Held-out maze", [f"{n}_heldout" for n in followers]),
-            ("Interpreter agreement (jittered)", [k for k in rates if k.startswith("agree ")]),
-        ]
+        groups = [(title, list(tests)) for title, tests in spec.groups]
+        groups.append(
+            ("Interpreter agreement (jittered)", [k for k in rates if k.startswith("agree ")])
+        )
         rate_boxes(rates, thresholds, out / "figures" / "sweep_rates.png", groups)
         images.append(
             (
@@ -282,5 +262,5 @@ def summarize_folder(out: Path) -> dict[str, Any]:
             )
         )
     write_sweep(out, data)
-    write_document(out, "sweep", TITLE, _sections(out, data, images))
+    write_document(out, "sweep", spec.title, _sections(out, data, images, spec))
     return data

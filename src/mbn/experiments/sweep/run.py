@@ -82,9 +82,14 @@ class SweepSettings:
 
     seeds: tuple[int, ...]
     config: RunConfig
+    #: the experiment every seed runs (:mod:`~mbn.experiments.sweep.specs`); recorded in
+    #: ``sweep.json`` unless it is the reproduction, so older sweeps read as before
+    experiment: str = "reproduce"
 
     def to_dict(self) -> dict[str, Any]:
+        named = {} if self.experiment == "reproduce" else {"experiment": self.experiment}
         return {
+            **named,
             "seeds": list(self.seeds),
             "quick": self.config.quick,
             "config": self.config.to_dict(),
@@ -230,11 +235,12 @@ def run_seed(
     seed: int,
     config: RunConfig,
     resume: bool,
-    experiment: Experiment | None = None,
+    experiment: Experiment | str | None = None,
 ) -> dict[str, Any]:
-    """Run (or resume) the reproduction of ``seed`` into ``out/seed-K``, as ``mbn reproduce
-    --seed K --out out/seed-K [--resume]`` does; never raises: a crash is returned as
-    ``{"state": "failed", "error": one line}``."""
+    """Run (or resume) the run of ``seed`` into ``out/seed-K``, as ``mbn reproduce --seed K
+    --out out/seed-K [--resume]`` does (or ``mbn run NAME``: ``experiment``, by name or itself;
+    default the reproduction); never raises: a crash is returned as ``{"state": "failed",
+    "error": one line}``."""
     t0 = time.perf_counter()
     worker = {
         "host": socket.gethostname(),
@@ -250,10 +256,10 @@ def run_seed(
 
         worker["compile_cache"] = str(compile_cache.enable() or "off")
 
-        if experiment is None:
-            from mbn.experiments.reproduce import REPRODUCE
+        if experiment is None or isinstance(experiment, str):
+            from mbn.experiments.sweep.specs import sweep_spec
 
-            experiment = REPRODUCE
+            experiment = sweep_spec(experiment).load()
         with scope(ROBOT):  # as the command line runs `mbn reproduce`
             run_experiment(
                 experiment,
@@ -499,9 +505,14 @@ def run_sweep(
                 mon.mark(s, "done" if states[s] == "done" else "waiting")
             handles = []
             if ex is not None:
+                # the experiment itself where the caller gave one, else its name (a task
+                # loads it), none for the reproduction
+                chosen: Experiment | str | None = experiment or (
+                    None if settings.experiment == "reproduce" else settings.experiment
+                )
                 for s in todo:
                     args = (str(out), s, settings.config, states[s] == "resume")
-                    handles.append(ex.submit(s, (*args, experiment) if experiment else args))
+                    handles.append(ex.submit(s, (*args, chosen) if chosen else args))
                     mon.mark(s, "queued")
             while handles:
                 done = ex.wait(handles, poll_s) if ex is not None else []

@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from mbn.experiments.reproduce.protocol import TEST_NAMES
 from mbn.experiments.stats import Z95, wilson_interval
-from mbn.experiments.sweep.targets import TARGETS, measure, meets
+from mbn.experiments.sweep.specs import SweepSpec, sweep_spec
+from mbn.experiments.sweep.targets import TARGETS, Target, measure, meets
 
 __all__ = ["Z95", "describe", "seed_verdict", "summarize", "wilson_interval"]
 
@@ -53,11 +53,11 @@ def describe(values: Sequence[float]) -> dict[str, float]:
     }
 
 
-def seed_verdict(results: Mapping[str, Any]) -> dict[str, Any]:
+def seed_verdict(results: Mapping[str, Any], targets: Sequence[Target] = TARGETS) -> dict[str, Any]:
     """One run's targets: ``{"meets_all", "missed": [names], "targets": {name: {...}}}``."""
     per: dict[str, Any] = {}
     missed = []
-    for t in TARGETS:
+    for t in targets:
         hits, trials = measure(t, dict(results))
         ok = meets(t, hits, trials)
         per[t.name] = {"hits": hits, "trials": trials, "meets": ok}
@@ -67,19 +67,23 @@ def seed_verdict(results: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def summarize(
-    runs: Mapping[int, Mapping[str, Any] | None], errors: Mapping[int, str] | None = None
+    runs: Mapping[int, Mapping[str, Any] | None],
+    errors: Mapping[int, str] | None = None,
+    spec: SweepSpec | None = None,
 ) -> dict[str, Any]:
     """The statistics of a sweep.
 
     Args:
         runs: ``seed -> results.json`` of every seed (``None``: the seed has no finished run).
         errors: ``seed -> one-line error`` of the seeds whose run crashed.
+        spec: the experiment's targets and tests (default: the reproduction's).
 
     Returns:
         ``{"seeds", "finished", "failed", "meet_every_target", "per_seed", "tests", "targets",
         "claims"}`` (plain JSON).
     """
     errors = dict(errors or {})
+    spec = spec or sweep_spec(None)
     seeds = list(runs)
     finished = {s: r for s, r in runs.items() if r is not None}
     per_seed: dict[str, Any] = {}
@@ -91,12 +95,14 @@ def summarize(
                 "error": errors.get(s),
             }
         else:
-            v = seed_verdict(r)
+            v = seed_verdict(r, spec.targets)
             per_seed[str(s)] = {"state": "done", "meets_all": v["meets_all"], "missed": v["missed"]}
     tests: dict[str, Any] = {}
-    for name in TEST_NAMES:
+    for name in spec.tests:
         rates, succ, trials = [], 0, 0
         for r in finished.values():
+            if name not in r["tests"]:
+                continue
             t = r["tests"][name]
             rates.append(float(t["success_rate"]))
             succ += int(t["successes"])
@@ -108,7 +114,7 @@ def summarize(
             "pooled": {"successes": succ, "trials": trials, "wilson95": [lo, hi]},
         }
     targets: dict[str, Any] = {}
-    for t in TARGETS:
+    for t in spec.targets:
         measured = [measure(t, dict(r)) for r in finished.values()]
         hits = sum(h for h, _ in measured)
         trials = sum(n for _, n in measured)
@@ -130,7 +136,8 @@ def summarize(
     for r in finished.values():
         for c in r.get("claims", []):
             entry = claims.setdefault(
-                claim_key(c["claim"]), {"runs": 0, "hold": 0, "criterion": c["criterion"]}
+                claim_key(c["claim"]),
+                {"runs": 0, "hold": 0, "criterion": c.get("criterion", c.get("target", ""))},
             )
             entry["runs"] += 1
             entry["hold"] += int(bool(c["pass"]))

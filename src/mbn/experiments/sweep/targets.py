@@ -35,10 +35,14 @@ class Target:
     Attributes:
         name: the test's name (``rf_jitter``) or, for agreement, ``agreement_<test>``.
         source: ``"tests"`` (``results["tests"][test]``: successes / trials) or ``"agreement"``
-            (``results["stages"]["tests"]["agreement"][test]``: same_branches / trials).
+            (same_branches / trials of an agreement record, by default
+            ``results["stages"]["tests"]["agreement"][test]``).
         test: the key in that table.
         threshold: the least rate that meets it (a fraction; 1 means every trial).
         what: how the report describes it.
+        where: the keys from ``results.json`` to the record's table, when not the default of
+            its source (another experiment's agreement records, e.g. ``("stages", "im_full",
+            "agreement")``).
     """
 
     name: str
@@ -46,6 +50,13 @@ class Target:
     test: str
     threshold: Fraction
     what: str
+    where: tuple[str, ...] = ()
+
+    @property
+    def path(self) -> tuple[str, ...]:
+        """The keys from ``results.json`` to the record."""
+        default = ("tests",) if self.source == "tests" else ("stages", "tests", "agreement")
+        return (*(self.where or default), self.test)
 
     @property
     def label(self) -> str:
@@ -100,12 +111,15 @@ TARGETS: tuple[Target, ...] = (
 
 
 def measure(target: Target, results: dict[str, Any]) -> tuple[int, int]:
-    """``(hits, trials)`` of ``target`` in one run's ``results.json``."""
-    if target.source == "tests":
-        t = results["tests"][target.test]
-        return int(t["successes"]), int(t["trials"])
-    a = results["stages"]["tests"]["agreement"][target.test]
-    return int(a["same_branches"]), int(a["trials"])
+    """``(hits, trials)`` of ``target`` in one run's ``results.json`` (successes of a test,
+    same branches of an agreement; ``(0, 0)`` where the run has no such record)."""
+    record: Any = results
+    for key in target.path:
+        if not isinstance(record, dict) or key not in record:
+            return 0, 0  # the run did not record it: no trials, not met
+        record = record[key]
+    hits = record["successes"] if target.source == "tests" else record["same_branches"]
+    return int(hits), int(record["trials"])
 
 
 def meets(target: Target, hits: int, trials: int) -> bool:

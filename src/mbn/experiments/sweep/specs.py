@@ -1,0 +1,233 @@
+"""What a sweep knows of each experiment it can run: the experiment, its per-run targets, the
+tests its report tabulates and plots, and where its stages record their DE curves.
+
+``mbn sweep --experiment NAME``: ``reproduce`` (the default: the paper's experiment, targets
+:data:`~mbn.experiments.sweep.targets.TARGETS`) or ``new-behaviours`` (``docs/behaviours.md``:
+the fully programmable interpreter, the new rules by programs alone and the three-behaviour MBN;
+targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import TYPE_CHECKING
+
+from mbn.errors import MbnInputError
+from mbn.experiments.sweep.targets import TARGETS, Target
+
+if TYPE_CHECKING:
+    from mbn.experiments.pipeline.rundir import RunDir
+    from mbn.experiments.pipeline.runner import Experiment
+
+__all__ = [
+    "DEFAULT_EXPERIMENT",
+    "NEW_BEHAVIOURS_TARGETS",
+    "SWEEP_EXPERIMENTS",
+    "SweepSpec",
+    "sweep_spec",
+]
+
+#: The experiment a sweep runs unless told otherwise (and a ``sweep.json`` that names none).
+DEFAULT_EXPERIMENT = "reproduce"
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """One experiment as a sweep runs and reports it.
+
+    Attributes:
+        name: the experiment's name (``--experiment``).
+        title: the report's title.
+        command: the command one seed's run is (``mbn reproduce``), for the report's text.
+        targets: the per-run targets ("a seed meets every target").
+        tests: the tests of ``results.json`` the report tabulates, in order.
+        groups: the box plot's groups of tests (title, tests).
+        targets_text: the report's sentence on what the targets are.
+        de_stages: the stages whose DE best-fitness curves are drawn, with their titles.
+        curve: reads one stage's curve from a seed folder (``None`` where it has none).
+        load: the experiment (imported when a run needs it).
+    """
+
+    name: str
+    title: str
+    command: str
+    targets: tuple[Target, ...]
+    tests: tuple[str, ...]
+    groups: tuple[tuple[str, tuple[str, ...]], ...]
+    targets_text: str
+    de_stages: Mapping[str, str]
+    curve: Callable[[RunDir, str], list[float] | None]
+    load: Callable[[], Experiment]
+
+
+def stage_history(rundir: RunDir, stage: str) -> list[float] | None:
+    """The best fitness per generation a stage recorded (``history.best`` of its data)."""
+    if not rundir.stage_done(stage):
+        return None
+    h = rundir.read_stage(stage).get("history")
+    if isinstance(h, dict) and h.get("best"):
+        return [float(x) for x in h["best"]]
+    return None
+
+
+def _reproduce_curve(rundir: RunDir, stage: str) -> list[float] | None:
+    """As :func:`stage_history`; for the LF search, the chosen triple's checkpoint's history."""
+    if stage != "lf_search":
+        return stage_history(rundir, stage)
+    from mbn.experiments.reproduce.stages.lf_search import search_checkpoint
+
+    if not rundir.stage_done("lf_search"):
+        return None
+    index = rundir.read_stage("lf_search").get("chosen_index")
+    if not isinstance(index, int) or not rundir.checkpoint_file(search_checkpoint(index)).exists():
+        return None
+    try:
+        cp = rundir.load_checkpoint(search_checkpoint(index))
+    except MbnInputError:
+        return None
+    return [b for b, _ in cp.history]
+
+
+def _load_reproduce() -> Experiment:
+    from mbn.experiments.reproduce import REPRODUCE
+
+    return REPRODUCE
+
+
+def _load_new_behaviours() -> Experiment:
+    from mbn.experiments.behaviours import NEW_BEHAVIOURS
+
+    return NEW_BEHAVIOURS
+
+
+def _reproduce_tests() -> tuple[str, ...]:
+    from mbn.experiments.reproduce.protocol import TEST_NAMES
+
+    return tuple(TEST_NAMES)
+
+
+_FOLLOWERS = ("rf", "lf", "im_rf", "im_lf", "mbn", "published_rf", "published_lf")
+_SUFFIXES = ("", "_jitter", "_heldout")
+
+REPRODUCE_SPEC = SweepSpec(
+    name="reproduce",
+    title="mbn sweep: the reproduction over seeds",
+    command="mbn reproduce",
+    targets=TARGETS,
+    tests=_reproduce_tests(),
+    groups=(
+        ("Paper protocol", _FOLLOWERS),
+        ("Jittered starts", tuple(f"{n}_jitter" for n in _FOLLOWERS)),
+        ("Held-out maze", tuple(f"{n}_heldout" for n in _FOLLOWERS)),
+    ),
+    targets_text="The targets (`mbn.experiments.sweep.targets`): the paper protocol in every "
+    "trial for RF, LF, the IM with each program and the MBN; at least 95 % on the jittered "
+    "starts and on the held-out maze for each; the interpreter takes its network's exits in at "
+    "least 98 % of the jittered trials. The published weights have no target.",
+    de_stages={
+        "rf": "RF (12 genes)",
+        "lf_search": "LF search (the chosen triple)",
+        "lf": "LF (3 genes)",
+        "pm": "PM (program module)",
+    },
+    curve=_reproduce_curve,
+    load=_load_reproduce,
+)
+
+
+def _nb_tests(stem: str, what: str) -> tuple[Target, ...]:
+    return (
+        Target(stem, "tests", stem, Fraction(1), f"{what}: start marks"),
+        Target(f"{stem}_jitter", "tests", f"{stem}_jitter", Fraction(95, 100), f"{what}: jittered"),
+        Target(
+            f"{stem}_heldout", "tests", f"{stem}_heldout", Fraction(95, 100), f"{what}: held-out"
+        ),
+    )
+
+
+def _nb_agreement(test: str, where: tuple[str, ...], what: str) -> Target:
+    return Target(f"agreement_{test}", "agreement", test, Fraction(98, 100), what, where)
+
+
+_IM_FULL = ("stages", "im_full", "agreement")
+_TESTS3 = ("stages", "tests3", "agreement")
+
+#: The per-run targets of ``new-behaviours`` (issue 19, sections 2 to 4): the fully programmable
+#: interpreter with RF's and LF's programs, each new rule by a program alone and its decoded
+#: network's agreement with it, and the three-behaviour MBN on three-colour and on two-colour
+#: tiles (the two behaviours still there after the third was added).
+NEW_BEHAVIOURS_TARGETS: tuple[Target, ...] = (
+    *_nb_tests("im_full_rf", "fully programmable IM, RF's program"),
+    *_nb_tests("im_full_lf", "fully programmable IM, LF's program"),
+    _nb_agreement("im_full_rf_jitter", _IM_FULL, "fully programmable IM takes RF's exits"),
+    _nb_agreement("im_full_lf_jitter", _IM_FULL, "fully programmable IM takes LF's exits"),
+    *_nb_tests("im_full_straight_right", "straight-right by a program alone"),
+    _nb_agreement(
+        "im_full_straight_right_jitter", _TESTS3, "the decoded network takes the program's exits"
+    ),
+    *_nb_tests("im_full_straight_left", "straight-left by a program alone"),
+    _nb_agreement(
+        "im_full_straight_left_jitter", _TESTS3, "the decoded network takes the program's exits"
+    ),
+    *_nb_tests("mbn3", "three-behaviour MBN"),
+    *_nb_tests("mbn3_two_tiles", "three-behaviour MBN on the two-behaviour test"),
+)
+
+_NB_TESTS = tuple(
+    f"{stem}{suffix}"
+    for stem in (
+        "im_full_rf",
+        "im_full_lf",
+        "im_full_straight_right",
+        "net_straight_right",
+        "im_full_straight_left",
+        "net_straight_left",
+        "mbn3",
+        "mbn3_two_tiles",
+    )
+    for suffix in _SUFFIXES
+)
+_NB_STEMS = tuple(t for t in _NB_TESTS if not t.endswith(("_jitter", "_heldout")))
+
+NEW_BEHAVIOURS_SPEC = SweepSpec(
+    name="new-behaviours",
+    title="mbn sweep: new behaviours by programs alone, over seeds",
+    command="mbn run new-behaviours",
+    targets=NEW_BEHAVIOURS_TARGETS,
+    tests=_NB_TESTS,
+    groups=(
+        ("Start marks", _NB_STEMS),
+        ("Jittered starts", tuple(f"{n}_jitter" for n in _NB_STEMS)),
+        ("Held-out maze", tuple(f"{n}_heldout" for n in _NB_STEMS)),
+    ),
+    targets_text="The targets (`mbn.experiments.sweep.specs`): every start mark, and at least "
+    "95 % of the jittered and the held-out trials, for the fully programmable interpreter with "
+    "RF's and with LF's program, for each new rule by a program alone, and for the "
+    "three-behaviour MBN on the three-tile maze and on the two-behaviour test; the interpreter "
+    "takes RF's and LF's exits, and each new rule's decoded network the program's, in at least "
+    "98 % of the jittered trials. The decoded networks (`net_*`) have no target of their own.",
+    de_stages={
+        "rf": "RF (12 genes)",
+        "lf": "LF (3 genes)",
+        "mbn3": "PM of the three-behaviour MBN",
+    },
+    curve=stage_history,
+    load=_load_new_behaviours,
+)
+
+#: The experiments a sweep can run, by name.
+SWEEP_EXPERIMENTS: dict[str, SweepSpec] = {s.name: s for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC)}
+
+
+def sweep_spec(name: str | None) -> SweepSpec:
+    """The sweep's view of experiment ``name`` (``None``: :data:`DEFAULT_EXPERIMENT`)."""
+    key = DEFAULT_EXPERIMENT if name is None else name
+    try:
+        return SWEEP_EXPERIMENTS[key]
+    except KeyError:
+        known = ", ".join(sorted(SWEEP_EXPERIMENTS))
+        raise MbnInputError(
+            f"--experiment {key}: not an experiment a sweep runs ({known})"
+        ) from None
