@@ -67,6 +67,14 @@ def de_bands(
     save_png(fig, path)
 
 
+def _short(name: str) -> str:
+    """A test's name as a box plot's panel labels it (its title names the trials)."""
+    name = name.removeprefix("agree ")
+    for suffix in ("_jitter", "_heldout"):
+        name = name.removesuffix(suffix)
+    return name
+
+
 def rate_boxes(
     rates: Mapping[str, Sequence[float]],
     targets: Mapping[str, float],
@@ -96,7 +104,12 @@ def rate_boxes(
         for p, n in zip(pos, names, strict=True):
             if n in targets:
                 ax.hlines(targets[n], p - 0.35, p + 0.35, color="red", lw=1.5, ls="--", zorder=4)
-        ax.set_xticks(pos, list(names), fontsize=8)
+        # the panel's title says which trials: the names without "agree " and the suffix
+        labels = [_short(n) for n in names]
+        long = max((len(x) for x in labels), default=0) > 12
+        ax.set_xticks(
+            pos, labels, fontsize=8, rotation=20 if long else 0, ha="right" if long else "center"
+        )
         ax.set_xlim(0.4, max(len(names), 7) + 0.6)
         ax.set_ylim(-0.03, 1.03)
         ax.set_ylabel("success rate")
