@@ -105,7 +105,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
 
 def effective_config(config_file: Path | None, quick: bool, retrain: bool = False) -> Any:
     """The effective config of a reproduction: the defaults, then the ``--quick`` preset, then
-    the settings file, then ``--retrain`` (``mbn sweep`` builds every seed's config here too)."""
+    the settings file, then ``--retrain``."""
     from mbn.config import read_toml
     from mbn.experiments.pipeline.runner import replace_section
     from mbn.experiments.reproduce import REPRODUCE

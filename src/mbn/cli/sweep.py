@@ -131,7 +131,6 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         return 0
     if args.seeds is None:
         raise MbnInputError("--seeds is required (e.g. --seeds 0-9), unless --summarize")
-    from mbn.cli.reproduce import effective_config
     from mbn.config import read_toml
     from mbn.experiments.sweep.monitor import SweepMonitor
     from mbn.experiments.sweep.run import RayExecutor, SweepSettings, run_sweep
@@ -139,11 +138,8 @@ def run_sweep_command(args: argparse.Namespace) -> int:
 
     spec = sweep_spec(args.experiment)
     experiment = spec.load()
-    if spec.name == "reproduce":
-        config = effective_config(args.config, args.quick)
-    else:
-        document = read_toml(args.config) if args.config is not None else None
-        config = experiment.config(quick=args.quick, document=document)
+    document = read_toml(args.config) if args.config is not None else None
+    config = experiment.config(quick=args.quick, document=document)
     settings = SweepSettings(tuple(args.seeds), config, spec.name)
     monitor = None
     if not args.quiet:

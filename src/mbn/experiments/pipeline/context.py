@@ -144,28 +144,12 @@ class StageContext:
         ``checkpoints/NAME.npz``; resumes from that file when it exists. Generation 0 is drawn
         at random unless ``population`` is given; generation ``g`` draws from
         ``fold_in(key, g)``. Populations are evaluated in
-        :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts, ``workers`` of them at once."""
-        from mbn.experiments.evolve import FITNESS_PARTS, generation, split_fitness, start
-
-        threads = max(1, min(self.workers, FITNESS_PARTS))
-        with ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") as pool:
-            fitness = split_fitness(fitness, self.workers, pool)
-            cp = self._resumable(name, config)
-            if cp is not None:
-                state, history = cp.state, list(cp.history)
-            else:
-                state = start(key, config, fitness, population)
-                history = [generation_stats(state)]
-                self.rundir.save_checkpoint(name, Checkpoint(state, history))
-            g0 = int(state.generation)
-            bar = self.progress.task(description, generations)
-            self.progress.update(bar, completed=g0, info=f"best {history[-1][0]:.2f}")
-            for g in range(g0 + 1, generations + 1):
-                state = generation(key, g, state, config, fitness)
-                history.append(generation_stats(state))
-                self.rundir.save_checkpoint(name, Checkpoint(state, history))
-                self.progress.update(bar, completed=g, info=f"best {history[-1][0]:.2f}")
-            return _result(state, history, generations)
+        :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts, ``workers`` of them at once. A
+        group of one run (:meth:`evolve_group`)."""
+        run = DERun(name, config, key, population)
+        return self.evolve_group([run], lambda pop, _owner: fitness(pop), generations, description)[
+            0
+        ]
 
     def evolve_group(
         self,
@@ -193,57 +177,49 @@ class StageContext:
         if len(configs) != 1:
             raise MbnInputError(f"a DE group needs one population shape, got {sorted(configs)}")
         ((popsize, _),) = configs
-        owner = np.repeat(np.arange(len(runs)), popsize)
+        owner = jnp.asarray(np.repeat(np.arange(len(runs)), popsize))
         cut = [slice(r * popsize, (r + 1) * popsize) for r in range(len(runs))]
+
+        def drawn(run: DERun) -> DEState:  # generation 0 before its fitness
+            if run.population is None:
+                return init(jax.random.fold_in(run.key, 0), run.config)
+            return from_population(jnp.asarray(run.population), run.config)
+
         threads = max(1, min(self.workers, FITNESS_PARTS))
         with ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") as pool:
             values_of = split_fitness(fitness, self.workers, pool)
 
             def evaluate(populations: list[jax.Array]) -> list[jax.Array]:
-                values = values_of(jnp.concatenate(populations), jnp.asarray(owner))
+                values = values_of(jnp.concatenate(populations), owner)
                 return [values[c] for c in cut]
 
-            states: list[DEState | None] = []
-            histories: list[list[tuple[float, float]]] = []
-            for run in runs:
-                cp = self._resumable(run.name, run.config)
-                states.append(None if cp is None else cp.state)
-                histories.append([] if cp is None else list(cp.history))
-            fresh = [i for i, st in enumerate(states) if st is None]
+            checkpoints = [self._resumable(run.name, run.config) for run in runs]
+            states = [
+                drawn(run) if cp is None else cp.state
+                for run, cp in zip(runs, checkpoints, strict=True)
+            ]
+            histories = [[] if cp is None else list(cp.history) for cp in checkpoints]
+            fresh = [i for i, cp in enumerate(checkpoints) if cp is None]
             if fresh:
-                first = [
-                    (
-                        init(jax.random.fold_in(run.key, 0), run.config)
-                        if run.population is None
-                        else from_population(jnp.asarray(run.population), run.config)
-                    )
-                    if st is None
-                    else st
-                    for run, st in zip(runs, states, strict=True)
-                ]
-                values = evaluate([st.population for st in first])
+                values = evaluate([st.population for st in states])
                 for i in fresh:
-                    st = initialize_fitness(first[i], values[i], runs[i].config)
-                    states[i], histories[i] = st, [generation_stats(st)]
-                    self.rundir.save_checkpoint(runs[i].name, Checkpoint(st, histories[i]))
-            done: list[DEState] = [st for st in states if st is not None]
-            g0 = min(int(st.generation) for st in done)
+                    states[i] = initialize_fitness(states[i], values[i], runs[i].config)
+                    histories[i] = [generation_stats(states[i])]
+                    self.rundir.save_checkpoint(runs[i].name, Checkpoint(states[i], histories[i]))
+            g0 = min(int(st.generation) for st in states)
             bar = self.progress.task(description, generations)
             best = max(h[-1][0] for h in histories)
             self.progress.update(bar, completed=g0, info=f"best {best:.2f}")
             for g in range(g0 + 1, generations + 1):
-                behind = [i for i, st in enumerate(done) if int(st.generation) < g]
-                trials = [
-                    ask(jax.random.fold_in(run.key, g), st, run.config)
-                    if i in behind
-                    else st.population
-                    for i, (run, st) in enumerate(zip(runs, done, strict=True))
-                ]
+                behind = [i for i, st in enumerate(states) if int(st.generation) < g]
+                trials = [st.population for st in states]
+                for i in behind:
+                    trials[i] = ask(jax.random.fold_in(runs[i].key, g), states[i], runs[i].config)
                 values = evaluate(trials)
                 for i in behind:
-                    done[i] = tell(done[i], trials[i], values[i], runs[i].config)
-                    histories[i].append(generation_stats(done[i]))
-                    self.rundir.save_checkpoint(runs[i].name, Checkpoint(done[i], histories[i]))
+                    states[i] = tell(states[i], trials[i], values[i], runs[i].config)
+                    histories[i].append(generation_stats(states[i]))
+                    self.rundir.save_checkpoint(runs[i].name, Checkpoint(states[i], histories[i]))
                 best = max(h[-1][0] for h in histories)
                 self.progress.update(bar, completed=g, info=f"best {best:.2f}")
-            return [_result(st, h, generations) for st, h in zip(done, histories, strict=True)]
+            return [_result(st, h, generations) for st, h in zip(states, histories, strict=True)]

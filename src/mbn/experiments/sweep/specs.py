@@ -15,6 +15,7 @@ from fractions import Fraction
 from typing import TYPE_CHECKING
 
 from mbn.errors import MbnInputError
+from mbn.experiments.reproduce.protocol import SUFFIXES, TEST_NAMES
 from mbn.experiments.sweep.targets import TARGETS, Target
 
 if TYPE_CHECKING:
@@ -102,26 +103,26 @@ def _load_new_behaviours() -> Experiment:
     return NEW_BEHAVIOURS
 
 
-def _reproduce_tests() -> tuple[str, ...]:
-    from mbn.experiments.reproduce.protocol import TEST_NAMES
-
-    return tuple(TEST_NAMES)
-
-
 _FOLLOWERS = ("rf", "lf", "im_rf", "im_lf", "mbn", "published_rf", "published_lf")
-_SUFFIXES = ("", "_jitter", "_heldout")
+
+
+def _by_trials(first: str, stems: tuple[str, ...]) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """The box plot's panels: ``stems`` from the start marks (titled ``first``), then their
+    jittered and their held-out tests."""
+    return (
+        (first, stems),
+        ("Jittered starts", tuple(f"{n}_jitter" for n in stems)),
+        ("Held-out maze", tuple(f"{n}_heldout" for n in stems)),
+    )
+
 
 REPRODUCE_SPEC = SweepSpec(
     name="reproduce",
     title="mbn sweep: the reproduction over seeds",
     command="mbn reproduce",
     targets=TARGETS,
-    tests=_reproduce_tests(),
-    groups=(
-        ("Paper protocol", _FOLLOWERS),
-        ("Jittered starts", tuple(f"{n}_jitter" for n in _FOLLOWERS)),
-        ("Held-out maze", tuple(f"{n}_heldout" for n in _FOLLOWERS)),
-    ),
+    tests=tuple(TEST_NAMES),
+    groups=_by_trials("Paper protocol", _FOLLOWERS),
     targets_text="The targets (`mbn.experiments.sweep.targets`): the paper protocol in every "
     "trial for RF, LF, the IM with each program and the MBN; at least 95 % on the jittered "
     "starts and on the held-out maze for each; the interpreter takes its network's exits in at "
@@ -175,21 +176,18 @@ NEW_BEHAVIOURS_TARGETS: tuple[Target, ...] = (
     *_nb_tests("mbn3_two_tiles", "three-behaviour MBN on the two-behaviour test"),
 )
 
-_NB_TESTS = tuple(
-    f"{stem}{suffix}"
-    for stem in (
-        "im_full_rf",
-        "im_full_lf",
-        "im_full_straight_right",
-        "net_straight_right",
-        "im_full_straight_left",
-        "net_straight_left",
-        "mbn3",
-        "mbn3_two_tiles",
-    )
-    for suffix in _SUFFIXES
+#: The tests of a new-behaviours run, from its start marks, in the report's order.
+_NB_STEMS = (
+    "im_full_rf",
+    "im_full_lf",
+    "im_full_straight_right",
+    "net_straight_right",
+    "im_full_straight_left",
+    "net_straight_left",
+    "mbn3",
+    "mbn3_two_tiles",
 )
-_NB_STEMS = tuple(t for t in _NB_TESTS if not t.endswith(("_jitter", "_heldout")))
+_NB_TESTS = tuple(f"{stem}{suffix}" for stem in _NB_STEMS for suffix in SUFFIXES)
 
 NEW_BEHAVIOURS_SPEC = SweepSpec(
     name="new-behaviours",
@@ -197,11 +195,7 @@ NEW_BEHAVIOURS_SPEC = SweepSpec(
     command="mbn run new-behaviours",
     targets=NEW_BEHAVIOURS_TARGETS,
     tests=_NB_TESTS,
-    groups=(
-        ("Start marks", _NB_STEMS),
-        ("Jittered starts", tuple(f"{n}_jitter" for n in _NB_STEMS)),
-        ("Held-out maze", tuple(f"{n}_heldout" for n in _NB_STEMS)),
-    ),
+    groups=_by_trials("Start marks", _NB_STEMS),
     targets_text="The targets (`mbn.experiments.sweep.specs`): every start mark, and at least "
     "95 % of the jittered and the held-out trials, for the fully programmable interpreter with "
     "RF's and with LF's program, for each new rule by a program alone, and for the "
