@@ -36,6 +36,7 @@ from mbn.experiments.reproduce.settings import (
 from mbn.experiments.reproduce.settings import (
     DESettings,
     FollowerSettings,
+    InterpreterSettings,
     ValidationSettings,
     derived_seeds,
 )
@@ -85,7 +86,7 @@ NEW_BEHAVIOURS = Experiment(
     name="new-behaviours",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(DESettings, FollowerSettings, ValidationSettings, TestsSettings),
+    shared=(DESettings, FollowerSettings, InterpreterSettings, ValidationSettings, TestsSettings),
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

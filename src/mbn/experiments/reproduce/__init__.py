@@ -29,6 +29,7 @@ from mbn.experiments.reproduce.settings import (
     QUICK,
     DESettings,
     FollowerSettings,
+    InterpreterSettings,
     ValidationSettings,
     derived_seeds,
 )
@@ -70,7 +71,7 @@ REPRODUCE = Experiment(
     name="reproduce",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(DESettings, FollowerSettings, ValidationSettings),
+    shared=(DESettings, FollowerSettings, InterpreterSettings, ValidationSettings),
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

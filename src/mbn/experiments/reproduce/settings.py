@@ -11,10 +11,18 @@ from dataclasses import dataclass
 from typing import Any
 
 from mbn.config import Settings, setting
+from mbn.controllers.spec import MAX_SUBSTEPS
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import EPISODE_SECONDS
 
-__all__ = ["QUICK", "DESettings", "FollowerSettings", "ValidationSettings", "derived_seeds"]
+__all__ = [
+    "QUICK",
+    "DESettings",
+    "FollowerSettings",
+    "InterpreterSettings",
+    "ValidationSettings",
+    "derived_seeds",
+]
 
 _DE = {f.name: f.default for f in dataclasses.fields(DEConfig)}
 
@@ -71,6 +79,37 @@ class FollowerSettings(Settings):
         low=0.1,
         high=3600.0,
         source="paper 3.1 ('about 20 seconds'); docs/experiments.md",
+    )
+
+
+#: The interpreter's multipliers at tau / 40, integrated at h = tau_m / 10 (80 steps of a 0.1 s
+#: robot step), as the fully programmable interpreter of ``mbn run new-behaviours`` runs them
+#: (docs/reproduce.md, Deviations; docs/behaviours.md).
+INTERPRETER_TAU_RATIO = 0.025
+INTERPRETER_SUBSTEPS = 80
+
+
+@dataclass(frozen=True)
+class InterpreterSettings(Settings):
+    """How the interpreter of RF and LF (stage ``im``, and the LF stage's check of every
+    candidate) runs its multipliers: their time constant and the integration step."""
+
+    section = "interpreter"
+    tau_ratio: float = setting(
+        INTERPRETER_TAU_RATIO,
+        doc="the multipliers' time constant over the receiving neuron's (paper: an order of "
+        "magnitude smaller, 0.1; here 0.025: their lag moves the networks off their branches)",
+        low=1e-4,
+        high=1.0,
+        source="paper section 2; docs/reproduce.md (Deviations: the multipliers' lag)",
+    )
+    substeps: int = setting(
+        INTERPRETER_SUBSTEPS,
+        doc="interpreter steps per 0.1 s robot step (keep h / tau_m = 0.1, the multipliers' "
+        "training step: 20 at tau/10, 80 at tau/40)",
+        low=1,
+        high=MAX_SUBSTEPS,
+        source="docs/programmable.md",
     )
 
 

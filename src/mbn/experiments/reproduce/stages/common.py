@@ -9,7 +9,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.controllers import CTRNNControllerSpec, read_controller_spec, save_controller
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    read_controller_spec,
+    save_controller,
+)
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import CrossroadTask, episode_fitness, paper_terms
@@ -22,6 +27,8 @@ from mbn.experiments.evolve import (
 )
 from mbn.experiments.pipeline import StageContext
 from mbn.networks.ctrnn import CTRNN
+from mbn.networks.multiplier import Multiplier
+from mbn.networks.programmable import build_interpreter, differing_connections
 
 __all__ = [
     "MADE_BY",
@@ -29,6 +36,7 @@ __all__ = [
     "SCORE_KEYS",
     "de_config",
     "evolve_follower",
+    "interpreter_of",
     "read_network",
     "restart_rank",
     "save_follower",
@@ -109,6 +117,28 @@ def stage_perturbations(
     copies = followers.perturbation_copies if copies is None else copies
     sigma = followers.perturbation_sigma if sigma is None else sigma
     return perturbations(key, copies, size, sigma)
+
+
+def interpreter_of(
+    ctx: StageContext, rf: CTRNN, lf: CTRNN, multiplier: Multiplier, metadata: dict[str, Any]
+) -> InterpreterControllerSpec:
+    """The interpreter of RF with the connections in which RF and LF differ programmable
+    (their two values the bounds, paper eq. 2), RF's and LF's programs, run as the
+    ``[interpreter]`` settings say: the ``im`` stage's controller, and the one the LF stage
+    checks each candidate with."""
+    s = ctx.section("interpreter")
+    interp = build_interpreter(
+        rf, differing_connections(rf, lf, margin=0.0), multiplier, tau_ratio=s.tau_ratio
+    )
+    return InterpreterControllerSpec(
+        interpreter=interp,
+        programs={
+            "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
+            "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
+        },
+        substeps=s.substeps,
+        metadata=metadata,
+    )
 
 
 def read_network(ctx: StageContext, name: str) -> CTRNN:

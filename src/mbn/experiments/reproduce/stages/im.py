@@ -7,11 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from mbn.controllers import InterpreterControllerSpec, save_controller
+from mbn.controllers import save_controller
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.stages.common import MADE_BY, read_network
+from mbn.experiments.reproduce.stages.common import MADE_BY, interpreter_of, read_network
 from mbn.networks.multiplier import load_multiplier
-from mbn.networks.programmable import build_interpreter, differing_connections
 
 __all__ = ["IMStage"]
 
@@ -25,20 +24,11 @@ class IMStage(Stage):
     def run(self, ctx: StageContext) -> dict[str, Any]:
         rf, lf = read_network(ctx, "rf"), read_network(ctx, "lf")
         mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
-        programmable = differing_connections(rf, lf, margin=0.0)
-        interp = build_interpreter(rf, programmable, mul)
-        programs = {
-            "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
-            "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
-        }
-        save_controller(
-            ctx.rundir.controller_file("im"),
-            InterpreterControllerSpec(
-                interpreter=interp,
-                programs=programs,
-                metadata={"made_by": MADE_BY, "stage": "im", "seed": ctx.seed},
-            ),
+        spec = interpreter_of(
+            ctx, rf, lf, mul, {"made_by": MADE_BY, "stage": "im", "seed": ctx.seed}
         )
+        save_controller(ctx.rundir.controller_file("im"), spec)
+        interp, programs = spec.interpreter, spec.programs
         return {
             "connections": [str(c) for c in interp.connections],
             "connections_paper_notation": [c.paper_name for c in interp.connections],
@@ -47,6 +37,8 @@ class IMStage(Stage):
             "programs": programs,
             "neurons": int(interp.num_neurons),
             "multiplier_neurons": ctx.read("multiplier")["neurons"],
+            "tau_ratio": ctx.section("interpreter").tau_ratio,
+            "substeps": spec.substeps,
         }
 
     def summary(self, data: dict[str, Any]) -> str:

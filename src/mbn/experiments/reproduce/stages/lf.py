@@ -18,13 +18,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from mbn.config import Settings, setting
-from mbn.controllers import CTRNNControllerSpec, InterpreterControllerSpec
+from mbn.controllers import CTRNNControllerSpec
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     SCORE_KEYS,
     evolve_follower,
+    interpreter_of,
     restart_rank,
     save_follower,
     score,
@@ -40,7 +41,7 @@ from mbn.experiments.reproduce.stages.lf_search import (
 from mbn.experiments.reproduce.stages.rf import evolution_summary
 from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
-from mbn.networks.programmable import Connection, build_interpreter, differing_connections
+from mbn.networks.programmable import Connection
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
@@ -389,14 +390,7 @@ class LFStage(Stage):
         agreement of each network with the interpreter running its program."""
         # An LF whose behaviour the multipliers' small errors break fails here, or takes other
         # exits than LF does.
-        interp = build_interpreter(rf, differing_connections(rf, net, margin=0.0), mul)
-        im = InterpreterControllerSpec(
-            interpreter=interp,
-            programs={
-                "left": np.asarray(interp.program_of(net), dtype=float).tolist(),
-                "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
-            },
-        )
+        im = interpreter_of(ctx, rf, net, mul, {})
         emulated = validation_verdict(ctx, im, "left", "left")
         # the interpreter is built with this LF's connections and ranges: RF's program must
         # still drive as RF (the next stages run both)
