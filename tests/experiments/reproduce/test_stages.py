@@ -126,6 +126,39 @@ def _with(config, section, **changes):
     return type(config)(sections)
 
 
+@pytest.mark.parametrize(("tau_ratio", "substeps"), [(0.1, 20), (0.025, 80)])
+def test_the_im_stage_runs_its_multipliers_as_the_interpreter_settings_say(
+    quick_run, tmp_path, tau_ratio, substeps
+):
+    from mbn.controllers import read_controller_spec
+
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    config = _with(config, "interpreter", tau_ratio=tau_ratio, substeps=substeps)
+    rundir.stage_file("im").unlink()
+    data = run_stage(REPRODUCE, rundir, "im", seed=seed, config=config)
+    spec = read_controller_spec(rundir.controller_file("im"))
+    interp = spec.interpreter
+    tau = np.asarray(interp.net.tau)
+    n = interp.num_original
+    for c in range(len(interp.connections)):
+        block = interp.mul_block(c)
+        receiver = interp.connections[c].i
+        np.testing.assert_allclose(tau[block], tau_ratio * tau[receiver], rtol=1e-6)
+    assert tau[n:].size == len(interp.connections) * interp.mul_size
+    assert spec.substeps == substeps == data["substeps"]
+    assert data["tau_ratio"] == tau_ratio
+
+
+def test_a_run_recorded_before_the_interpreter_section_reads_as_it_ran():
+    recorded = REPRODUCE.config_from_dict({"rf": {"generations": 5}}, "run.json")
+    assert recorded["interpreter"].tau_ratio == 0.1
+    assert recorded["interpreter"].substeps == 20
+    assert recorded["rf"].generations == 5
+    assert recorded["pm"] == REPRODUCE.config_from_dict({}, "run.json")["pm"]
+    fresh = REPRODUCE.config_from_dict({"interpreter": {}}, "run.json")
+    assert (fresh["interpreter"].tau_ratio, fresh["interpreter"].substeps) == (0.025, 80)
+
+
 @pytest.mark.slow  # 20 s; the ranking has a unit test, the LF stage the member test below
 def test_lf_evolves_the_searchs_best_triples_and_keeps_the_best_that_validates(quick_run, tmp_path):
     """With ``finalists`` = 2 and a target every candidate meets, the LF stage evolves the

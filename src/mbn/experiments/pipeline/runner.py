@@ -138,7 +138,8 @@ class Experiment:
         types = {cls.section: cls for cls in self.section_types()}
         sections = []
         for name, cls in types.items():
-            table = data.get(name, {})
+            # a section the run was recorded without ran as it did before it existed
+            table = data.get(name, cls.recorded_before)
             sections.append(
                 from_mapping(cls, table, where=lambda key, t=name: f"{where}: config.{t}.{key}")
             )

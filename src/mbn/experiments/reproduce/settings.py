@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from mbn.config import Settings, setting
 from mbn.controllers.spec import MAX_SUBSTEPS
@@ -95,6 +95,8 @@ class InterpreterSettings(Settings):
     candidate) runs its multipliers: their time constant and the integration step."""
 
     section = "interpreter"
+    # runs recorded before this section ran the paper's tau/10 at 20 steps
+    recorded_before: ClassVar[dict[str, Any]] = {"tau_ratio": 0.1, "substeps": 20}
     tau_ratio: float = setting(
         INTERPRETER_TAU_RATIO,
         doc="the multipliers' time constant over the receiving neuron's (paper: an order of "
