@@ -18,7 +18,9 @@ the neurons beside a batch of multipliers, :mod:`mbn.networks.structured`), and 
 programmable interpreter of the follower genome (its 12 connections, 75 neurons) simulated so
 (``interpreter_full``); and as ``mbn run new-behaviours`` runs it (14 connections, multipliers at
 tau/40, 80 sub-steps: ``interpreter_full_80``) beside the follower at 80 sub-steps
-(``follower_80``).
+(``follower_80``). ``interpreter`` and ``mbn`` run the multipliers at the paper's tau/10 (20
+sub-steps); ``interpreter_80`` and ``mbn_80`` as ``mbn reproduce`` runs them since
+``[interpreter]`` (tau/40, 80 sub-steps).
 
 Prints one JSON line; compile time is measured apart from run time.
 
@@ -145,6 +147,18 @@ def workload_specs() -> dict:
         "left": np.asarray(interp.program_of(lf), float).tolist(),
     }
     im = InterpreterControllerSpec(interpreter=interp, programs=programs)
+    # as `mbn reproduce` runs it ([interpreter]: tau/40, 80 sub-steps)
+    interp_80 = build_interpreter(
+        rf, differing_connections(rf, lf, margin=0.0), load_default(6), tau_ratio=0.025
+    )
+    im_80 = InterpreterControllerSpec(
+        interpreter=interp_80,
+        programs={
+            "right": np.asarray(interp_80.program_of(rf), float).tolist(),
+            "left": np.asarray(interp_80.program_of(lf), float).tolist(),
+        },
+        substeps=80,
+    )
     pm = make_ctrnn(
         rng.uniform(-10, 10, (3, 3)),
         rng.uniform(-10, 10, (3, 2)),
@@ -192,6 +206,13 @@ def workload_specs() -> dict:
             program_neurons=(0, 1, 2),
             camera=CameraConfig(range=0.8),
         ),
+        "interpreter_80": im_80,
+        "mbn_80": MBNControllerSpec(
+            interpreter_spec=im_80,
+            program_module=pm,
+            program_neurons=(0, 1, 2),
+            camera=CameraConfig(range=0.8),
+        ),
         "neurons": int(interp.num_neurons),
         "full_neurons": int(full.num_neurons),
     }
@@ -216,9 +237,12 @@ def workload(steps: int, repeats: int, parts: int = 1) -> dict:
         ("follower_80", crossroads),
         ("interpreter_full_80", crossroads),
         ("mbn", fig4),
+        ("interpreter_80", crossroads),
+        ("mbn_80", fig4),
     )
     for name, mazes in cases:
-        program = {"interpreter": "left", "interpreter_blocks": "left"}.get(name)
+        left = ("interpreter", "interpreter_blocks", "interpreter_80")
+        program = "left" if name in left else None
         loaded = make_controller(specs[name], program, check_stability=False)
         for batch in (126, 4096):
             m = measure_loaded(mazes, batch, steps, repeats, loaded)
