@@ -37,13 +37,12 @@ __all__ = [
     "substeps_for",
 ]
 
-#: Network steps per 0.1 s robot step for every network of the experiment: h = 5 ms, so
-#: h / tau = 0.01 for the followers (tau = 0.5 s) and h / tau_m = 0.1 for the multipliers at
-#: tau / 10 (the step they were trained with). The followers run at the step of the interpreter
-#: that emulates them, so that the interpreter with exact products retraces them step for step:
-#: an evolved network can depend on its integration step (docs/reproduce.md), and one step for
-#: all leaves the multipliers' errors as the only difference between a network and its
-#: emulation.
+#: Network steps per 0.1 s robot step for the followers and the program module: h = 5 ms, so
+#: h / tau = 0.01 for the followers (tau = 0.5 s), fine enough that an evolved network's
+#: behaviour is the CTRNN's, not its Euler map's (at 4 steps it was not: docs/reproduce.md);
+#: and h / tau_m = 0.1 for multipliers at the paper's tau / 10 (the step they were trained
+#: with). ``mbn reproduce`` runs its interpreters' multipliers at tau / 40 with 80 steps
+#: (``[interpreter]``, docs/reproduce.md).
 NETWORK_SUBSTEPS = 20
 
 
@@ -150,9 +149,9 @@ def interpreter_controller(
 ) -> Callable[[ProgrammedState, Any], tuple[ProgrammedState, tuple[Array, Array]]]:
     """A controller for a programmable interpreter (:mod:`mbn.networks.programmable`): its
     inputs are the paper's I1..I3 followed by the state's program; the motor neurons are the
-    original network's (the interpreter puts them first). The multipliers run at tau/10, so the
-    default 20 sub-steps
-    of 5 ms keep h/tau_m = 0.1 for tau = 0.5 s."""
+    original network's (the interpreter puts them first). ``substeps`` must keep h / tau_m = 0.1,
+    the multipliers' training step: the default 20 sub-steps of 5 ms for multipliers at tau/10
+    and tau = 0.5 s, 80 for tau/40."""
     inner = ctrnn_controller(dt=dt, substeps=substeps, motor=motor, method=method)
 
     def control(state: ProgrammedState, obs: Any) -> tuple[ProgrammedState, tuple[Array, Array]]:

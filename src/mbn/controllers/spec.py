@@ -280,8 +280,9 @@ class InterpreterControllerSpec:
             ``{"right": [...], "left": [...]}``.
         sensors, motor, dt, method, metadata: as in :class:`CTRNNControllerSpec`; the motor
             neurons are original neurons (the interpreter puts them first).
-        substeps: interpreter steps per robot step (the multipliers run at tau/10: 20 steps of
-            5 ms for tau = 0.5 s).
+        substeps: interpreter steps per robot step, keeping h / tau_m = 0.1 (multipliers at
+            tau/10: 20 steps of 5 ms for tau = 0.5 s; at tau/40, as ``mbn reproduce`` builds
+            them: 80).
         simulation: how the interpreter is simulated: ``"dense"``, as one CTRNN of all its
             neurons, or ``"blocks"``, by its structure (the original neurons beside a batch of
             multipliers, :mod:`mbn.networks.structured`): the same network, a cost linear in the
