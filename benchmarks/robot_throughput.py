@@ -151,14 +151,8 @@ def workload_specs() -> dict:
     interp_80 = build_interpreter(
         rf, differing_connections(rf, lf, margin=0.0), load_default(6), tau_ratio=0.025
     )
-    im_80 = InterpreterControllerSpec(
-        interpreter=interp_80,
-        programs={
-            "right": np.asarray(interp_80.program_of(rf), float).tolist(),
-            "left": np.asarray(interp_80.program_of(lf), float).tolist(),
-        },
-        substeps=80,
-    )
+    # the programs depend on the bounds (RF's and LF's weights), not on the multipliers' tau
+    im_80 = InterpreterControllerSpec(interpreter=interp_80, programs=programs, substeps=80)
     pm = make_ctrnn(
         rng.uniform(-10, 10, (3, 3)),
         rng.uniform(-10, 10, (3, 2)),
@@ -193,6 +187,12 @@ def workload_specs() -> dict:
         simulation="blocks",
         substeps=80,
     )
+    mbn = MBNControllerSpec(
+        interpreter_spec=im,
+        program_module=pm,
+        program_neurons=(0, 1, 2),
+        camera=CameraConfig(range=0.8),
+    )
     return {
         "follower": CTRNNControllerSpec(net=rf),
         "interpreter": im,
@@ -200,19 +200,9 @@ def workload_specs() -> dict:
         "interpreter_full": full_spec,
         "follower_80": CTRNNControllerSpec(net=rf, substeps=80),
         "interpreter_full_80": fast_spec,
-        "mbn": MBNControllerSpec(
-            interpreter_spec=im,
-            program_module=pm,
-            program_neurons=(0, 1, 2),
-            camera=CameraConfig(range=0.8),
-        ),
+        "mbn": mbn,
         "interpreter_80": im_80,
-        "mbn_80": MBNControllerSpec(
-            interpreter_spec=im_80,
-            program_module=pm,
-            program_neurons=(0, 1, 2),
-            camera=CameraConfig(range=0.8),
-        ),
+        "mbn_80": dataclasses.replace(mbn, interpreter_spec=im_80),
         "neurons": int(interp.num_neurons),
         "full_neurons": int(full.num_neurons),
     }

@@ -22,7 +22,7 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES, test_specs
-from mbn.experiments.reproduce.stages.common import MADE_BY, read_network
+from mbn.experiments.reproduce.stages.common import MADE_BY, read_network, rf_lf_programs
 from mbn.experiments.trials import agreement, run_loaded_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import load_multiplier
@@ -129,10 +129,7 @@ def _spec(
             )
     return InterpreterControllerSpec(
         interpreter=interp,
-        programs={
-            "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
-            "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
-        },
+        programs=rf_lf_programs(interp, rf, lf),
         substeps=s.substeps,
         simulation="blocks",
         metadata=meta,

@@ -28,7 +28,7 @@ from mbn.experiments.evolve import (
 from mbn.experiments.pipeline import StageContext
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import Multiplier
-from mbn.networks.programmable import build_interpreter, differing_connections
+from mbn.networks.programmable import Interpreter, build_interpreter, differing_connections
 
 __all__ = [
     "MADE_BY",
@@ -39,6 +39,7 @@ __all__ = [
     "interpreter_of",
     "read_network",
     "restart_rank",
+    "rf_lf_programs",
     "save_follower",
     "score",
     "stage_perturbations",
@@ -119,6 +120,15 @@ def stage_perturbations(
     return perturbations(key, copies, size, sigma)
 
 
+def rf_lf_programs(interp: Interpreter, rf: CTRNN, lf: CTRNN) -> dict[str, list[float]]:
+    """An interpreter's programs of RF (``"right"``) and LF (``"left"``), as a controller file
+    stores them."""
+    return {
+        "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
+        "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
+    }
+
+
 def interpreter_of(
     ctx: StageContext, rf: CTRNN, lf: CTRNN, multiplier: Multiplier, metadata: dict[str, Any]
 ) -> InterpreterControllerSpec:
@@ -132,10 +142,7 @@ def interpreter_of(
     )
     return InterpreterControllerSpec(
         interpreter=interp,
-        programs={
-            "right": np.asarray(interp.program_of(rf), dtype=float).tolist(),
-            "left": np.asarray(interp.program_of(lf), dtype=float).tolist(),
-        },
+        programs=rf_lf_programs(interp, rf, lf),
         substeps=s.substeps,
         metadata=metadata,
     )
