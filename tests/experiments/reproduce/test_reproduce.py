@@ -19,6 +19,7 @@ from mbn.control.ctrnn import NETWORK_SUBSTEPS
 from mbn.controllers import load_controller
 from mbn.experiments.reproduce import RUN_KIND
 from mbn.experiments.reproduce.protocol import TEST_NAMES
+from mbn.experiments.reproduce.settings import INTERPRETER_SUBSTEPS
 
 from .conftest import reproduce as _reproduce
 
@@ -104,12 +105,12 @@ def test_quick_run_controllers_load_and_evaluate(quick_run):
         "right",
         "left",
     }
-    # the networks run at the step of the interpreter that emulates them
+    # the followers run at the networks' 20 steps; the interpreter at its own ([interpreter])
     steps = {
         name: json.loads((out / "controllers" / f"{name}.json").read_text())["substeps"]
         for name in ("rf", "lf", "im")
     }
-    assert steps == dict.fromkeys(steps, NETWORK_SUBSTEPS)
+    assert steps == {"rf": NETWORK_SUBSTEPS, "lf": NETWORK_SUBSTEPS, "im": INTERPRETER_SUBSTEPS}
     # mbn evaluate reproduces the run's own paper-protocol figure for RF
     results = json.loads((out / "results.json").read_text())
     proc = subprocess.run(
