@@ -139,8 +139,8 @@ class Settings:
 
     #: The name of the section (TOML table) these settings are read from.
     section: typing.ClassVar[str] = ""
-    #: What a recorded config (a ``run.json``) written before this section existed ran with:
-    #: the values read for it when the section is missing there (empty: the defaults).
+    #: What a recorded config (a ``run.json``) written before this section (or some of its
+    #: keys) existed ran with: the values read for the keys missing there (others: defaults).
     recorded_before: typing.ClassVar[dict[str, typing.Any]] = {}
 
     def __post_init__(self) -> None:

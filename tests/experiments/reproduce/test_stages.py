@@ -155,8 +155,17 @@ def test_a_run_recorded_before_the_interpreter_section_reads_as_it_ran():
     assert recorded["interpreter"].substeps == 20
     assert recorded["rf"].generations == 5
     assert recorded["pm"] == REPRODUCE.config_from_dict({}, "run.json")["pm"]
-    fresh = REPRODUCE.config_from_dict({"interpreter": {}}, "run.json")
+    fresh = REPRODUCE.config_from_dict(
+        {"interpreter": {"tau_ratio": 0.025, "substeps": 80}}, "run.json"
+    )
     assert (fresh["interpreter"].tau_ratio, fresh["interpreter"].substeps) == (0.025, 80)
+
+
+def test_a_key_recorded_before_it_existed_reads_as_it_ran_and_the_others_as_recorded():
+    # a run.json whose [interpreter] table lacks a key added later: that key reads as it ran
+    recorded = REPRODUCE.config_from_dict({"interpreter": {"substeps": 40}}, "run.json")
+    assert recorded["interpreter"].substeps == 40
+    assert recorded["interpreter"].tau_ratio == 0.1
 
 
 @pytest.mark.slow  # 20 s; the ranking has a unit test, the LF stage the member test below

@@ -138,8 +138,10 @@ class Experiment:
         types = {cls.section: cls for cls in self.section_types()}
         sections = []
         for name, cls in types.items():
-            # a section the run was recorded without ran as it did before it existed
-            table = data.get(name, cls.recorded_before)
+            # a section (or a key) the run was recorded without ran as it did before it existed
+            table = data.get(name, {})
+            if isinstance(table, dict):
+                table = {**cls.recorded_before, **table}
             sections.append(
                 from_mapping(cls, table, where=lambda key, t=name: f"{where}: config.{t}.{key}")
             )
