@@ -53,6 +53,7 @@ def test_names_and_descriptions():
         "fig4",
         "heldout",
         "validation",
+        "validation2",
         "tiles3",
         "tiles3_heldout",
     )
@@ -205,7 +206,9 @@ def walk(maze: Maze, row: int, col: int, heading: int, rule: str, moves: int) ->
     ]
 
 
-@pytest.mark.parametrize(("name", "min_starts"), [("fig4", 10), ("heldout", 10), ("validation", 8)])
+@pytest.mark.parametrize(
+    ("name", "min_starts"), [("fig4", 10), ("heldout", 10), ("validation", 8), ("validation2", 8)]
+)
 def test_test_mazes(name: str, min_starts: int):
     maze = load_maze(name)
     assert maze.name == name and maze.grid is not None and maze.cell == 1.2
@@ -237,7 +240,7 @@ def test_test_mazes(name: str, min_starts: int):
         assert maze.is_free(tile.x, tile.y) and tile.width == 1.2
 
 
-@pytest.mark.parametrize("name", ["fig4", "heldout", "validation"])
+@pytest.mark.parametrize("name", ["fig4", "heldout", "validation", "validation2"])
 def test_every_wall_following_circuit_of_the_test_mazes_meets_a_tile(name: str):
     # The MBN is judged from the first tile it drives over: a start from which a wall follower
     # circles without ever meeting a tile would test nothing (docs/mazes.md).
@@ -255,7 +258,12 @@ def test_every_wall_following_circuit_of_the_test_mazes_meets_a_tile(name: str):
 
 
 @pytest.mark.parametrize(
-    ("one", "other"), [("fig4", "heldout"), ("fig4", "validation"), ("heldout", "validation")]
+    ("one", "other"),
+    [
+        (a, b)
+        for i, a in enumerate(("fig4", "heldout", "validation", "validation2"))
+        for b in ("fig4", "heldout", "validation", "validation2")[i + 1 :]
+    ],
 )
 def test_the_test_and_validation_mazes_differ(one, other):
     a, b = builtin_maze(one), builtin_maze(other)
@@ -309,6 +317,6 @@ def test_the_three_tile_mazes_differ_from_each_other_and_the_others():
     a, b = builtin_maze("tiles3"), builtin_maze("tiles3_heldout")
     assert a.grid is not None and b.grid is not None
     assert a.grid.shape != b.grid.shape or (a.grid != b.grid).any()
-    for other in ("fig4", "heldout", "validation"):
+    for other in ("fig4", "heldout", "validation", "validation2"):
         g = builtin_maze(other).grid
         assert g is not None and (g.shape != a.grid.shape or (g != a.grid).any())

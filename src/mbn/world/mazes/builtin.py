@@ -1,4 +1,4 @@
-"""The built-in mazes: seven crossroads, the Stage reference arena, and two test mazes.
+"""The built-in mazes: seven crossroads, the Stage reference arena, test and validation mazes.
 
 * ``cross_L`` ... ``cross_LSR`` (:func:`crossroad`): a junction entered from the south with the
   given exits open (L left = west, S straight = north, R right = east); every arm is 3 cells
@@ -7,9 +7,10 @@
 * ``stage_arena``: the arena of the Stage reference data (``docs/world.md``): five corridors,
   1.2 m wide, crossing in a plus, a T and two L turns, walled by 10 rectangles in
   [0, 14] x [0, 10.4]; six starts in corridor centres.
-* ``fig4`` and ``heldout``: grid mazes of one-cell corridors with plus, T and L crossings, tiles of
-  both kinds and 10+ starts, shipped as ``.maze`` files in ``mbn/data/mazes``; ``heldout`` is kept
-  out of training.
+* ``fig4``, ``heldout``, ``validation`` and ``validation2``: grid mazes of one-cell corridors
+  with plus, T and L crossings, tiles of both kinds and 8+ starts, shipped as ``.maze`` files
+  in ``mbn/data/mazes``; ``heldout`` is kept out of training, the validation mazes out of
+  every test.
 """
 
 from __future__ import annotations
@@ -224,6 +225,7 @@ _DESCRIPTIONS: dict[str, str] = {
     "fig4": "test maze after the paper's Fig. 4: plus, T and L crossings, tiles, 10 starts",
     "heldout": "a second fig4-style maze kept out of training: tiles, 12 starts",
     "validation": "a third fig4-style maze used by no test (to choose among candidates): 8 starts",
+    "validation2": "a second validation maze (fig4's wall blocks), used by no test: 8 starts",
     "tiles3": "test maze with one-, two- and three-colour tiles: plus, T and L, 11 starts",
     "tiles3_heldout": "a second maze with three kinds of tile, kept out of training: 11 starts",
 }
@@ -238,7 +240,7 @@ def builtin_maze(name: str) -> Maze:
         return crossroad(name)
     if name == "stage_arena":
         return stage_arena()
-    if name in ("fig4", "heldout", "validation", "tiles3", "tiles3_heldout"):
+    if name in ("fig4", "heldout", "validation", "validation2", "tiles3", "tiles3_heldout"):
         return _packaged(name)
     raise MbnInputError(f"unknown built-in maze {name!r} (known: {', '.join(BUILTIN_NAMES)})")
 

@@ -45,6 +45,7 @@ __all__ = [
     "stage_perturbations",
     "task",
     "validate",
+    "validation_mazes",
     "validation_record",
     "validation_verdict",
 ]
@@ -315,40 +316,59 @@ def _validation_trial(ctx: StageContext, behavior: str, initial: str) -> Any:
     )
 
 
+def validation_mazes(ctx: StageContext) -> list[Any]:
+    """The ``[validation]`` mazes, which no test uses: ``maze`` and then ``extra_mazes``."""
+    from mbn.world.mazes.load import load_maze
+
+    v = ctx.section("validation")
+    return [load_maze(name) for name in (v.maze, *v.extra_mazes)]
+
+
+def _joined(verdicts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Verdicts of the same trial spec in several mazes as one (trials in maze order)."""
+    return {key: np.concatenate([np.asarray(v[key]) for v in verdicts]) for key in verdicts[0]}
+
+
 def validation_verdict(
     ctx: StageContext,
     spec: Any,
     behavior: str,
     program: str | None = None,
 ) -> dict[str, np.ndarray]:
-    """The judge's verdict (per trial: success, exits, ...) of :func:`validate`'s trials."""
+    """The judge's verdict (per trial: success, exits, ...) of :func:`validate`'s trials, in
+    every validation maze (in order; one batched rollout)."""
     from mbn.controllers import make_controller
-    from mbn.experiments.trials import run_loaded_trials
-    from mbn.world.mazes.load import load_maze
 
     loaded = make_controller(spec, program, where=f"{ctx.name} candidate", check_stability=False)
     initial = (loaded.initial_rule or "none") if behavior == "tiles" else "right"
-    trial = _validation_trial(ctx, behavior, initial)
-    verdict, _, _ = run_loaded_trials(load_maze(ctx.section("validation").maze), trial, loaded)
-    return verdict
+    return validation_verdicts(ctx, [loaded], behavior, initial=initial)[0]
 
 
-def validation_verdicts(ctx: StageContext, specs: list[Any], behavior: str) -> list[dict[str, Any]]:
+def validation_verdicts(
+    ctx: StageContext, specs: list[Any], behavior: str, *, initial: str = "right"
+) -> list[dict[str, Any]]:
     """:func:`validation_verdict` of several controllers of one kind (e.g. a population of
-    followers), in one batched rollout: one compilation, the same trials for each."""
-    from mbn.controllers import make_controller
+    followers; controller specs or loaded controllers), in one batched rollout over every
+    validation maze: one compilation, the same trials for each."""
+    from mbn.controllers import LoadedController, make_controller
     from mbn.experiments.trials import TrialGroup, run_trial_groups
-    from mbn.world.mazes.load import load_maze
 
     loaded = [
-        make_controller(spec, None, where=f"{ctx.name} candidate", check_stability=False)
+        spec
+        if isinstance(spec, LoadedController)
+        else make_controller(spec, None, where=f"{ctx.name} candidate", check_stability=False)
         for spec in specs
     ]
-    trial = _validation_trial(ctx, behavior, "right")
-    groups = [TrialGroup(f"c{i}", 0, trial, c.initial_state) for i, c in enumerate(loaded)]
+    mazes = validation_mazes(ctx)
+    trial = _validation_trial(ctx, behavior, initial)
+    groups = [
+        TrialGroup(f"c{i}m{m}", m, trial, c.initial_state)
+        for i, c in enumerate(loaded)
+        for m in range(len(mazes))
+    ]
     first = loaded[0]
     verdicts, _, _, _ = run_trial_groups(
-        [load_maze(ctx.section("validation").maze)],
+        mazes,
         groups,
         first.controller,
         seconds=trial.seconds,
@@ -356,7 +376,7 @@ def validation_verdicts(ctx: StageContext, specs: list[Any], behavior: str) -> l
         sensors=first.sensors,
         camera=first.camera,
     )
-    return [verdicts[g.name] for g in groups]
+    return [_joined([verdicts[f"c{i}m{m}"] for m in range(len(mazes))]) for i in range(len(loaded))]
 
 
 def validation_record(ctx: StageContext, verdict: dict[str, np.ndarray]) -> dict[str, Any]:
