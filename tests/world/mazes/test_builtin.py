@@ -240,6 +240,18 @@ def test_test_mazes(name: str, min_starts: int):
         assert maze.is_free(tile.x, tile.y) and tile.width == 1.2
 
 
+@pytest.mark.parametrize("name", ["validation", "validation2"])
+def test_the_validation_mazes_serve_the_straight_rules_too(name: str):
+    # `mbn run new-behaviours` validates its straight-right and straight-left programs there
+    maze = load_maze(name)
+    assert maze.grid is not None
+    for r, c in zip(*np.nonzero(np.isin(maze.grid, list(MARK_HEADING))), strict=True):
+        h = MARK_HEADING[str(maze.grid[r, c])]
+        for rule in ("straight-right", "straight-left"):
+            crossings = walk(maze, int(r), int(c), h, rule, moves=30)
+            assert len(crossings) >= 3 and len(set(crossings[:6])) >= 3, (name, r, c, rule)
+
+
 @pytest.mark.parametrize("name", ["fig4", "heldout", "validation", "validation2"])
 def test_every_wall_following_circuit_of_the_test_mazes_meets_a_tile(name: str):
     # The MBN is judged from the first tile it drives over: a start from which a wall follower
