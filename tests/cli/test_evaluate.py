@@ -233,3 +233,29 @@ def test_a_controller_beyond_its_step_stability_limit_is_refused_unless_allowed(
     status, out, err = run(capsys, *base, "--allow-unstable", "--seconds", "2", "--json")
     assert status == 0, err
     assert json.loads(out)["trials"] == 10
+
+
+def test_noise_is_seeded_recorded_and_its_errors_are_one_line(files, capsys):
+    args = ("--controller", files / "straight.json", "--maze", "fig4", "--behavior", "right")
+    args += ("--seconds", "10", "--repeats", "2", "--json")
+    noise = "sonar_dropout=0.5,wheel_std=0.3,neuron_std=2"
+    results = []
+    for seed in (1, 1, 2):
+        status, out, err = run(capsys, *args, "--noise", noise, "--seed", seed)
+        assert status == 0, err
+        results.append(json.loads(out))
+    assert results[0] == results[1]  # the same seed, the same noise
+    assert set(results[0]) == KEYS | {"noise"}
+    assert results[0]["noise"]["sonar_dropout"] == 0.5 and results[0]["noise"]["camera_miss"] == 0
+    status, out, _ = run(capsys, *args, "--seed", 1)
+    clean = json.loads(out)
+    # the noise moves the robots: their junction counts or stalls differ from the clean run's
+    moved = lambda r: (r["junctions"], r["correct_junctions"], r["mean_stall_fraction"])  # noqa: E731
+    assert moved(results[0]) != moved(clean) or moved(results[2]) != moved(clean)
+    for bad, message in (
+        ("sonar_dropout=2", "noise sonar_dropout: must be <= 1"),
+        ("sonar=0.1", "noise sonar: unknown setting"),
+        ("0.1", "expected KEY=VALUE"),
+    ):
+        status, _, err = run(capsys, *args, "--noise", bad)
+        assert status == 2 and len(err.strip().splitlines()) == 1 and message in err, err

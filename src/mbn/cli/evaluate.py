@@ -36,7 +36,11 @@ examples:
 --json prints one object: {"trials", "successes", "success_rate", "timed_out", "junctions",
 "correct_junctions", "mean_stall_fraction", "seconds"}; timed_out counts the trials that ended
 before their last judged junction with no wrong exit and no stall failure (the time limit ended
-them, not the controller): raise --seconds.
+them, not the controller): raise --seconds. With --noise, "noise" holds the levels it ran under.
+
+noise: every channel off by default; the same --seed gives the same noise (docs/noise.md):
+  mbn evaluate --controller mbn.json --maze fig4 --behavior tiles --repeats 20 \
+      --noise sonar_std=0.02,sonar_dropout=0.01,wheel_std=0.05,camera_miss=0.05
 
 time limit: by default derived from the maze: 1.5 x the time, at 0.3 m/s (the evolved followers'
 typical speed), of the longest route from a start mark through the judged junctions by the rule
@@ -109,7 +113,18 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="time limit of a trial in seconds (default: derived from the maze, see below; "
         "fig4: 90)",
     )
-    ev.add_argument("--seed", type=seed, default=0, help="seed of the jitter (default 0)")
+    ev.add_argument(
+        "--seed", type=seed, default=0, help="seed of the jitter and of the noise (default 0)"
+    )
+    ev.add_argument(
+        "--noise",
+        metavar="KEY=VALUE,...|FILE.toml",
+        default=None,
+        help="run under noise (default none): e.g. sonar_std=0.02,sonar_dropout=0.01,"
+        "wheel_std=0.05,camera_miss=0.05, or a settings file's [noise] table; keys: "
+        "sonar_std, sonar_dropout, camera_miss, camera_false, wheel_std, v_std, w_std, "
+        "neuron_std, program_std (docs/noise.md)",
+    )
     ev.add_argument(
         "--allow-unstable",
         action="store_true",
@@ -173,26 +188,39 @@ def _program_for(args: argparse.Namespace, kind: str) -> str | None:
 _HEADINGS = ("E", "NE", "N", "NW", "W", "SW", "S", "SE")
 
 
+#: Folded into the seed's key for the noise of `mbn evaluate`'s trials.
+NOISE_STREAM = 7
+
+
+def _noise_text(noise: Any) -> str:
+    return ", ".join(f"{k}={v:g}" for k, v in noise.as_dict().items() if v > 0)
+
+
 def _heading(theta: float) -> str:
     return _HEADINGS[round(theta / (math.pi / 4)) % 8]
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    import jax
+
     from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.trials import TrialSpec, route_seconds, run_loaded_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_maze
+    from mbn.world.sensors import NoiseConfig, parse_noise
 
     maze = as_grid_maze(load_maze(args.maze))  # TOML and Stage mazes on a lattice of corridors
     controller_spec = read_controller_spec(args.controller)
     # the rule each tile kind puts in force: the mbn file's (the paper's: right, left)
     tile_rules = getattr(controller_spec, "tile_rules", ("right", "left"))
     TrialSpec(behavior=args.behavior, tile_rules=tile_rules).check_maze(maze)
+    noise = parse_noise(args.noise) if args.noise is not None else NoiseConfig()
     loaded = make_controller(
         controller_spec,
         _program_for(args, controller_spec.kind),
         where=str(args.controller),
         check_stability=not args.allow_unstable,
+        noise=noise,
     )
     initial = args.initial
     if initial is None:  # the rule the file starts with, else right
@@ -208,8 +236,12 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     spec.check_maze(maze)
     seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)
     spec = dataclasses.replace(spec, seconds=seconds)
-    verdict, _, _ = run_loaded_trials(maze, spec, loaded)
+    # the seed becomes the noise's key here, once (the jitter draws from its own generator)
+    key = jax.random.fold_in(jax.random.key(args.seed), NOISE_STREAM) if noise.enabled else None
+    verdict, _, _ = run_loaded_trials(maze, spec, loaded, key)
     result = {**summary(verdict), "seconds": seconds}
+    if noise.enabled:
+        result["noise"] = noise.as_dict()
     if args.json:
         print(json_text(result))
         return 0
@@ -218,7 +250,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         f"{args.controller} ({what}) in maze {maze.name!r}: behavior {args.behavior}"
         + (f" (initial {initial})" if args.behavior == "tiles" else "")
         + f", {len(maze.starts)} start marks x {args.repeats}, {args.junctions} junctions, "
-        f"{seconds:g} s" + ("" if args.seconds is not None else " (from the maze)")
+        f"{seconds:g} s"
+        + ("" if args.seconds is not None else " (from the maze)")
+        + (f", noise {_noise_text(noise)}" if noise.enabled else "")
     )
     success = np.asarray(verdict["success"]).reshape(len(maze.starts), args.repeats)
     timed_out = np.asarray(verdict["timed_out"]).reshape(len(maze.starts), args.repeats)

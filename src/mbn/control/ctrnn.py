@@ -15,12 +15,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
+import jax
 import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN, euler_step, euler_steps, firing_rate, integrator, rk4_step
 from mbn.networks.structured import BlockNet, block_euler_steps, block_field, block_rates
+from mbn.world.sensors import NoiseConfig
 
 if TYPE_CHECKING:
     from mbn.world.rollout import Shared
@@ -84,6 +86,7 @@ def ctrnn_controller(
     motor: MotorMap | None = None,
     method: str = "euler",
     inputs: Callable[[Any], Array] | None = None,
+    noise: NoiseConfig | None = None,
 ) -> Callable[[CTRNNState, Any], tuple[CTRNNState, tuple[Array, Array]]]:
     """A controller that integrates a CTRNN for ``dt`` seconds in ``substeps`` steps with the
     observation's inputs held, then reads the motor neurons.
@@ -94,6 +97,8 @@ def ctrnn_controller(
         motor: the motor mapping (default :class:`MotorMap`).
         method: "euler" or "rk4".
         inputs: observation -> network inputs; default the paper's I1..I3 (``obs.inputs``).
+        noise: ``noise.neuron_std`` > 0 adds Gaussian noise of that std to every potential once
+            per robot step, after the sub-steps (drawn from ``obs.key``, folded with 0).
     """
     if substeps < 1:
         raise MbnInputError(f"substeps must be >= 1, got {substeps}")
@@ -115,6 +120,7 @@ def ctrnn_controller(
                 blocks, rk4 = held, integrator("rk4")
                 for _ in range(substeps):
                     y = rk4(lambda z: block_field(blocks, z, u), y, h)
+            y = with_neuron_noise(y, obs, noise, 0)
             rate = block_rates(held, y)
         else:
             net = cast(CTRNN, held)
@@ -123,6 +129,7 @@ def ctrnn_controller(
             else:
                 for _ in range(substeps):
                     y = stepper(net, y, u, h)
+            y = with_neuron_noise(y, obs, noise, 0)
             rate = firing_rate(net, y)
         v = motor.v_max * rate[..., motor.speed_neuron]
         w = motor.w_max * (2.0 * rate[..., motor.turn_neuron] - 1.0)
@@ -146,16 +153,23 @@ def interpreter_controller(
     substeps: int = NETWORK_SUBSTEPS,
     motor: MotorMap | None = None,
     method: str = "euler",
+    noise: NoiseConfig | None = None,
 ) -> Callable[[ProgrammedState, Any], tuple[ProgrammedState, tuple[Array, Array]]]:
     """A controller for a programmable interpreter (:mod:`mbn.networks.programmable`): its
     inputs are the paper's I1..I3 followed by the state's program; the motor neurons are the
     original network's (the interpreter puts them first). ``substeps`` must keep h / tau_m = 0.1,
     the multipliers' training step: the default 20 sub-steps of 5 ms for multipliers at tau/10
-    and tau = 0.5 s, 80 for tau/40."""
-    inner = ctrnn_controller(dt=dt, substeps=substeps, motor=motor, method=method)
+    and tau = 0.5 s, 80 for tau/40. ``noise``: ``neuron_std`` as :func:`ctrnn_controller`;
+    ``program_std`` > 0 adds Gaussian noise to the program lines each robot step (clipped to
+    [0, 1]; ``obs.key`` folded with 1): the state keeps the clean program."""
+    inner = ctrnn_controller(dt=dt, substeps=substeps, motor=motor, method=method, noise=noise)
 
     def control(state: ProgrammedState, obs: Any) -> tuple[ProgrammedState, tuple[Array, Array]]:
-        u = jnp.concatenate([obs.inputs, state.program.astype(obs.inputs.dtype)], axis=-1)
+        program = state.program.astype(obs.inputs.dtype)
+        if noise is not None and noise.program_std > 0:
+            e = jax.random.normal(_noise_key(obs, 1), program.shape, program.dtype)
+            program = jnp.clip(program + noise.program_std * e, 0.0, 1.0)
+        u = jnp.concatenate([obs.inputs, program], axis=-1)
         inner_state, vw = inner(CTRNNState(state.net, state.y), obs._replace(inputs=u))
         return ProgrammedState(state.net, inner_state.y, state.program), vw
 
@@ -196,9 +210,28 @@ def shadowed(
     return control
 
 
+def _noise_key(obs: Any, channel: int) -> Array:
+    key = getattr(obs, "key", None)
+    if key is None:
+        raise MbnInputError(
+            "controller noise is on but the observation has no key: give the rollout the same "
+            "noise settings and a PRNG key"
+        )
+    return jax.random.fold_in(key, channel)
+
+
+def with_neuron_noise(y: Array, obs: Any, noise: NoiseConfig | None, channel: int) -> Array:
+    """``y`` plus ``noise.neuron_std`` Gaussian noise per potential (``obs.key`` folded with
+    ``channel``), or ``y`` itself when neuron noise is off."""
+    if noise is None or noise.neuron_std <= 0:
+        return y
+    e = jax.random.normal(_noise_key(obs, channel), y.shape, y.dtype)
+    return y + noise.neuron_std * e
+
+
 def initial_state(net: CTRNN) -> CTRNNState:
     """Potentials at rest (0) for a network (batched or not)."""
     return CTRNNState(net, jnp.zeros(net.tau.shape, net.tau.dtype))
 
 
-__all__ += ["initial_state"]
+__all__ += ["initial_state", "with_neuron_noise"]

@@ -10,9 +10,16 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap, ProgrammedState, interpreter_controller
+from mbn.control.ctrnn import (
+    NETWORK_SUBSTEPS,
+    MotorMap,
+    ProgrammedState,
+    interpreter_controller,
+    with_neuron_noise,
+)
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN, euler_steps, firing_rate
+from mbn.world.sensors import NoiseConfig
 
 if TYPE_CHECKING:
     from mbn.world.rollout import Shared
@@ -39,6 +46,7 @@ def make_mbn_controller(
     motor: MotorMap | None = None,
     method: str = "euler",
     readout: ArrayLike | None = None,
+    noise: NoiseConfig | None = None,
 ) -> Callable[[MBNControllerState, Any], tuple[MBNControllerState, tuple[Array, Array]]]:
     """The MBN as a controller ``(state, obs) -> (state, (v, w))`` for one robot.
 
@@ -48,13 +56,18 @@ def make_mbn_controller(
     ``readout`` ``(K, P)``, the code whose program is ``clip(readout @ code, 0, 1)``; then the
     interpreter integrates I1..I3 and that program for ``dt`` as
     :func:`mbn.control.ctrnn.interpreter_controller` does (``substeps`` steps of ``method``).
+    ``noise``: ``neuron_std`` on the program module's potentials (``obs.key`` folded with 2) and
+    the interpreter's, ``program_std`` on the program lines (the PM's output) as the
+    interpreter controller adds it.
     """
     if pm_substeps < 1:
         raise MbnInputError(f"pm_substeps must be >= 1, got {pm_substeps}")
     index = jnp.asarray(tuple(program_neurons), jnp.int32)
     R = None if readout is None else jnp.asarray(readout)
     h = dt / pm_substeps
-    interpret = interpreter_controller(dt=dt, substeps=substeps, motor=motor, method=method)
+    interpret = interpreter_controller(
+        dt=dt, substeps=substeps, motor=motor, method=method, noise=noise
+    )
 
     def control(
         state: MBNControllerState, obs: Any
@@ -64,6 +77,7 @@ def make_mbn_controller(
         kinds = pm.WE.shape[-1]
         camera = jnp.stack([obs.camera == t for t in range(1, kinds + 1)], axis=-1)
         y = euler_steps(pm, state.pm_y, camera.astype(dtype), h, pm_substeps)
+        y = with_neuron_noise(y, obs, noise, 2)
         program = firing_rate(pm, y)[..., index]
         if R is not None:
             program = jnp.clip(program @ R.T.astype(dtype), 0.0, 1.0)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,7 @@ from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import Method, check_dt, max_stable_dt
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import Shared
-from mbn.world.sensors import SensorConfig
+from mbn.world.sensors import NoiseConfig, SensorConfig
 
 __all__ = ["Controller", "LoadedController", "check_step", "load_controller", "make_controller"]
 
@@ -60,6 +60,7 @@ class LoadedController:
         tile_rules: for the whole MBN, the rule a tile of 1, 2, ... colours puts in force (its
             file's; the paper's right, left); None for the others.
         spec: the parsed file.
+        noise: the noise it runs under (all zero: none).
     """
 
     kind: str
@@ -75,6 +76,7 @@ class LoadedController:
     initial_rule: str | None
     spec: ControllerSpec
     tile_rules: tuple[str, ...] | None = None
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
 
 
 def _programs_of(spec: InterpreterControllerSpec) -> dict[str, tuple[float, ...]]:
@@ -94,10 +96,12 @@ def _choose_program(
     return program
 
 
-def _ctrnn_runner(spec: CTRNNControllerSpec) -> tuple[Controller, Callable[[int], Any]]:
+def _ctrnn_runner(
+    spec: CTRNNControllerSpec, noise: NoiseConfig | None
+) -> tuple[Controller, Callable[[int], Any]]:
     net = spec.net
     control = ctrnn_controller(
-        dt=spec.dt, substeps=spec.substeps, motor=spec.motor, method=spec.method
+        dt=spec.dt, substeps=spec.substeps, motor=spec.motor, method=spec.method, noise=noise
     )
 
     def initial(n: int) -> CTRNNState:
@@ -106,7 +110,9 @@ def _ctrnn_runner(spec: CTRNNControllerSpec) -> tuple[Controller, Callable[[int]
     return control, initial
 
 
-def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], Any]]:
+def _mbn_runner(
+    spec: MBNControllerSpec, noise: NoiseConfig | None
+) -> tuple[Controller, Callable[[int], Any]]:
     im_spec = spec.interpreter_spec
     im, pm = _simulated(im_spec), spec.program_module
     control = make_mbn_controller(
@@ -117,6 +123,7 @@ def _mbn_runner(spec: MBNControllerSpec) -> tuple[Controller, Callable[[int], An
         pm_substeps=spec.pm_substeps,
         motor=im_spec.motor,
         method=im_spec.method,
+        noise=noise,
     )
 
     if spec.initial is None:  # a file without ``initial``: at rest
@@ -142,12 +149,16 @@ def _simulated(im_spec: InterpreterControllerSpec) -> Any:
 
 
 def _interpreter_runner(
-    im_spec: InterpreterControllerSpec, program: tuple[float, ...]
+    im_spec: InterpreterControllerSpec, program: tuple[float, ...], noise: NoiseConfig | None
 ) -> tuple[Controller, Callable[[int], Any]]:
     net = _simulated(im_spec)
     values = jnp.asarray(program, net.dtype)
     control = interpreter_controller(
-        dt=im_spec.dt, substeps=im_spec.substeps, motor=im_spec.motor, method=im_spec.method
+        dt=im_spec.dt,
+        substeps=im_spec.substeps,
+        motor=im_spec.motor,
+        method=im_spec.method,
+        noise=noise,
     )
 
     def initial(n: int) -> ProgrammedState:
@@ -191,6 +202,7 @@ def make_controller(
     *,
     where: str = "controller",
     check_stability: bool = True,
+    noise: NoiseConfig | None = None,
 ) -> LoadedController:
     """A :class:`LoadedController` for a spec.
 
@@ -198,7 +210,9 @@ def make_controller(
     is only one); for an MBN, None runs the whole MBN (program module and camera) and a name runs
     the interpreter alone with that stored program; for a plain CTRNN it must be None.
     ``check_stability``: refuse a network step beyond the integrator's stability limit
-    (:func:`check_step`).
+    (:func:`check_step`). ``noise``: the noise the controller runs under
+    (:class:`mbn.world.sensors.NoiseConfig`; None or all zero: none): the controller draws its
+    own channels (neurons, program lines), and the trials that run it the world's.
     """
     if not isinstance(spec, (CTRNNControllerSpec, InterpreterControllerSpec, MBNControllerSpec)):
         raise MbnInputError(f"{where}: not a controller spec: {type(spec).__name__}")
@@ -215,18 +229,18 @@ def make_controller(
                 f"{where}: a plain CTRNN controller has no programs (got program {program!r})"
             )
         kind, run_spec = KIND_CTRNN, spec
-        control, initial = _ctrnn_runner(spec)
+        control, initial = _ctrnn_runner(spec, noise)
     else:
         im_spec = spec if isinstance(spec, InterpreterControllerSpec) else spec.interpreter_spec
         kind, run_spec = spec.kind, im_spec
         programs = _programs_of(im_spec)
         if isinstance(spec, MBNControllerSpec) and program is None:
-            control, initial = _mbn_runner(spec)
+            control, initial = _mbn_runner(spec, noise)
             camera = spec.camera
             initial_rule = spec.initial.rule if spec.initial is not None else None
         else:
             chosen = _choose_program(programs, program, kind, where)
-            control, initial = _interpreter_runner(im_spec, programs[chosen])
+            control, initial = _interpreter_runner(im_spec, programs[chosen], noise)
     return LoadedController(
         kind=kind,
         controller=control,
@@ -241,14 +255,23 @@ def make_controller(
         initial_rule=initial_rule,
         spec=spec,
         tile_rules=spec.tile_rules if isinstance(spec, MBNControllerSpec) else None,
+        noise=noise if noise is not None else NoiseConfig(),
     )
 
 
 def load_controller(
-    path: str | Path, program: str | None = None, *, check_stability: bool = True
+    path: str | Path,
+    program: str | None = None,
+    *,
+    check_stability: bool = True,
+    noise: NoiseConfig | None = None,
 ) -> LoadedController:
     """Read a controller file and make it ready to run (see :func:`make_controller` for
-    ``program`` and ``check_stability``). Errors are one line naming the file."""
+    ``program``, ``check_stability`` and ``noise``). Errors are one line naming the file."""
     return make_controller(
-        read_controller_spec(path), program, where=str(path), check_stability=check_stability
+        read_controller_spec(path),
+        program,
+        where=str(path),
+        check_stability=check_stability,
+        noise=noise,
     )

@@ -40,7 +40,7 @@ from mbn.world.rollout import (
     rollout,
 )
 from mbn.world.rules import NAMED_RULES, parse_rule, rule_exit_codes
-from mbn.world.sensors import SensorConfig
+from mbn.world.sensors import NoiseConfig, SensorConfig
 
 __all__ = [
     "BEHAVIORS",
@@ -292,12 +292,15 @@ def run_trials(
     camera: CameraConfig | None = None,
     record_every: int = 0,
     record_controller: bool = False,
+    noise: NoiseConfig | None = None,
+    key: Array | None = None,
 ) -> tuple[dict[str, np.ndarray], RolloutResult, np.ndarray]:
     """Run and judge every trial of ``spec`` in ``maze``.
 
     ``initial_state(n)`` gives the controller's batched initial state for ``n`` robots. The camera
-    is on for "tiles" (default :class:`~mbn.world.engine.CameraConfig`) unless given. Returns the
-    verdict of :func:`judge`, the rollout result and the start poses.
+    is on for "tiles" (default :class:`~mbn.world.engine.CameraConfig`) unless given. ``noise``
+    (with its PRNG ``key``) is the rollout's (:func:`run_trial_groups`). Returns the verdict of
+    :func:`judge`, the rollout result and the start poses.
     """
     if camera is None and spec.behavior == "tiles":
         camera = CameraConfig()
@@ -311,16 +314,18 @@ def run_trials(
         camera=camera,
         record_every=record_every,
         record_controller=record_controller,
+        noise=noise,
+        key=key,
     )
     return verdicts["trials"], result, poses
 
 
 def run_loaded_trials(
-    maze: Maze, spec: TrialSpec, loaded: Any
+    maze: Maze, spec: TrialSpec, loaded: Any, key: Array | None = None
 ) -> tuple[dict[str, np.ndarray], RolloutResult, np.ndarray]:
     """:func:`run_trials` of a controller made from a file
     (:class:`mbn.controllers.LoadedController`): its controller, initial state, robot step,
-    sensors and camera."""
+    sensors, camera and noise (``key``: the noise's PRNG key, needed when it is on)."""
     return run_trials(
         maze,
         spec,
@@ -329,6 +334,8 @@ def run_loaded_trials(
         dt=loaded.dt,
         sensors=loaded.sensors,
         camera=loaded.camera,
+        noise=loaded.noise,
+        key=key,
     )
 
 
@@ -354,13 +361,17 @@ def run_trial_groups(
     camera: CameraConfig | None = None,
     record_every: int = 0,
     record_controller: bool = False,
+    noise: NoiseConfig | None = None,
+    key: Array | None = None,
 ) -> tuple[dict[str, dict[str, np.ndarray]], RolloutResult, dict[str, slice], np.ndarray]:
     """Run several tests of one controller function in one rollout (one compilation).
 
     Every group's trials (:func:`trial_starts`) are concatenated in group order, with their
     initial states; each group is judged by its own spec (its ``seconds`` is ignored: the batch
-    runs ``seconds``). Returns the verdicts by group name, the rollout result, each group's slice
-    of the batch, and the start poses.
+    runs ``seconds``). ``noise``: the rollout's noise (:class:`~mbn.world.sensors.NoiseConfig`;
+    a controller that draws its own channels must be built with the same), ``key`` its PRNG key
+    (required when it is on). Returns the verdicts by group name, the rollout result, each
+    group's slice of the batch, and the start poses.
     """
     if not groups:
         raise MbnInputError("run_trial_groups needs at least one group")
@@ -390,13 +401,16 @@ def run_trial_groups(
         record_every=record_every,
         record_controller=record_controller,
         max_junctions=max(8, *(g.spec.junctions for g in groups)),
+        noise=noise or NoiseConfig(),
     )
+    if config.noise.enabled and key is None:
+        raise MbnInputError("the trials' noise is on: pass a PRNG key (a seed)")
     all_poses = np.concatenate(poses)
     # the mazes are arguments, not constants folded into the program: it compiles faster and
     # serves any mazes of the same array shapes
     run = jax.jit(
-        lambda world, junctions, state, p, m: rollout(
-            world, controller, state, p, m, config, junctions=junctions
+        lambda world, junctions, state, p, m, k: rollout(
+            world, controller, state, p, m, config, junctions=junctions, key=k
         )
     )
     result = run(
@@ -405,6 +419,7 @@ def run_trial_groups(
         state,
         jnp.asarray(all_poses, jnp.zeros(()).dtype),
         jnp.asarray(np.concatenate(index)),
+        key if config.noise.enabled else None,
     )
     stats = jax.tree.map(np.asarray, result.stats)  # sliced by group on the host
     verdicts = {

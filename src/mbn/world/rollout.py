@@ -159,7 +159,9 @@ class Observation(NamedTuple):
     paper's I1..I3 (eq. 3; zeros when the paper's 10 sonars are not all cast); ``camera``: colours
     of the nearest tile in view (0 none, 1, 2); ``blobs``: blobs in view; ``tile``: colours of the
     last tile driven over (0 none yet); ``stalled``: whether the previous move was undone;
-    ``t``: time (s).
+    ``t``: time (s); ``key``: this robot's PRNG key for the step, for a controller's own noise
+    (neurons, program lines: :class:`~mbn.world.sensors.NoiseConfig`), None when the rollout's
+    noise has no controller channel on.
     """
 
     ranges: Array
@@ -170,6 +172,7 @@ class Observation(NamedTuple):
     tile: Array
     stalled: Array
     t: Array
+    key: Array | None = None
 
 
 @dataclass(frozen=True)
@@ -338,7 +341,13 @@ def observe(scene: Scene, here: Sensed, tile: Array, stalled: Array, step: Array
     else:
         inputs = jnp.zeros((b, 3), ranges.dtype)
     t = jnp.broadcast_to(step.astype(ranges.dtype) * scene.config.dt, (b,))
-    return Observation(ranges, S, inputs, here.reading.camera, here.reading.blobs, tile, stalled, t)
+    key = step_key(scene, step)
+    robot_keys = None
+    if key is not None and scene.config.noise.controller_enabled:
+        robot_keys = jax.random.split(jax.random.fold_in(key, 5), b)  # one per robot
+    return Observation(
+        ranges, S, inputs, here.reading.camera, here.reading.blobs, tile, stalled, t, robot_keys
+    )
 
 
 def one_step(scene: Scene, carry: Carry, step: Array) -> tuple[Carry, tuple[Any, ...]]:

@@ -22,13 +22,14 @@ Sonars return distances; the paper's networks read a value S that grows as the w
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Literal
 
 import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
+from mbn.config import Settings, setting
 from mbn.errors import MbnInputError
 from mbn.world.robot import SONAR_MAX_RANGE
 
@@ -39,6 +40,7 @@ __all__ = [
     "SensorConfig",
     "normalize",
     "paper_inputs",
+    "parse_noise",
 ]
 
 #: Stage transducer index of the paper's s1..s10.
@@ -90,24 +92,103 @@ class SensorConfig:
         return tuple(self.sonars.index(s) for s in PAPER_SONARS)
 
 
+_DOC = "docs/noise.md"
+
+
 @dataclass(frozen=True)
-class NoiseConfig:
-    """Gaussian noise, off by default: sonar ranges (metres, clipped to [0, 5]), and the linear
-    (m/s) and angular (rad/s) speeds commanded, before Stage's speed limits."""
+class NoiseConfig(Settings):
+    """Noise per channel, all off by default (``docs/noise.md``). Every draw comes from the
+    rollout's PRNG key folded with the step and the channel, so a seed gives the same noise.
 
-    sonar_std: float = 0.0
-    v_std: float = 0.0
-    w_std: float = 0.0
+    World channels (:mod:`mbn.world.step`):
 
-    def __post_init__(self) -> None:
-        for name in ("sonar_std", "v_std", "w_std"):
-            value = getattr(self, name)
-            if not (value >= 0.0):
-                raise MbnInputError(f"noise {name} must be >= 0, got {value!r}")
+    - ``sonar_std``: Gaussian on each sonar range (metres), clipped to [0, 5];
+    - ``sonar_dropout``: probability per reading that a sonar returns the 5 m miss;
+    - ``camera_miss``: probability per step that the camera misses one blob of the nearest tile
+      in view (a one-colour tile is then not seen, a two-colour one reads as one colour);
+    - ``camera_false``: probability per step of a false blob: the nearest tile reads one colour
+      more (nothing in view reads as a one-colour tile), at most three;
+    - ``wheel_std``: relative Gaussian on the commanded speeds, ``v (1 + e_v)``, ``w (1 + e_w)``;
+    - ``v_std``, ``w_std``: absolute Gaussian on the commanded speeds (m/s, rad/s).
+
+    Controller channels (drawn by the controller from ``Observation.key``):
+
+    - ``neuron_std``: Gaussian added to every neuron's potential once per robot step (every
+      network of the controller, multipliers included);
+    - ``program_std``: Gaussian on the program lines into an interpreter (an MBN's program
+      module's output, or a fixed program), clipped to [0, 1].
+    """
+
+    section = "noise"
+
+    sonar_std: float = setting(
+        0.0, doc="Gaussian on each sonar range", unit="m", low=0.0, high=5.0, source=_DOC
+    )
+    sonar_dropout: float = setting(
+        0.0, doc="probability per reading of the 5 m miss", low=0.0, high=1.0, source=_DOC
+    )
+    camera_miss: float = setting(
+        0.0, doc="probability per step of a missed blob", low=0.0, high=1.0, source=_DOC
+    )
+    camera_false: float = setting(
+        0.0, doc="probability per step of a false blob", low=0.0, high=1.0, source=_DOC
+    )
+    wheel_std: float = setting(
+        0.0, doc="relative Gaussian on the commanded v and w", low=0.0, high=10.0, source=_DOC
+    )
+    v_std: float = setting(
+        0.0, doc="absolute Gaussian on the commanded v", unit="m/s", low=0.0, high=10.0, source=_DOC
+    )
+    w_std: float = setting(
+        0.0,
+        doc="absolute Gaussian on the commanded w",
+        unit="rad/s",
+        low=0.0,
+        high=10.0,
+        source=_DOC,
+    )
+    neuron_std: float = setting(
+        0.0,
+        doc="Gaussian on every neuron's potential per robot step",
+        low=0.0,
+        high=100.0,
+        source=_DOC,
+    )
+    program_std: float = setting(
+        0.0,
+        doc="Gaussian on the program lines (clipped to [0, 1])",
+        low=0.0,
+        high=10.0,
+        source=_DOC,
+    )
+
+    @property
+    def world_enabled(self) -> bool:
+        """Whether a world channel (sonars, camera, wheels) is on."""
+        return any(getattr(self, name) > 0 for name in _WORLD)
+
+    @property
+    def controller_enabled(self) -> bool:
+        """Whether a controller channel (neurons, program lines) is on."""
+        return self.neuron_std > 0 or self.program_std > 0
 
     @property
     def enabled(self) -> bool:
-        return self.sonar_std > 0 or self.v_std > 0 or self.w_std > 0
+        return self.world_enabled or self.controller_enabled
+
+    def as_dict(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+
+_WORLD = (
+    "sonar_std",
+    "sonar_dropout",
+    "camera_miss",
+    "camera_false",
+    "wheel_std",
+    "v_std",
+    "w_std",
+)
 
 
 def normalize(ranges: ArrayLike, config: SensorConfig) -> Array:
@@ -139,3 +220,29 @@ def paper_inputs(S: ArrayLike) -> Array:
         + m[:, 7] * S[..., 7:8]
         + m[:, 8] * S[..., 8:9]
     )
+
+
+def parse_noise(text: str) -> NoiseConfig:
+    """Noise settings from the command line: ``KEY=VALUE[,KEY=VALUE...]`` (e.g.
+    ``sonar_std=0.02,sonar_dropout=0.01``), or a TOML file (``.toml``) whose ``[noise]`` table
+    holds them (a run's settings file). Errors: one line naming the key (and file and line)."""
+    from mbn.config import from_mapping, read_toml
+
+    if text.endswith(".toml"):
+        doc = read_toml(text)
+        table = doc.data.get("noise")
+        if table is None:
+            raise MbnInputError(f"{doc.path}: no [noise] table")
+        return from_mapping(NoiseConfig, table, where=lambda key: doc.where("noise", key))
+    values: dict[str, float] = {}
+    for item in text.split(","):
+        key, sep, value = item.strip().partition("=")
+        if not sep or not key:
+            raise MbnInputError(
+                f"noise {item.strip()!r}: expected KEY=VALUE (e.g. sonar_std=0.02) or a .toml file"
+            )
+        try:
+            values[key.strip()] = float(value)
+        except ValueError:
+            raise MbnInputError(f"noise {key.strip()}: not a number: {value.strip()!r}") from None
+    return from_mapping(NoiseConfig, values, where=lambda key: f"noise {key}" if key else "noise")

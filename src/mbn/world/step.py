@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from typing import NamedTuple, TypeVar
+from typing import cast as typed
 
 import jax
 import jax.numpy as jnp
@@ -41,6 +42,7 @@ from mbn.world.engine import (
     window_words,
 )
 from mbn.world.geometry import sonar_rays
+from mbn.world.mazes.model import TILE_COLORS
 from mbn.world.robot import (
     SONAR_MAX_RANGE,
     SONAR_POSES,
@@ -56,6 +58,7 @@ __all__ = [
     "Reading",
     "Sensed",
     "applied_speeds",
+    "camera_noise",
     "command",
     "locate",
     "move",
@@ -142,9 +145,12 @@ def sense(
         place: where the robots are (:func:`locate`).
         sonars: Stage indices (0..15) of the sonars to cast, in reading order.
         camera: the blob finder's settings; None switches it off (it then reads 0).
-        noise: ``noise.sonar_std`` > 0 adds Gaussian noise (metres) to each range, clipped to
-            [0, 5] m.
-        key: this step's PRNG key (required when sonar noise is on); folded with 0.
+        noise: the sonar and camera channels of :class:`NoiseConfig`: ``sonar_std`` (Gaussian,
+            metres, clipped to [0, 5] m), ``sonar_dropout`` (a reading returns 5 m),
+            ``camera_miss`` and ``camera_false`` (the nearest tile reads one colour less or
+            one more, at most 3).
+        key: this step's PRNG key (required when one of them is on); folded with 0 (ranges),
+            2 (dropouts) and 3 (camera).
 
     Returns:
         The :class:`Reading`: ranges ``(B, k)`` in the precision of the pose, the rest int32.
@@ -154,21 +160,43 @@ def sense(
     ranges = cast(
         world, mc, place.words, place.ci, place.cj, origins[..., 0], origins[..., 1], angles
     )
+    sensing = (noise.sonar_std, noise.sonar_dropout, noise.camera_miss, noise.camera_false)
+    if any(level > 0 for level in sensing) and key is None:
+        raise MbnInputError("sensor noise is on: pass a PRNG key")
+    key = typed(Array, key)  # set wherever a channel below is on
     if noise.sonar_std > 0:
-        if key is None:
-            raise MbnInputError("sonar noise is on: pass a PRNG key")
         nk = jax.random.fold_in(key, 0)
         ranges = jnp.clip(
             ranges + noise.sonar_std * jax.random.normal(nk, ranges.shape, ranges.dtype),
             0.0,
             SONAR_MAX_RANGE,
         )
+    if noise.sonar_dropout > 0:
+        lost = jax.random.bernoulli(jax.random.fold_in(key, 2), noise.sonar_dropout, ranges.shape)
+        ranges = jnp.where(lost, jnp.asarray(SONAR_MAX_RANGE, ranges.dtype), ranges)
     if camera is not None:
         seen = see_tiles(world, mc, maze_index, place.words, place.ci, place.cj, pose, camera)
         nearest, blobs = seen.nearest, seen.blobs
+        if noise.camera_miss > 0 or noise.camera_false > 0:
+            nearest, blobs = camera_noise(nearest, blobs, noise, jax.random.fold_in(key, 3))
     else:
         nearest = blobs = jnp.zeros(pose.shape[:1], jnp.int32)
     return Reading(ranges, nearest, blobs, tile_under(world, maze_index, pose))
+
+
+def camera_noise(
+    nearest: Array, blobs: Array, noise: NoiseConfig, key: Array
+) -> tuple[Array, Array]:
+    """The blob finder's reading ``(nearest, blobs) (B,)`` with a missed blob (probability
+    ``noise.camera_miss``: one colour less, where a tile is in view) or a false one
+    (``noise.camera_false``: one colour more, at most 3), drawn independently per robot; a
+    miss and a false blob in the same step cancel."""
+    km, kf = jax.random.split(key)
+    shape = nearest.shape
+    miss = jax.random.bernoulli(km, noise.camera_miss, shape) & (nearest > 0)
+    false = jax.random.bernoulli(kf, noise.camera_false, shape) & (nearest < max(TILE_COLORS))
+    change = false.astype(nearest.dtype) - miss.astype(nearest.dtype)
+    return nearest + change, jnp.maximum(blobs + change, 0)
 
 
 def command(
@@ -178,12 +206,18 @@ def command(
     key: Array | None = None,
 ) -> tuple[Array, Array]:
     """The speeds ``(v, w)`` ``(B,)`` applied for commands ``v_cmd``, ``w_cmd (B,)``: optional
-    Gaussian noise (``noise.v_std`` m/s, ``noise.w_std`` rad/s; ``key``, this step's key, folded
-    with 1), then clipped to the P3DX's limits (:func:`mbn.world.robot.clip_command`)."""
+    relative Gaussian noise (``noise.wheel_std``: ``v (1 + e_v)``, ``w (1 + e_w)``; ``key``,
+    this step's key, folded with 4), then absolute (``noise.v_std`` m/s, ``noise.w_std`` rad/s;
+    folded with 1), then clipped to the P3DX's limits (:func:`mbn.world.robot.clip_command`)."""
     v_cmd, w_cmd = jnp.asarray(v_cmd), jnp.asarray(w_cmd)
+    if (noise.v_std > 0 or noise.w_std > 0 or noise.wheel_std > 0) and key is None:
+        raise MbnInputError("command noise is on: pass a PRNG key")
+    key = typed(Array, key)  # set wherever a channel below is on
+    if noise.wheel_std > 0:
+        e = jax.random.normal(jax.random.fold_in(key, 4), (v_cmd.shape[0], 2), v_cmd.dtype)
+        v_cmd = v_cmd * (1.0 + noise.wheel_std * e[:, 0])
+        w_cmd = w_cmd * (1.0 + noise.wheel_std * e[:, 1])
     if noise.v_std > 0 or noise.w_std > 0:
-        if key is None:
-            raise MbnInputError("command noise is on: pass a PRNG key")
         nk = jax.random.fold_in(key, 1)
         n = jax.random.normal(nk, (v_cmd.shape[0], 2), v_cmd.dtype)
         v_cmd = v_cmd + noise.v_std * n[:, 0]

@@ -38,6 +38,19 @@ def test_programs_are_found_for_the_new_rules_with_the_interpreter_unchanged(nb_
             assert float(c.value(net)) == pytest.approx(found["weights"][str(c)], abs=1e-5)
         for key in ("validation_im", "validation_network"):
             assert found[key]["trials"] > 0
+        # every member of the final population validated as its network, the best few through
+        # the interpreter too; the one kept is the best of those by the worse of the two
+        pv = found["population_validation"]
+        settings = NEW_BEHAVIOURS.config(quick=True)
+        assert len(pv["successes"]) == settings["de"].popsize
+        checked = pv["checked"]
+        assert len(checked) == min(settings["programs"].members, len(pv["successes"]))
+        best_alone = sorted(pv["successes"], reverse=True)[: len(checked)]
+        assert sorted(c["network"] for c in checked) == sorted(best_alone)
+        worst = [min(c["im"], c["network"]) for c in checked]
+        kept = next(c for c in checked if c["member"] == found["member"])
+        assert min(kept["im"], kept["network"]) == max(worst)
+        assert found["validation_network"]["successes"] == kept["network"]
 
 
 def test_an_interpreter_whose_weights_changed_is_refused(nb_copy):

@@ -161,3 +161,13 @@ def test_out_that_is_a_file_or_holds_other_files_is_refused(tmp_path):
     with pytest.raises(MbnInputError, match="holds other files and no sweep"):
         check_sweep_dir(tmp_path / "d", settings)
     assert (tmp_path / "d" / "notes.txt").read_text() == "mine"
+
+
+def test_auth_hint_only_where_token_authentication_can_be_why():
+    from mbn.experiments.sweep.run import auth_hint
+
+    hint = auth_hint("head:6379", {})
+    assert "RAY_AUTH_MODE=token" in hint and "ray get-auth-token" in hint
+    assert auth_hint(None, {}) == ""  # a local Ray started by the sweep itself
+    assert auth_hint("auto", {}) == ""  # `auto` finds the local cluster and its token
+    assert auth_hint("head:6379", {"RAY_AUTH_MODE": "token"}) == ""  # already set

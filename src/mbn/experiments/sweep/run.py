@@ -342,6 +342,23 @@ def _probe(address: str, timeout: float) -> None:
         ) from None
 
 
+def auth_hint(address: str | None, env: Mapping[str, str]) -> str:
+    """What to try when joining a cluster fails and token authentication may be why.
+
+    Since Ray 2.59, ``ray start --head`` turns token authentication on for a cluster on one
+    machine, while a driver that joins it by an explicit address authenticates only with
+    ``RAY_AUTH_MODE=token`` set: without it the connection is refused after some 20 s of
+    retries (found joining a one-machine cluster started with ``ray start --head``).
+    """
+    if address is None or address == "auto" or env.get("RAY_AUTH_MODE"):
+        return ""
+    return (
+        "; if the cluster uses token authentication (Ray >= 2.59 turns it on for `ray start "
+        "--head`), set RAY_AUTH_MODE=token and give this machine the cluster's token "
+        "(`ray get-auth-token`, or RAY_AUTH_TOKEN)"
+    )
+
+
 def import_ray() -> Any:
     """The ``ray`` module, or one line saying how to install it."""
     try:
@@ -383,6 +400,7 @@ class RayExecutor:
         except Exception as exc:  # Ray's own errors: still one line
             raise MbnInputError(
                 f"--address {address or '(local)'}: cannot start or join Ray ({one_line(exc)})"
+                + auth_hint(address, os.environ)
             ) from None
         total = int(ray.cluster_resources().get("CPU", 0))
         if cpus_per_run > total:

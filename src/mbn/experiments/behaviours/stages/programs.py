@@ -5,14 +5,17 @@ and straight-left by default) on the crossroads, with that rule's fitness. A pro
 through the exact products (the network it encodes: the program *is* a network), averaged over
 perturbed copies as RF and LF are, and then checked through the interpreter itself, multipliers
 and all, on the validation maze; a rule whose program falls short is searched again from
-another key, up to ``[validation] attempts`` times, and the best kept."""
+another key, up to ``[validation] attempts`` times, and the best kept. Of each search, every
+member of the final population is validated as the network it decodes to and the best
+``[programs] members`` of them through the interpreter (the fittest is not always the best in a
+maze)."""
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -35,6 +38,8 @@ from mbn.experiments.reproduce.stages.common import (
     read_network,
     stage_perturbations,
     validate,
+    validation_record,
+    validation_verdicts,
 )
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.programmable import Interpreter
@@ -51,6 +56,8 @@ class ProgramsSettings(Settings):
     """The new rules and the search for their programs."""
 
     section = "programs"
+    # runs recorded before ``members`` existed checked the fittest program alone
+    recorded_before: ClassVar[dict[str, Any]] = {"members": 0}
     rules: tuple[str, ...] = setting(
         ("straight-right", "straight-left"),
         doc="the rules learned by programs alone (names or orders such as 'SRL')",
@@ -61,6 +68,14 @@ class ProgramsSettings(Settings):
     )
     variants: int = setting(
         4, doc="starts per crossroad", low=1, high=100, source="as [rf] variants"
+    )
+    members: int = setting(
+        3,
+        doc="of each search's final population, validated as the networks they decode to, the "
+        "best this many by that are validated through the interpreter (0: the fittest alone)",
+        low=0,
+        high=1000,
+        source="as [lf] members (docs/behaviours.md: a population's fittest is not its best)",
     )
 
     def __post_init__(self) -> None:
@@ -117,6 +132,81 @@ def _program_fitness(
     return fitness
 
 
+def _best_member(
+    ctx: StageContext,
+    spec: InterpreterControllerSpec,
+    interp: Interpreter,
+    base: CTRNN,
+    rule: str,
+    name: str,
+    run: Any,
+    members: int,
+) -> dict[str, Any]:
+    """The program a search found: the fittest genome is not always its population's best in a
+    maze (as for LF, docs/reproduce.md), so every member of the final population is validated as
+    the network it decodes to (one batched rollout), and the best ``members`` of them by that
+    (the fitter first of equals) through the interpreter; kept: the best of those by the worse
+    of the two validations, then by fitness. ``members = 0``: the fittest alone."""
+    if members == 0:
+        program = np.clip(np.asarray(run.data["best_genome"], dtype=float), 0.0, 1.0)
+        population, fitness = program[None], np.asarray([run.data["best_fitness"]], float)
+    else:
+        final = ctx.rundir.load_checkpoint(name).state
+        population = np.clip(np.asarray(final.population, dtype=float), 0.0, 1.0)
+        fitness = np.asarray(final.fitness, dtype=float)
+    by_fitness = sorted(range(len(fitness)), key=lambda i: (-fitness[i], i))
+    verdicts = validation_verdicts(
+        ctx,
+        [CTRNNControllerSpec(net=program_network(interp, base, population[i])) for i in by_fitness],
+        rule,
+    )
+    alone = {i: validation_record(ctx, v) for i, v in zip(by_fitness, verdicts, strict=True)}
+    checked = sorted(by_fitness, key=lambda i: -alone[i]["successes"])[: max(members, 1)]
+    candidates = []
+    for i in checked:
+        program = population[i]
+        candidate = dataclasses.replace(spec, programs={rule: program.tolist()})
+        v_im = validate(ctx, candidate, rule, rule)
+        candidates.append(
+            {
+                "member": i,
+                "fitness": float(fitness[i]),
+                "program": program.tolist(),
+                "validation_im": v_im,
+                "validation_network": alone[i],
+            }
+        )
+
+    def rank(c: dict[str, Any]) -> tuple[Any, ...]:
+        worst = min(c["validation_im"]["success_rate"], c["validation_network"]["success_rate"])
+        return (worst, c["fitness"], -c["member"])
+
+    kept = max(candidates, key=rank)
+    return {
+        "program": kept["program"],
+        "member": kept["member"],
+        "fitness": kept["fitness"],
+        "best_fitness": run.data["best_fitness"],
+        "history": run.data["history"],
+        "validation_im": kept["validation_im"],
+        "validation_network": kept["validation_network"],
+        "population_validation": {
+            "by": "fitness, the fittest first",
+            "successes": [alone[i]["successes"] for i in by_fitness],
+            "trials": alone[by_fitness[0]]["trials"],
+            "checked": [
+                {
+                    "member": c["member"],
+                    "fitness": c["fitness"],
+                    "im": c["validation_im"]["successes"],
+                    "network": c["validation_network"]["successes"],
+                }
+                for c in candidates
+            ],
+        },
+    }
+
+
 class ProgramsStage(Stage):
     name = "programs"
     key_id = 9
@@ -165,21 +255,13 @@ class ProgramsStage(Stage):
                     s.generations,
                     f"program for {rule}" + (f" (attempt {a + 1})" if a else ""),
                 )
-                program = np.clip(np.asarray(run.data["best_genome"], dtype=float), 0.0, 1.0)
-                net = program_network(interp, base, program)
-                candidate = dataclasses.replace(spec, programs={rule: program.tolist()})
-                v_im = validate(ctx, candidate, rule, rule)
-                v_net = validate(ctx, CTRNNControllerSpec(net=net), rule)
-                tries.append(
-                    {
-                        "program": program.tolist(),
-                        "best_fitness": run.data["best_fitness"],
-                        "history": run.data["history"],
-                        "validation_im": v_im,
-                        "validation_network": v_net,
-                    }
-                )
-                if v_im["meets_target"] and v_net["meets_target"]:
+                name = f"program_{rule}" + (f"_attempt{a}" if a else "")
+                tried = _best_member(ctx, spec, interp, base, rule, name, run, s.members)
+                tries.append(tried)
+                if (
+                    tried["validation_im"]["meets_target"]
+                    and tried["validation_network"]["meets_target"]
+                ):
                     break
 
             def rank(i: int, tries: list[dict[str, Any]] = tries) -> tuple[Any, ...]:
@@ -187,7 +269,7 @@ class ProgramsStage(Stage):
                 worst = min(
                     t["validation_im"]["success_rate"], t["validation_network"]["success_rate"]
                 )
-                return (worst, t["best_fitness"], -i)
+                return (worst, t["fitness"], -i)
 
             chosen = max(range(len(tries)), key=rank)
             best = tries[chosen]
@@ -196,7 +278,17 @@ class ProgramsStage(Stage):
             found[rule] = {
                 **best,
                 "attempts": [
-                    {key: t[key] for key in ("best_fitness", "validation_im", "validation_network")}
+                    {
+                        key: t[key]
+                        for key in (
+                            "best_fitness",
+                            "member",
+                            "fitness",
+                            "validation_im",
+                            "validation_network",
+                            "population_validation",
+                        )
+                    }
                     for t in tries
                 ],
                 "chosen_attempt": chosen,
