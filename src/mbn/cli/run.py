@@ -14,12 +14,15 @@ __all__ = ["EPILOG", "EXPERIMENTS", "add_commands", "experiment"]
 
 EPILOG = """\
   mbn run new-behaviours --out runs/nb        new behaviours by programs alone
+  mbn run noise --out runs/noise              what survives noise
 """
 
 #: The experiments ``mbn run`` knows, with a line each.
 EXPERIMENTS = {
     "new-behaviours": "a fully programmable interpreter of the run's RF, and new behaviours "
     "by its programs alone (docs/behaviours.md)",
+    "noise": "the reproduction's controllers under each channel of the noise model, level by "
+    "level (docs/noise.md)",
 }
 
 _EPILOG = """\
@@ -33,6 +36,7 @@ examples:
   mbn run new-behaviours --out runs/nb                 a full run
   mbn run new-behaviours --quick --out /tmp/nb         smoke run
   mbn run new-behaviours --out runs/nb --resume        continue it
+  mbn run noise --out runs/noise                       the noise levels
 """
 
 
@@ -42,6 +46,10 @@ def experiment(name: str) -> Any:
         from mbn.experiments.behaviours import NEW_BEHAVIOURS
 
         return NEW_BEHAVIOURS
+    if name == "noise":
+        from mbn.experiments.noise import NOISE
+
+        return NOISE
     raise KeyError(name)
 
 
@@ -50,7 +58,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     listing = "\n".join(f"  {k:<16}{v}" for k, v in EXPERIMENTS.items())
     cmd = sub.add_parser(
         "run",
-        help="a registered experiment beyond the paper's (new-behaviours)",
+        help="a registered experiment beyond the paper's (new-behaviours, noise)",
         description="Run a registered experiment, stage by stage, checkpointed and resumable.",
         epilog=_EPILOG.format(experiments=listing),
         formatter_class=argparse.RawDescriptionHelpFormatter,

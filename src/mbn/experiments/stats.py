@@ -12,7 +12,8 @@ Z95 = 1.959963984540054
 
 def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
     """The Wilson score interval of ``successes`` in ``trials`` (``(nan, nan)`` without
-    trials)."""
+    trials). It holds the observed rate: at 0 and at ``trials`` successes one end is that rate
+    exactly (in floats the formula's end can miss it by a rounding error)."""
     if trials <= 0:
         return math.nan, math.nan
     if not 0 <= successes <= trials:
@@ -21,4 +22,4 @@ def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float,
     denom = 1 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
+    return min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half))

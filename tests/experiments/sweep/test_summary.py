@@ -22,6 +22,15 @@ def test_wilson_interval_known_values():
     assert wilson_interval(10, 10)[1] == pytest.approx(1.0, abs=1e-12)
 
 
+def test_wilson_interval_holds_the_observed_rate_exactly():
+    # in floats the formula's lower end at 0 successes was 1e-17 for n = 3, 6, 7, 12, ...
+    for n in range(1, 301):
+        assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0
+        for k in (1, n // 2, n - 1):
+            lo, hi = wilson_interval(k, n)
+            assert lo <= k / n <= hi
+
+
 @pytest.mark.parametrize(("k", "n"), [(0, 1), (3, 7), (190, 200), (1999, 2040), (50, 50)])
 def test_wilson_interval_matches_scipy(k, n):
     ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")

@@ -1,0 +1,1 @@
+"""The stages of ``mbn run noise`` beyond the reproduction's."""

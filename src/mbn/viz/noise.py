@@ -1,0 +1,58 @@
+"""Success against noise: one figure per channel, one line per controller, Wilson intervals."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from mbn.viz.style import new_figure, save_png
+
+__all__ = ["success_vs_noise"]
+
+#: How the figures name the controllers.
+LABELS = {
+    "rf": "RF",
+    "im_rf": "IM, RF's program",
+    "im_lf": "IM, LF's program",
+    "mbn": "MBN",
+}
+
+
+def success_vs_noise(
+    channel: str,
+    curves: Mapping[str, Sequence[Mapping[str, Any]]],
+    path: Path,
+    unit: str = "",
+) -> None:
+    """``curves[controller]``: the points of one channel, each ``{"level", "jitter",
+    "heldout"}`` with ``rate`` and ``wilson95``. Two panels (jittered test, held-out maze),
+    success against level, the 95 % Wilson interval as error bars, 50 % and 95 % marked. The
+    levels are drawn evenly spaced and labelled (they are chosen roughly geometric)."""
+    fig = new_figure((10, 4))
+    axes = fig.subplots(1, 2, sharey=True)
+    panels = (("jitter", "jittered test"), ("heldout", "held-out maze"))
+    for ax, (test, what) in zip(axes, panels, strict=True):
+        ticks: list[float] = []
+        for k, (name, points) in enumerate(curves.items()):
+            levels = [float(p["level"]) for p in points]
+            x = list(range(len(levels)))
+            rate = [100 * p[test]["rate"] for p in points]
+            # the interval's ends less the rate (>= 0 up to rounding)
+            lo = [max(0.0, 100 * (p[test]["rate"] - p[test]["wilson95"][0])) for p in points]
+            hi = [max(0.0, 100 * (p[test]["wilson95"][1] - p[test]["rate"])) for p in points]
+            shift = [v + 0.06 * (k - 1.5) for v in x]
+            ax.errorbar(shift, rate, yerr=[lo, hi], marker="o", ms=4, capsize=2, lw=1.2,
+                        label=LABELS.get(name, name), color=f"C{k}")  # fmt: skip
+            if len(levels) > len(ticks):
+                ticks = levels
+        ax.set_xticks(range(len(ticks)), [f"{v:g}" for v in ticks])
+        for y, style in ((95, ":"), (50, "--")):
+            ax.axhline(y, color="0.5", lw=0.8, ls=style)
+        ax.set_xlabel(f"{channel}" + (f" ({unit})" if unit else ""))
+        ax.set_title(f"{what}")
+        ax.set_ylim(-3, 103)
+    axes[0].set_ylabel("trials passed (%)")
+    axes[1].legend(loc="lower left", fontsize=8)
+    fig.suptitle(f"Success under noise: {channel} (95 % Wilson intervals)")
+    save_png(fig, path)

@@ -1,0 +1,82 @@
+"""The ``noise_levels`` stage of ``mbn run noise`` on the session's quick reproduction: each
+channel's levels, the controllers that read it, the noiseless point equal to the reproduction's
+own tests, and a channel at its extreme breaking the controllers."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from mbn.errors import MbnInputError
+from mbn.experiments.noise import NOISE
+from mbn.experiments.noise.stages.levels import CONTROLLERS, NoiseLevelsSettings
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import replace_section, run_stage
+
+
+@pytest.fixture(scope="module")
+def levels(quick_run, tmp_path_factory):
+    out, _ = quick_run
+    folder = tmp_path_factory.mktemp("noise") / "run"
+    shutil.copytree(out, folder)
+    rundir = RunDir(folder)
+    config = NOISE.config(quick=True)
+    tests = config["tests"]
+    # the reproduction's test trials, so that the noiseless point is its tests
+    section = config["noise_levels"].replace(
+        channels=("sonar_dropout", "camera_miss", "program_std"),
+        sonar_dropout=(0.0, 1.0),
+        camera_miss=(0.0, 1.0),
+        program_std=(0.0, 0.02),
+        jitter_per_mark=tests.jitter_per_mark,
+        heldout_repeats=tests.heldout_repeats,
+    )
+    data = run_stage(NOISE, rundir, "noise_levels", seed=3, config=replace_section(config, section))
+    return rundir, data
+
+
+def test_every_controller_gets_the_channels_it_reads(levels):
+    _, data = levels
+    curves = data["curves"]
+    assert set(curves) == set(CONTROLLERS)
+    assert set(curves["rf"]) == {"sonar_dropout"}  # no camera, no program lines
+    assert set(curves["im_rf"]) == set(curves["im_lf"]) == {"sonar_dropout", "program_std"}
+    assert set(curves["mbn"]) == {"sonar_dropout", "camera_miss", "program_std"}
+    for name, by_channel in curves.items():
+        for channel, points in by_channel.items():
+            assert [p["level"] for p in points] == list(data["levels"][channel]), (name, channel)
+            for p in points:
+                for test in ("jitter", "heldout"):
+                    r = p[test]
+                    assert r["rate"] == pytest.approx(r["successes"] / r["trials"])
+                    assert r["wilson95"][0] <= r["rate"] <= r["wilson95"][1]
+    assert set(data["realistic"]) == {"noise", *CONTROLLERS}
+
+
+def test_without_noise_the_trials_are_the_reproductions_tests(levels):
+    rundir, data = levels
+    tests = rundir.read_stage("tests")["tests"]
+    for name in CONTROLLERS:
+        base = next(iter(data["curves"][name].values()))[0]
+        assert base["level"] == 0.0
+        for test in ("jitter", "heldout"):
+            assert base[test]["successes"] == tests[f"{name}_{test}"]["successes"], (name, test)
+            assert base[test]["trials"] == tests[f"{name}_{test}"]["trials"]
+
+
+def test_sonar_dropout_at_its_extreme_breaks_every_controller(levels):
+    _, data = levels
+    for name in CONTROLLERS:  # every sonar reads 5 m: no wall is followed
+        worst = data["curves"][name]["sonar_dropout"][-1]
+        assert worst["level"] == 1.0
+        assert worst["jitter"]["successes"] == 0 and worst["heldout"]["successes"] == 0
+
+
+def test_levels_must_start_at_zero_and_increase():
+    with pytest.raises(MbnInputError, match=r"noise_levels\.sonar_std: levels must start at 0"):
+        NoiseLevelsSettings(sonar_std=(0.02, 0.05))
+    with pytest.raises(MbnInputError, match="increase"):
+        NoiseLevelsSettings(wheel_std=(0.0, 0.2, 0.1))
+    with pytest.raises(MbnInputError, match=r"noise\.sonar_dropout"):
+        NoiseLevelsSettings(sonar_dropout=(0.0, 2.0))
