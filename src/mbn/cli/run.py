@@ -15,6 +15,7 @@ __all__ = ["EPILOG", "EXPERIMENTS", "add_commands", "experiment"]
 EPILOG = """\
   mbn run new-behaviours --out runs/nb        new behaviours by programs alone
   mbn run noise --out runs/noise              what survives noise
+  mbn run ablations --out runs/ablations      ablations of the program path
 """
 
 #: The experiments ``mbn run`` knows, with a line each.
@@ -37,6 +38,7 @@ examples:
   mbn run new-behaviours --quick --out /tmp/nb         smoke run
   mbn run new-behaviours --out runs/nb --resume        continue it
   mbn run noise --out runs/noise                       the noise levels
+  mbn run ablations --out runs/ablations               the ablations
 """
 
 
@@ -50,6 +52,10 @@ def experiment(name: str) -> Any:
         from mbn.experiments.noise import NOISE
 
         return NOISE
+    if name == "ablations":
+        from mbn.experiments.ablations import ABLATIONS
+
+        return ABLATIONS
     raise KeyError(name)
 
 
@@ -58,7 +64,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     listing = "\n".join(f"  {k:<16}{v}" for k, v in EXPERIMENTS.items())
     cmd = sub.add_parser(
         "run",
-        help="a registered experiment beyond the paper's (new-behaviours, noise)",
+        help="a registered experiment beyond the paper's (new-behaviours, noise, ablations)",
         description="Run a registered experiment, stage by stage, checkpointed and resumable.",
         epilog=_EPILOG.format(experiments=listing),
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -1,0 +1,1 @@
+"""The stages of ``mbn run ablations`` beyond the reproduction's."""

@@ -1,0 +1,73 @@
+"""The ``ablations`` stage of ``mbn run ablations`` on the session's quick reproduction: every
+ablation's row, the unchanged MBN equal to the reproduction's own tests, and the rebuilt
+interpreters' settings."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from mbn.experiments.ablations import ABLATIONS
+from mbn.experiments.ablations.stages.program_path import VARIANTS
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import replace_section, run_stage
+
+
+@pytest.fixture(scope="module")
+def ablations(quick_run, tmp_path_factory):
+    out, _ = quick_run
+    folder = tmp_path_factory.mktemp("ablations") / "run"
+    shutil.copytree(out, folder)
+    rundir = RunDir(folder)
+    config = ABLATIONS.config(quick=True)
+    tests = config["tests"]
+    section = config["ablations"].replace(
+        jitter_per_mark=tests.jitter_per_mark, heldout_repeats=tests.heldout_repeats
+    )
+    config = replace_section(config, section)
+    return rundir, run_stage(ABLATIONS, rundir, "ablations", seed=3, config=config)
+
+
+def test_every_ablation_has_its_row(ablations):
+    _, data = ablations
+    rows = data["variants"]
+    assert list(rows) == list(VARIANTS)
+    for name, row in rows.items():
+        for test in ("mbn_jitter", "mbn_heldout"):
+            r = row[test]
+            assert r["trials"] > 0 and r["rate"] == pytest.approx(r["successes"] / r["trials"])
+            assert r["wilson95"][0] <= r["rate"] <= r["wilson95"][1]
+        # agreement is measured where the interpreter changes (or is the run's), not otherwise
+        has = name not in ("wrong_program", "frozen_program")
+        assert ("agreement" in row) == has, name
+        if has:
+            assert set(row["agreement"]) == {"rf_jitter", "rf_heldout", "lf_jitter", "lf_heldout"}
+            assert all(0.0 <= v <= 1.0 for v in row["agreement"].values())
+
+
+def test_the_unchanged_mbn_is_the_reproductions_tests(ablations):
+    rundir, data = ablations
+    stage = rundir.read_stage("tests")
+    tests, agreement = stage["tests"], stage["agreement"]
+    row = data["variants"]["as_run"]
+    for x in ("jitter", "heldout"):
+        assert row[f"mbn_{x}"]["successes"] == tests[f"mbn_{x}"]["successes"]
+        for net in ("rf", "lf"):
+            assert row["agreement"][f"{net}_{x}"] == pytest.approx(
+                agreement[f"im_{net}_{x}"]["rate"]
+            )
+    assert data["networks"]["rf_jitter"]["successes"] == tests["rf_jitter"]["successes"]
+
+
+def test_the_rebuilt_interpreters_keep_the_multipliers_training_step(ablations):
+    _, data = ablations
+    rows = data["variants"]
+    for name, ratio, substeps in (("tau_5", 0.2, 10), ("tau_10", 0.1, 20), ("tau_50", 0.02, 100)):
+        assert rows[name]["interpreter"]["tau_ratio"] == ratio
+        assert rows[name]["interpreter"]["substeps"] == substeps
+        assert rows[name]["interpreter"]["multiplier_neurons"] == 6
+    assert rows["mul3"]["interpreter"]["multiplier_neurons"] == 3
+    # exact products: the networks the programs decode to are RF and LF, up to rounding
+    exact = rows["exact_products"]["agreement"]
+    assert exact["rf_jitter"] >= 0.9 and exact["lf_jitter"] >= 0.9
