@@ -24,6 +24,8 @@ EXPERIMENTS = {
     "by its programs alone (docs/behaviours.md)",
     "noise": "the reproduction's controllers under each channel of the noise model, level by "
     "level (docs/noise.md)",
+    "ablations": "the MBN with parts of its program path changed: wrong or frozen program, exact "
+    "products, the multipliers' time constant and size (docs/ablations.md)",
 }
 
 _EPILOG = """\

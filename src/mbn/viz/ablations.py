@@ -51,6 +51,6 @@ def ablation_bars(rows: Mapping[str, Mapping[str, Any]], path: Path) -> None:
     ax.axhline(95, color="0.5", lw=0.8, ls=":")
     ax.set_ylim(0, 105)
     ax.set_ylabel("%")
-    ax.legend(loc="lower left", fontsize=8, ncol=2)
-    ax.set_title("Ablations of the program path (MBN: 95 % Wilson intervals)")
+    ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), fontsize=8, ncol=4, frameon=False)
+    fig.suptitle("Ablations of the program path (MBN: 95 % Wilson intervals)")
     save_png(fig, path)
