@@ -53,6 +53,7 @@ __all__ = [
     "agreement",
     "judge",
     "longest_route",
+    "rate_record",
     "route_seconds",
     "run_loaded_trials",
     "run_trial_groups",
@@ -261,6 +262,21 @@ def agreement(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, A
     judged junction: ``trials``, ``same_branches``, ``rate``."""
     same = np.all(np.asarray(a["exits"]) == np.asarray(b["exits"]), axis=1)
     return {"trials": int(same.size), "same_branches": int(same.sum()), "rate": float(same.mean())}
+
+
+def rate_record(verdict: dict[str, np.ndarray]) -> dict[str, Any]:
+    """``successes``, ``trials``, ``rate`` and ``wilson95`` (the Wilson 95 % interval) of
+    judged trials: how the noise and ablation experiments record a test."""
+    from mbn.experiments.stats import wilson_interval
+
+    s = summary(verdict)
+    lo, hi = wilson_interval(int(s["successes"]), int(s["trials"]))
+    return {
+        "successes": s["successes"],
+        "trials": s["trials"],
+        "rate": s["success_rate"],
+        "wilson95": [lo, hi],
+    }
 
 
 def summary(verdict: dict[str, np.ndarray]) -> dict[str, float | int]:

@@ -30,8 +30,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import test_specs
-from mbn.experiments.stats import wilson_interval
-from mbn.experiments.trials import TrialGroup, run_trial_groups, summary
+from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.experiments.trials import agreement as same_exits
 from mbn.networks.ctrnn import CTRNN, euler_steps, firing_rate
 from mbn.networks.multiplier import Multiplier, load_default, load_multiplier
@@ -160,17 +159,6 @@ def _rebuilt(
     return dataclasses.replace(im, interpreter=rebuilt, substeps=substeps)
 
 
-def _rate(verdict: dict[str, np.ndarray]) -> dict[str, Any]:
-    s = summary(verdict)
-    lo, hi = wilson_interval(int(s["successes"]), int(s["trials"]))
-    return {
-        "successes": s["successes"],
-        "trials": s["trials"],
-        "rate": s["success_rate"],
-        "wilson95": [lo, hi],
-    }
-
-
 def _agreements(
     ims: dict[str, dict[str, np.ndarray]], nets: dict[str, dict[str, np.ndarray]]
 ) -> dict[str, float]:
@@ -273,8 +261,8 @@ class AblationsStage(Stage):
             out = run({"mbn": (loaded_mbn, "tiles", initial)}, tests.mbn_seconds)
             row: dict[str, Any] = {
                 "what": VARIANTS[variant],
-                "mbn_jitter": _rate(out["mbn_jitter"]),
-                "mbn_heldout": _rate(out["mbn_heldout"]),
+                "mbn_jitter": rate_record(out["mbn_jitter"]),
+                "mbn_heldout": rate_record(out["mbn_heldout"]),
             }
             if variant == "exact_products":
                 # the interpreter by exact products is the network each program decodes to
@@ -295,8 +283,8 @@ class AblationsStage(Stage):
                     tests.seconds,
                 )
                 row["agreement"] = _agreements(ims, nets)
-                row["im_rf_jitter"] = _rate(ims["im_rf_jitter"])
-                row["im_lf_jitter"] = _rate(ims["im_lf_jitter"])
+                row["im_rf_jitter"] = rate_record(ims["im_rf_jitter"])
+                row["im_lf_jitter"] = rate_record(ims["im_lf_jitter"])
             if interp_spec is not None:
                 ims = run(
                     {
@@ -319,13 +307,13 @@ class AblationsStage(Stage):
                     "multiplier_neurons": int(interp_spec.interpreter.mul_size),
                 }
                 row["agreement"] = _agreements(ims, nets)
-                row["im_rf_jitter"] = _rate(ims["im_rf_jitter"])
-                row["im_lf_jitter"] = _rate(ims["im_lf_jitter"])
+                row["im_rf_jitter"] = rate_record(ims["im_rf_jitter"])
+                row["im_lf_jitter"] = rate_record(ims["im_lf_jitter"])
             rows[variant] = row
             ctx.progress.update(bar, completed=v + 1, info=variant)
         return {
             "variants": rows,
-            "networks": {name: _rate(nets[name]) for name in nets},
+            "networks": {name: rate_record(nets[name]) for name in nets},
             "trials": {"jitter_per_mark": s.jitter_per_mark, "heldout_repeats": s.heldout_repeats},
         }
 

@@ -10,14 +10,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import jax
-import numpy as np
 
 from mbn.config import Settings, setting
 from mbn.controllers import make_controller, read_controller_spec
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import TESTED, test_specs
-from mbn.experiments.stats import wilson_interval
-from mbn.experiments.trials import TrialGroup, run_trial_groups, summary
+from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.world.mazes.load import load_maze
 from mbn.world.sensors import NoiseConfig
 
@@ -107,17 +105,6 @@ class NoiseLevelsSettings(Settings):
             NoiseConfig(**{channel: levels[-1]})  # within the channel's range
 
 
-def _rate(verdict: dict[str, np.ndarray]) -> dict[str, Any]:
-    s = summary(verdict)
-    lo, hi = wilson_interval(int(s["successes"]), int(s["trials"]))
-    return {
-        "successes": s["successes"],
-        "trials": s["trials"],
-        "rate": s["success_rate"],
-        "wilson95": [lo, hi],
-    }
-
-
 class NoiseLevelsStage(Stage):
     name = "noise_levels"
     key_id = 12
@@ -186,8 +173,8 @@ class NoiseLevelsStage(Stage):
                     entry.append(
                         {
                             "level": level,
-                            "jitter": _rate(verdicts[f"{n}_jitter"]),
-                            "heldout": _rate(verdicts[f"{n}_heldout"]),
+                            "jitter": rate_record(verdicts[f"{n}_jitter"]),
+                            "heldout": rate_record(verdicts[f"{n}_heldout"]),
                         }
                     )
             ctx.progress.update(bar, completed=p + 1, info=f"{channel} {i}")
