@@ -68,7 +68,7 @@ class NoiseLevelsSettings(Settings):
         CHANNELS, doc="the channels swept", choices=CHANNELS, source=_DOC
     )
     sonar_std: tuple[float, ...] = _levels(
-        (0.0, 0.02, 0.05, 0.1, 0.2, 0.5), "levels of sonar_std", "m"
+        (0.0, 0.05, 0.2, 0.5, 1.0, 2.0), "levels of sonar_std", "m"
     )
     sonar_dropout: tuple[float, ...] = _levels(
         (0.0, 0.01, 0.05, 0.1, 0.2, 0.4), "levels of sonar_dropout"
@@ -79,10 +79,10 @@ class NoiseLevelsSettings(Settings):
     camera_false: tuple[float, ...] = _levels(
         (0.0, 0.01, 0.02, 0.05, 0.1, 0.2), "levels of camera_false"
     )
-    wheel_std: tuple[float, ...] = _levels((0.0, 0.05, 0.1, 0.2, 0.4, 0.8), "levels of wheel_std")
+    wheel_std: tuple[float, ...] = _levels((0.0, 0.1, 0.2, 0.5, 1.0, 2.0), "levels of wheel_std")
     neuron_std: tuple[float, ...] = _levels((0.0, 0.1, 0.3, 1.0, 3.0, 10.0), "levels of neuron_std")
     program_std: tuple[float, ...] = _levels(
-        (0.0, 0.005, 0.01, 0.02, 0.05, 0.1), "levels of program_std"
+        (0.0, 0.01, 0.05, 0.1, 0.2, 0.5), "levels of program_std"
     )
     jitter_per_mark: int = setting(
         20, doc="jittered trials per start mark of the test maze", low=1, high=1000, source=_DOC
