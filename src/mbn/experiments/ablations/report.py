@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.pipeline import RunDir
-from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.io import read_json
 
 __all__ = ["TITLE", "claims", "write_report"]
@@ -110,22 +110,7 @@ def write_report(rundir: RunDir) -> None:
                 "changes, its agreement with RF and LF on the same trials (docs/ablations.md).",
             ],
         ),
-        Section(
-            "Claims",
-            table=(
-                ["claim", "measured", "target", "holds"],
-                [
-                    [
-                        c["claim"],
-                        c["measured"],
-                        c["target"],
-                        "-" if c["pass"] is None else ("yes" if c["pass"] else "no"),
-                    ]
-                    for c in rows
-                ],
-            ),
-            status=[c["pass"] for c in rows],
-        ),
+        claims_section(rows),
         Section(
             "Ablations",
             table=(

@@ -16,37 +16,16 @@ from typing import Any
 from mbn.experiments.noise.report import claims, write_report
 from mbn.experiments.noise.stages.levels import NoiseLevelsStage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.reproduce import SHARED, controller_stages
 from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.reproduce.settings import (
-    DESettings,
-    FollowerSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    derived_seeds,
-)
-from mbn.experiments.reproduce.stages.im import IMStage
-from mbn.experiments.reproduce.stages.lf import LFStage
-from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
-from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
-from mbn.experiments.reproduce.stages.pm import PMStage
-from mbn.experiments.reproduce.stages.rf import RFStage
+from mbn.experiments.reproduce.settings import derived_seeds
 from mbn.experiments.reproduce.stages.tests import TestsSettings
 
 __all__ = ["NOISE", "RUN_KIND", "STAGES"]
 
 RUN_KIND = "mbn.noise"
 
-STAGES = Registry(
-    [
-        MultiplierStage(),
-        RFStage(),
-        LFSearchStage(),
-        LFStage(),
-        IMStage(),
-        PMStage(),
-        NoiseLevelsStage(),
-    ]
-)
+STAGES = Registry([*controller_stages(), NoiseLevelsStage()])
 
 #: The quick preset: the reproduction's, two channels at one level each, few trials.
 QUICK: dict[str, dict[str, Any]] = {
@@ -73,7 +52,7 @@ NOISE = Experiment(
     name="noise",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(DESettings, FollowerSettings, InterpreterSettings, ValidationSettings, TestsSettings),
+    shared=(*SHARED, TestsSettings),
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

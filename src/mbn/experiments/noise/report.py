@@ -6,7 +6,7 @@ from typing import Any
 
 from mbn.experiments.noise.stages.levels import CONTROLLERS
 from mbn.experiments.pipeline import RunDir
-from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.io import read_json
 from mbn.viz.noise import LABELS
 
@@ -92,22 +92,7 @@ def write_report(rundir: RunDir) -> None:
                 f"{data['trials']['heldout_repeats']} per held-out mark; intervals: Wilson 95 %.",
             ],
         ),
-        Section(
-            "Claims",
-            table=(
-                ["claim", "measured", "target", "holds"],
-                [
-                    [
-                        c["claim"],
-                        c["measured"],
-                        c["target"],
-                        "-" if c["pass"] is None else ("yes" if c["pass"] else "no"),
-                    ]
-                    for c in rows
-                ],
-            ),
-            status=[c["pass"] for c in rows],
-        ),
+        claims_section(rows),
         Section(
             "Realistic noise",
             [", ".join(f"{k} = {v:g}" for k, v in r["noise"].items() if v > 0)],

@@ -8,10 +8,11 @@ import html
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from mbn.io import atomic_open
 
-__all__ = ["Section", "markdown", "self_contained_html", "write_document"]
+__all__ = ["Section", "claims_section", "markdown", "self_contained_html", "write_document"]
 
 
 @dataclass
@@ -24,6 +25,27 @@ class Section:
     table: tuple[list[str], list[list[str]]] | None = None
     images: list[tuple[str, str]] = field(default_factory=list)
     status: list[bool | None] | None = None
+
+
+def claims_section(rows: list[dict[str, Any]]) -> Section:
+    """The claims table of a report: each row's ``claim``, ``measured``, ``target`` and
+    ``pass`` (True, False, or None where the run cannot judge it: shown as "-")."""
+    return Section(
+        "Claims",
+        table=(
+            ["claim", "measured", "target", "holds"],
+            [
+                [
+                    c["claim"],
+                    c["measured"],
+                    c["target"],
+                    "-" if c["pass"] is None else ("yes" if c["pass"] else "no"),
+                ]
+                for c in rows
+            ],
+        ),
+        status=[c["pass"] for c in rows],
+    )
 
 
 def markdown(title: str, secs: list[Section]) -> str:

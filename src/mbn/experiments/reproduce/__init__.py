@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir, Stage
 from mbn.experiments.reproduce.claims import claims
 from mbn.experiments.reproduce.report import write_report
 from mbn.experiments.reproduce.settings import (
@@ -41,22 +41,23 @@ from mbn.experiments.reproduce.stages.pm import PMStage
 from mbn.experiments.reproduce.stages.rf import RFStage
 from mbn.experiments.reproduce.stages.tests import TestsStage
 
-__all__ = ["REPRODUCE", "RUN_KIND", "STAGES"]
+__all__ = ["REPRODUCE", "RUN_KIND", "SHARED", "STAGES", "controller_stages"]
 
 RUN_KIND = "mbn.reproduce"
 
+#: The sections every experiment built on the reproduction's controllers shares.
+SHARED = (DESettings, FollowerSettings, InterpreterSettings, ValidationSettings)
+
+
+def controller_stages() -> list[Stage]:
+    """The stages that make the reproduction's controllers (multiplier to PM), in order: an
+    experiment that studies them runs these with the same stage keys, so that for one seed
+    they are ``mbn reproduce --seed``'s."""
+    return [MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMStage(), PMStage()]
+
+
 #: The stages of the paper's experiment, in the order they run.
-STAGES = Registry(
-    [
-        MultiplierStage(),
-        RFStage(),
-        LFSearchStage(),
-        LFStage(),
-        IMStage(),
-        PMStage(),
-        TestsStage(),
-    ]
-)
+STAGES = Registry([*controller_stages(), TestsStage()])
 
 
 def _results(
@@ -71,7 +72,7 @@ REPRODUCE = Experiment(
     name="reproduce",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(DESettings, FollowerSettings, InterpreterSettings, ValidationSettings),
+    shared=SHARED,
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

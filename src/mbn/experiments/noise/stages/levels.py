@@ -152,9 +152,10 @@ class NoiseLevelsStage(Stage):
                         initial=loaded[n].initial_rule,
                     )
                     groups += [
-                        TrialGroup(f"{n}{x}", 1 if x == "_heldout" else 0, ran[x], initial)
+                        TrialGroup(
+                            f"{n}{x}", 1 if x == "_heldout" else 0, ran[x], loaded[n].initial_state
+                        )
                         for x in ("_jitter", "_heldout")
-                        for initial in (loaded[n].initial_state,)
                     ]
                 verdicts, _, _, _ = run_trial_groups(
                     mazes,
