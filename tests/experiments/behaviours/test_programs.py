@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -11,7 +12,8 @@ from mbn.controllers import read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.behaviours import NEW_BEHAVIOURS
 from mbn.experiments.behaviours.stages.programs import ProgramsSettings, program_network
-from mbn.experiments.pipeline.runner import run_stage
+from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.world.mazes.load import load_maze
 
 
 @pytest.mark.slow
@@ -36,12 +38,17 @@ def test_programs_are_found_for_the_new_rules_with_the_interpreter_unchanged(nb_
         np.testing.assert_allclose(np.asarray(net.W), found["network"]["W"], atol=1e-6)
         for c in out.interpreter.connections:
             assert float(c.value(net)) == pytest.approx(found["weights"][str(c)], abs=1e-5)
+        # validated in the [validation] mazes and the three-tile validation maze, pooled
+        settings = NEW_BEHAVIOURS.config(quick=True)
+        v = settings["validation"]
+        names = (v.maze, *v.extra_mazes, *settings["programs"].validation_mazes)
+        assert "tiles3_validation" in names
+        marks = sum(len(load_maze(n).starts) for n in names)
         for key in ("validation_im", "validation_network"):
-            assert found[key]["trials"] > 0
+            assert found[key]["trials"] == marks * v.jitter_per_mark
         # every member of the final population validated as its network, the best few through
         # the interpreter too; the one kept is the best of those by the worse of the two
         pv = found["population_validation"]
-        settings = NEW_BEHAVIOURS.config(quick=True)
         assert len(pv["successes"]) == settings["de"].popsize
         checked = pv["checked"]
         assert len(checked) == min(settings["programs"].members, len(pv["successes"]))
@@ -63,6 +70,16 @@ def test_an_interpreter_whose_weights_changed_is_refused(nb_copy):
         run_stage(
             NEW_BEHAVIOURS, rundir, "programs", seed=3, config=NEW_BEHAVIOURS.config(quick=True)
         )
+
+
+def test_a_test_maze_is_refused_for_validation(nb_copy):
+    rundir, _ = nb_copy
+    config = NEW_BEHAVIOURS.config(quick=True)
+    config = replace_section(
+        config, dataclasses.replace(config["programs"], validation_mazes=("tiles3",))
+    )
+    with pytest.raises(MbnInputError, match=r"programs\.validation_mazes: tiles3 is a test maze"):
+        run_stage(NEW_BEHAVIOURS, rundir, "programs", seed=3, config=config)
 
 
 def test_rules_are_checked():

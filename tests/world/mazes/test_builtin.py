@@ -56,6 +56,7 @@ def test_names_and_descriptions():
         "validation2",
         "tiles3",
         "tiles3_heldout",
+        "tiles3_validation",
     )
     described = describe_builtins()
     assert [name for name, _ in described] == list(BUILTIN_NAMES)
@@ -283,7 +284,7 @@ def test_the_test_and_validation_mazes_differ(one, other):
     assert a.grid.shape != b.grid.shape or (a.grid != b.grid).any()
 
 
-@pytest.mark.parametrize("name", ["tiles3", "tiles3_heldout"])
+@pytest.mark.parametrize("name", ["tiles3", "tiles3_heldout", "tiles3_validation"])
 def test_the_three_tile_mazes(name: str):
     """Tiles of all three kinds (at least three each), plus, T and L junctions, no dead end, ten
     or more start marks mid-corridor; from every mark each of the rules right, left,
@@ -326,9 +327,11 @@ def test_the_three_tile_mazes(name: str):
 
 
 def test_the_three_tile_mazes_differ_from_each_other_and_the_others():
-    a, b = builtin_maze("tiles3"), builtin_maze("tiles3_heldout")
-    assert a.grid is not None and b.grid is not None
-    assert a.grid.shape != b.grid.shape or (a.grid != b.grid).any()
-    for other in ("fig4", "heldout", "validation", "validation2"):
-        g = builtin_maze(other).grid
-        assert g is not None and (g.shape != a.grid.shape or (g != a.grid).any())
+    names = ("tiles3", "tiles3_heldout", "tiles3_validation")
+    others = ("fig4", "heldout", "validation", "validation2")
+    for i, name in enumerate(names):
+        a = builtin_maze(name).grid
+        assert a is not None
+        for other in (*names[i + 1 :], *others):
+            g = builtin_maze(other).grid
+            assert g is not None and (g.shape != a.shape or (g != a).any()), (name, other)

@@ -11,6 +11,9 @@
   with plus, T and L crossings, tiles of both kinds and 8+ starts, shipped as ``.maze`` files
   in ``mbn/data/mazes``; ``heldout`` is kept out of training, the validation mazes out of
   every test.
+* ``tiles3``, ``tiles3_heldout`` and ``tiles3_validation``: lattices of corridors with tiles of
+  one, two and three colours, for rules beyond right and left; ``tiles3_heldout`` is kept out
+  of training and choices, ``tiles3_validation`` out of every test.
 """
 
 from __future__ import annotations
@@ -228,7 +231,19 @@ _DESCRIPTIONS: dict[str, str] = {
     "validation2": "a second validation maze (fig4's wall blocks), used by no test: 8 starts",
     "tiles3": "test maze with one-, two- and three-colour tiles: plus, T and L, 11 starts",
     "tiles3_heldout": "a second maze with three kinds of tile, kept out of training: 11 starts",
+    "tiles3_validation": "a maze with three kinds of tile used by no test (to choose): 11 starts",
 }
+
+#: The built-in mazes shipped as ``.maze`` files in ``mbn/data/mazes``.
+_PACKAGED = (
+    "fig4",
+    "heldout",
+    "validation",
+    "validation2",
+    "tiles3",
+    "tiles3_heldout",
+    "tiles3_validation",
+)
 
 #: Names :func:`builtin_maze` knows, in order.
 BUILTIN_NAMES: tuple[str, ...] = tuple(_DESCRIPTIONS)
@@ -240,7 +255,7 @@ def builtin_maze(name: str) -> Maze:
         return crossroad(name)
     if name == "stage_arena":
         return stage_arena()
-    if name in ("fig4", "heldout", "validation", "validation2", "tiles3", "tiles3_heldout"):
+    if name in _PACKAGED:
         return _packaged(name)
     raise MbnInputError(f"unknown built-in maze {name!r} (known: {', '.join(BUILTIN_NAMES)})")
 

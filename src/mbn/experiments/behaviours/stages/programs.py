@@ -8,7 +8,8 @@ and all, on the validation maze; a rule whose program falls short is searched ag
 another key, up to ``[validation] attempts`` times, and the best kept. Of each search, every
 member of the final population is validated as the network it decodes to and the best
 ``[programs] members`` of them through the interpreter (the fittest is not always the best in a
-maze)."""
+maze). The validation mazes are ``[validation]``'s and ``[programs] validation_mazes``
+(``tiles3_validation``: the three-tile tests' kinds of junction)."""
 
 from __future__ import annotations
 
@@ -57,7 +58,7 @@ class ProgramsSettings(Settings):
 
     section = "programs"
     # runs recorded before ``members`` existed checked the fittest program alone
-    recorded_before: ClassVar[dict[str, Any]] = {"members": 0}
+    recorded_before: ClassVar[dict[str, Any]] = {"members": 0, "validation_mazes": ()}
     rules: tuple[str, ...] = setting(
         ("straight-right", "straight-left"),
         doc="the rules learned by programs alone (names or orders such as 'SRL')",
@@ -76,6 +77,12 @@ class ProgramsSettings(Settings):
         low=0,
         high=1000,
         source="as [lf] members (docs/behaviours.md: a population's fittest is not its best)",
+    )
+    validation_mazes: tuple[str, ...] = setting(
+        ("tiles3_validation",),
+        doc="mazes a program is validated in beside the [validation] ones (none a test maze): "
+        "the trials of every maze are pooled",
+        source="docs/behaviours.md (the validation mazes did not predict the three-tile tests)",
     )
 
     def __post_init__(self) -> None:
@@ -155,10 +162,12 @@ def _best_member(
         population = np.clip(np.asarray(final.population, dtype=float), 0.0, 1.0)
         fitness = np.asarray(final.fitness, dtype=float)
     by_fitness = sorted(range(len(fitness)), key=lambda i: (-fitness[i], i))
+    extra = ctx.settings.validation_mazes
     verdicts = validation_verdicts(
         ctx,
         [CTRNNControllerSpec(net=program_network(interp, base, population[i])) for i in by_fitness],
         rule,
+        extra=extra,
     )
     alone = {i: validation_record(ctx, v) for i, v in zip(by_fitness, verdicts, strict=True)}
     checked = sorted(by_fitness, key=lambda i: -alone[i]["successes"])[: max(members, 1)]
@@ -166,7 +175,7 @@ def _best_member(
     for i in checked:
         program = population[i]
         candidate = dataclasses.replace(spec, programs={rule: program.tolist()})
-        v_im = validate(ctx, candidate, rule, rule)
+        v_im = validate(ctx, candidate, rule, rule, extra=extra)
         candidates.append(
             {
                 "member": i,
@@ -216,6 +225,13 @@ class ProgramsStage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: ProgramsSettings = ctx.settings
+        tests = ctx.section("tests3")
+        leaked = set(s.validation_mazes) & {tests.maze, tests.heldout_maze}
+        if leaked:
+            raise MbnInputError(
+                f"programs.validation_mazes: {', '.join(sorted(leaked))} is a test maze "
+                "([tests3]); validate in mazes no test uses"
+            )
         spec = read_controller_spec(ctx.rundir.controller_file("im_full"))
         if not isinstance(spec, InterpreterControllerSpec):
             raise MbnInputError(f"{ctx.rundir.controller_file('im_full')}: not an interpreter")

@@ -292,13 +292,16 @@ def validate(
     spec: Any,
     behavior: str,
     program: str | None = None,
+    *,
+    extra: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """A candidate's success on the ``[validation]`` maze, which no test uses: every start mark
     once from the mark and ``jitter_per_mark - 1`` times jittered (the run's
     ``validation_jitter`` seed), judged as the tests judge (the test's time limits; the MBN from
     its start by its file's initial rule). ``spec``: a controller spec; ``program``: the stored
-    program an interpreter runs."""
-    return validation_record(ctx, validation_verdict(ctx, spec, behavior, program))
+    program an interpreter runs; ``extra``: more mazes (names or files) after the
+    ``[validation]`` ones."""
+    return validation_record(ctx, validation_verdict(ctx, spec, behavior, program, extra=extra))
 
 
 def _validation_trial(ctx: StageContext, behavior: str, initial: str) -> Any:
@@ -316,12 +319,13 @@ def _validation_trial(ctx: StageContext, behavior: str, initial: str) -> Any:
     )
 
 
-def validation_mazes(ctx: StageContext) -> list[Any]:
-    """The ``[validation]`` mazes, which no test uses: ``maze`` and then ``extra_mazes``."""
+def validation_mazes(ctx: StageContext, extra: tuple[str, ...] = ()) -> list[Any]:
+    """The ``[validation]`` mazes, which no test uses: ``maze`` and then ``extra_mazes``, and
+    then a stage's own ``extra``."""
     from mbn.world.mazes.load import load_maze
 
     v = ctx.section("validation")
-    return [load_maze(name) for name in (v.maze, *v.extra_mazes)]
+    return [load_maze(name) for name in (v.maze, *v.extra_mazes, *extra)]
 
 
 def _joined(verdicts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
@@ -334,6 +338,8 @@ def validation_verdict(
     spec: Any,
     behavior: str,
     program: str | None = None,
+    *,
+    extra: tuple[str, ...] = (),
 ) -> dict[str, np.ndarray]:
     """The judge's verdict (per trial: success, exits, ...) of :func:`validate`'s trials, in
     every validation maze (in order; one batched rollout)."""
@@ -341,11 +347,16 @@ def validation_verdict(
 
     loaded = make_controller(spec, program, where=f"{ctx.name} candidate", check_stability=False)
     initial = (loaded.initial_rule or "none") if behavior == "tiles" else "right"
-    return validation_verdicts(ctx, [loaded], behavior, initial=initial)[0]
+    return validation_verdicts(ctx, [loaded], behavior, initial=initial, extra=extra)[0]
 
 
 def validation_verdicts(
-    ctx: StageContext, specs: list[Any], behavior: str, *, initial: str = "right"
+    ctx: StageContext,
+    specs: list[Any],
+    behavior: str,
+    *,
+    initial: str = "right",
+    extra: tuple[str, ...] = (),
 ) -> list[dict[str, Any]]:
     """:func:`validation_verdict` of several controllers of one kind (e.g. a population of
     followers; controller specs or loaded controllers), in one batched rollout over every
@@ -359,7 +370,7 @@ def validation_verdicts(
         else make_controller(spec, None, where=f"{ctx.name} candidate", check_stability=False)
         for spec in specs
     ]
-    mazes = validation_mazes(ctx)
+    mazes = validation_mazes(ctx, extra)
     trial = _validation_trial(ctx, behavior, initial)
     groups = [
         TrialGroup(f"c{i}m{m}", m, trial, c.initial_state)
