@@ -259,3 +259,32 @@ def test_a_group_of_connection_choices_evaluated_as_one_batch_gives_each_choices
         np.testing.assert_array_equal(together[k::2], alone[k::2])
     with pytest.raises(MbnInputError, match="one size expected"):
         connection_group_fitness(base, task, [choices[0], choices[1][:2]], arrays)
+
+
+def test_a_task_under_noise_needs_a_key_and_gives_a_deterministic_fitness():
+    """Episodes under noise (the run's ``[noise]``): refused without a key; with one, the same
+    fitness at every call (common random numbers for DE), another key gives another, and noise
+    at level 0 changes nothing (to the last bit)."""
+    from mbn.paper import published_rf
+    from mbn.world.sensors import NoiseConfig
+
+    noise = NoiseConfig(sonar_std=0.05, sonar_dropout=0.05, wheel_std=0.1)
+    with pytest.raises(MbnInputError, match="noise_key"):
+        CrossroadTask(variants=1, seconds=6.0, noise=noise)
+    genome = Genome()
+    rf = published_rf()
+    population = jnp.stack(
+        [genome.genes_of(rf)] * 2
+        + [jax.random.uniform(jax.random.key(1), (12,), minval=-5, maxval=5)]
+    ).astype(jnp.float32)
+
+    def values(**kw):
+        task = CrossroadTask(variants=2, seconds=6.0, **kw)
+        return np.asarray(crossroad_fitness(genome, task)(population))
+
+    clean = values()
+    noisy = values(noise=noise, noise_key=jax.random.key(5))
+    np.testing.assert_array_equal(noisy, values(noise=noise, noise_key=jax.random.key(5)))
+    assert not np.array_equal(noisy, values(noise=noise, noise_key=jax.random.key(6)))
+    assert not np.allclose(noisy, clean, rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(values(noise=NoiseConfig(), noise_key=jax.random.key(5)), clean)

@@ -42,7 +42,7 @@ from mbn.world.mazes.model import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
 from mbn.world.rollout import EpisodeStats, RolloutConfig, junction_arrays
 from mbn.world.rules import parse_rule
-from mbn.world.sensors import SensorConfig
+from mbn.world.sensors import NoiseConfig, SensorConfig
 
 __all__ = [
     "ARM_VECTORS",
@@ -102,6 +102,12 @@ class CrossroadTask:
             it starts in the arm) and/or ``"west"``/``"east"`` (it starts in a corridor and
             turns a corner into the arm, as in a maze; :func:`mbn.world.mazes.builtin.crossroad`).
             Every approach gets the seven kinds.
+        noise: sensor, actuator and neuron noise of the episodes (off by default;
+            ``docs/noise.md``), drawn from ``noise_key``, the same key at every evaluation: a
+            genome's trial and the member it may replace, which DE evaluates in the same slot
+            of the population, meet the same noise (common random numbers), so the fitness
+            stays deterministic and the greedy replacement fair.
+        noise_key: the PRNG key of the noise (required when noise is on).
     """
 
     rule: str = "right"
@@ -114,9 +120,13 @@ class CrossroadTask:
     sensors: SensorConfig = field(default_factory=SensorConfig)
     tile: int | None = None
     approaches: tuple[str, ...] = ("south",)
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    noise_key: Array | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "rule", parse_rule(self.rule).name)
+        if self.noise.enabled and self.noise_key is None:
+            raise MbnInputError("a crossroad task with noise needs a noise_key")
         if self.fitness not in FITNESSES:
             raise MbnInputError(
                 f"fitness must be one of {', '.join(FITNESSES)}, got {self.fitness!r}"
@@ -134,7 +144,14 @@ class CrossroadTask:
         return max(1, round(self.seconds / self.dt))
 
     def rollout_config(self, **kw: Any) -> RolloutConfig:
-        return RolloutConfig(steps=self.steps, dt=self.dt, sensors=self.sensors, **kw)
+        return RolloutConfig(
+            steps=self.steps, dt=self.dt, sensors=self.sensors, noise=self.noise, **kw
+        )
+
+    @property
+    def rollout_key(self) -> Array | None:
+        """The key a rollout of this task draws its noise from (None without noise)."""
+        return self.noise_key if self.noise.enabled else None
 
     def arrays(self) -> TaskArrays:
         """Mazes, compiled world and per-episode arrays (NumPy at this edge, once)."""

@@ -141,7 +141,7 @@ def evaluate_networks(
         bias=jnp.zeros((n * e, 3), dtype),
         gain=jnp.ones((n * e, 3), dtype),
     )
-    controller = ctrnn_controller(dt=task.dt, substeps=substeps)
+    controller = ctrnn_controller(dt=task.dt, substeps=substeps, noise=task.noise)
     state = CTRNNState(net, jnp.zeros((n * e, 3), dtype))
     return _episodes(controller, state, n, dtype, arrays, task)
 
@@ -163,6 +163,7 @@ def _episodes(
         jnp.asarray(np.tile(arrays.maze_index, n)),
         task.rollout_config(),
         junctions=arrays.junctions,
+        key=task.rollout_key,
     ).stats
 
 
@@ -470,7 +471,7 @@ def evaluate_interpreted(
         lower, upper = jnp.repeat(lower, e, 0), jnp.repeat(upper, e, 0)
     net, program = interpreter_programs(template, W, WE, lower, upper)
     n = W.shape[0]
-    controller = interpreter_controller(dt=task.dt, substeps=substeps)
+    controller = interpreter_controller(dt=task.dt, substeps=substeps, noise=task.noise)
     state = ProgrammedState(net, jnp.zeros((n, template.num_neurons), W.dtype), program)
     return _episodes(controller, state, n // e, W.dtype, arrays, task)
 

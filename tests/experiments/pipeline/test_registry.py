@@ -140,3 +140,26 @@ def test_a_stage_reading_an_undeclared_stage_is_a_bug(tmp_path):
             config=_experiment(ToyStage(), Sneaky()).config(),
             log=lambda _m: None,
         )
+
+
+def test_a_run_recorded_before_a_setting_existed_resumes_when_it_asks_for_what_the_run_did(
+    tmp_path,
+):
+    """A ``run.json`` without a key (or a whole section) ran with the key's ``recorded_before``
+    value (or the default): resuming it with a config asking for that is accepted; asking for
+    another value is refused, naming it."""
+    experiment = _experiment(ToyStage())
+    config = experiment.config()
+    folder = tmp_path / "run"
+    results = run_experiment(experiment, folder, seed=1, config=config, log=lambda _: None)
+    manifest = folder / "run.json"
+    data = json.loads(manifest.read_text())
+    assert data["config"]["toy"] == {"draws": 3}
+    data["config"].pop("toy")  # recorded before the section existed: it ran with the default
+    manifest.write_text(json.dumps(data))
+    again = run_experiment(experiment, folder, seed=1, config=config, resume=True, log=print)
+    assert again == results
+    (tmp_path / "s.toml").write_text("[toy]\ndraws = 4\n")
+    other = experiment.config(document=read_toml(tmp_path / "s.toml"))
+    with pytest.raises(MbnInputError, match=r"another config \(toy\.draws: 3 then, 4 now\)"):
+        run_experiment(experiment, folder, seed=1, config=other, resume=True)

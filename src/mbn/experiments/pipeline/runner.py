@@ -10,6 +10,7 @@ when asked, then a settings file) is written whole to ``run.json`` and ``results
 
 from __future__ import annotations
 
+import contextlib
 import json
 import platform
 import time
@@ -239,8 +240,14 @@ def prepare(
                 f"{rundir.manifest}: the run was started with seed {old.get('seed')}, not {seed}; "
                 "resume it with the same seed"
             )
-        if old.get("config") != mine["config"]:
-            diff = first_difference(old.get("config"), mine["config"])
+        recorded = old.get("config")
+        if isinstance(recorded, dict):
+            # a section or key the run was recorded without ran as it did before it existed
+            # (Settings.recorded_before): it resumes if that is what the config asks for now
+            with contextlib.suppress(MbnInputError):  # unreadable: compared as it is
+                recorded = experiment.config_from_dict(recorded, str(rundir.manifest)).to_dict()
+        if recorded != mine["config"]:
+            diff = first_difference(recorded, mine["config"])
             raise MbnInputError(
                 f"{rundir.manifest}: the run was started with another config ({diff}); resume it "
                 "with the same options and settings file"

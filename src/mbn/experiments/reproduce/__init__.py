@@ -40,13 +40,14 @@ from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
 from mbn.experiments.reproduce.stages.pm import PMStage
 from mbn.experiments.reproduce.stages.rf import RFStage
 from mbn.experiments.reproduce.stages.tests import TestsStage
+from mbn.world.sensors import NoiseConfig
 
 __all__ = ["REPRODUCE", "RUN_KIND", "SHARED", "STAGES", "controller_stages"]
 
 RUN_KIND = "mbn.reproduce"
 
 #: The sections every experiment built on the reproduction's controllers shares.
-SHARED = (DESettings, FollowerSettings, InterpreterSettings, ValidationSettings)
+SHARED = (DESettings, FollowerSettings, InterpreterSettings, ValidationSettings, NoiseConfig)
 
 
 def controller_stages() -> list[Stage]:

@@ -29,6 +29,7 @@ from mbn.experiments.pipeline import StageContext
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import Multiplier
 from mbn.networks.programmable import Interpreter, build_interpreter, differing_connections
+from mbn.world.sensors import NoiseConfig
 
 __all__ = [
     "MADE_BY",
@@ -37,9 +38,11 @@ __all__ = [
     "de_config",
     "evolve_follower",
     "interpreter_of",
+    "noise_key",
     "read_network",
     "restart_rank",
     "rf_lf_programs",
+    "run_noise",
     "save_follower",
     "score",
     "stage_perturbations",
@@ -53,6 +56,27 @@ __all__ = [
 MADE_BY = "mbn reproduce"
 #: Folded into a stage's key for its fixed weight perturbations (no generation index reaches it).
 PERTURBATION_KEY = 10**6
+#: Folded into a stage's key for the noise of its crossroad episodes, of its validation trials
+#: and of its tests (``[noise]``; no generation index reaches them).
+FITNESS_NOISE_KEY = 10**6 + 1
+VALIDATION_NOISE_KEY = 10**6 + 2
+TEST_NOISE_KEY = 10**6 + 3
+
+
+def run_noise(ctx: StageContext) -> NoiseConfig:
+    """The noise the run evolves, validates and tests its controllers under (the ``[noise]``
+    section; off, as in an experiment without one, by default: ``docs/noise.md``)."""
+    try:
+        noise = ctx.section("noise")
+    except KeyError:
+        return NoiseConfig()
+    assert isinstance(noise, NoiseConfig)
+    return noise
+
+
+def noise_key(ctx: StageContext, fold: int) -> jax.Array | None:
+    """The stage's key for one use of :func:`run_noise` (None when it is off)."""
+    return jax.random.fold_in(ctx.key, fold) if run_noise(ctx).enabled else None
 
 
 def de_config(ctx: StageContext, dims: int, bound: float, init: float | None = None) -> DEConfig:
@@ -76,13 +100,16 @@ def de_config(ctx: StageContext, dims: int, bound: float, init: float | None = N
 def task(
     ctx: StageContext, rule: str, variants: int, approaches: tuple[str, ...] = ("south",)
 ) -> CrossroadTask:
-    """The crossroad task of the followers, jittered by the run's ``crossroad_jitter`` seed."""
+    """The crossroad task of the followers, jittered by the run's ``crossroad_jitter`` seed,
+    under the run's noise (:func:`run_noise`)."""
     return CrossroadTask(
         rule=rule,
         variants=variants,
         seconds=ctx.section("followers").episode_seconds,
         seed=ctx.seeds["crossroad_jitter"],
         approaches=approaches,
+        noise=run_noise(ctx),
+        noise_key=noise_key(ctx, FITNESS_NOISE_KEY),
     )
 
 
@@ -345,7 +372,9 @@ def validation_verdict(
     every validation maze (in order; one batched rollout)."""
     from mbn.controllers import make_controller
 
-    loaded = make_controller(spec, program, where=f"{ctx.name} candidate", check_stability=False)
+    loaded = make_controller(
+        spec, program, where=f"{ctx.name} candidate", check_stability=False, noise=run_noise(ctx)
+    )
     initial = (loaded.initial_rule or "none") if behavior == "tiles" else "right"
     return validation_verdicts(ctx, [loaded], behavior, initial=initial, extra=extra)[0]
 
@@ -360,14 +389,18 @@ def validation_verdicts(
 ) -> list[dict[str, Any]]:
     """:func:`validation_verdict` of several controllers of one kind (e.g. a population of
     followers; controller specs or loaded controllers), in one batched rollout over every
-    validation maze: one compilation, the same trials for each."""
+    validation maze: one compilation, the same trials for each; under the run's noise
+    (:func:`run_noise`)."""
     from mbn.controllers import LoadedController, make_controller
     from mbn.experiments.trials import TrialGroup, run_trial_groups
 
+    noise = run_noise(ctx)
     loaded = [
         spec
         if isinstance(spec, LoadedController)
-        else make_controller(spec, None, where=f"{ctx.name} candidate", check_stability=False)
+        else make_controller(
+            spec, None, where=f"{ctx.name} candidate", check_stability=False, noise=noise
+        )
         for spec in specs
     ]
     mazes = validation_mazes(ctx, extra)
@@ -386,6 +419,8 @@ def validation_verdicts(
         dt=first.dt,
         sensors=first.sensors,
         camera=first.camera,
+        noise=noise,
+        key=noise_key(ctx, VALIDATION_NOISE_KEY),
     )
     return [_joined([verdicts[f"c{i}m{m}"] for m in range(len(mazes))]) for i in range(len(loaded))]
 

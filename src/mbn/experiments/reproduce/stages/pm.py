@@ -37,6 +37,7 @@ from mbn.experiments.reproduce.stages.common import (
     MADE_BY,
     de_config,
     read_network,
+    run_noise,
     stage_perturbations,
     validate,
 )
@@ -164,6 +165,11 @@ class PMStage(Stage):
         latch = jax.jit(
             pm_program_fitness(genome, programs, reward=MemoryReward(), switch=s.switch_seconds)
         )
+        if s.reward != "programs" and run_noise(ctx).enabled:
+            raise MbnInputError(
+                f"pm.reward = {s.reward!r}: a PM evolved on robot episodes under [noise] is not "
+                "supported; the default reward ('programs') needs no robot (docs/noise.md)"
+            )
         if s.reward == "programs":
             fitness, maximum = latch, 0.0
         else:

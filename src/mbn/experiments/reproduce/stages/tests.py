@@ -28,6 +28,7 @@ from mbn.experiments.reproduce.protocol import (
     protocol_block,
     test_specs,
 )
+from mbn.experiments.reproduce.stages.common import TEST_NOISE_KEY, noise_key, run_noise
 from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups, summary
 from mbn.experiments.trials import agreement as same_exits
 from mbn.networks.ctrnn import firing_rate
@@ -121,13 +122,20 @@ class TestsStage(Stage):
         ran: dict[str, dict[str, TrialSpec]] = {}
         verdicts: dict[str, dict[str, np.ndarray]] = {}
         trajectories: dict[str, Any] = {}
+        # the run's noise, if any (docs/noise.md): each batch draws from its own key
+        noise = run_noise(ctx)
+        key = noise_key(ctx, TEST_NOISE_KEY)
         bar = ctx.progress.task("tests", len(batches))
         for b, (what, names, seconds) in enumerate(batches):
             # the published matrices are run as printed, beyond the step's stability limit
             # (docs/paper-values.md); every evolved controller is checked
             loaded = {
                 n: make_controller(
-                    specs[n][0], specs[n][1], where=n, check_stability=not n.startswith("published")
+                    specs[n][0],
+                    specs[n][1],
+                    where=n,
+                    check_stability=not n.startswith("published"),
+                    noise=noise,
                 )
                 for n in names
             }
@@ -164,6 +172,8 @@ class TestsStage(Stage):
                 sensors=first.sensors,
                 camera=first.camera,
                 record_every=2,
+                noise=noise,
+                key=None if key is None else jax.random.fold_in(key, b),
             )
             verdicts.update(v)
             for n in names:
@@ -208,6 +218,10 @@ class TestsStage(Stage):
         return ", ".join(f"{n} {t[n]['successes']}/{t[n]['trials']}" for n, _ in TESTED)
 
 
+#: Folded into the tests' noise key for the recorded MBN episode (the batches take 0, 1, 2).
+RECORDING_KEY = 100
+
+
 def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> int:
     """Record one MBN episode from the test maze's start marks every step, with the program it
     sends and the interpreter's firing rates (``records/mbn_recording.npz``): the episode with
@@ -215,7 +229,8 @@ def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> in
     mark (0-based)."""
     if not isinstance(spec, MBNControllerSpec):
         raise MbnInputError("controllers/mbn.json: not an MBN controller")
-    loaded = make_controller(spec, None, where="mbn.json")
+    noise, key = run_noise(ctx), noise_key(ctx, TEST_NOISE_KEY)
+    loaded = make_controller(spec, None, where="mbn.json", noise=noise)
     group = TrialGroup("mbn", 0, paper, loaded.initial_state)
     verdicts, result, _, _ = run_trial_groups(
         [maze],
@@ -227,6 +242,8 @@ def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> in
         camera=loaded.camera,
         record_every=1,
         record_controller=True,
+        noise=noise,
+        key=None if key is None else jax.random.fold_in(key, RECORDING_KEY),
     )
     traj = result.trajectory
     assert traj is not None
