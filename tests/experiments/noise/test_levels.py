@@ -10,6 +10,7 @@ import pytest
 
 from mbn.errors import MbnInputError
 from mbn.experiments.noise import NOISE
+from mbn.experiments.noise.report import claims
 from mbn.experiments.noise.stages.levels import CONTROLLERS, NoiseLevelsSettings
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
@@ -52,6 +53,13 @@ def test_every_controller_gets_the_channels_it_reads(levels):
                     assert r["rate"] == pytest.approx(r["successes"] / r["trials"])
                     assert r["wilson95"][0] <= r["rate"] <= r["wilson95"][1]
     assert set(data["realistic"]) == {"noise", *CONTROLLERS}
+    # the quick reproduction was evolved without noise, and the claims say so
+    assert data["evolved_under"] == {}
+    assert "evolved without noise" in claims({"noise_levels": data})[0]["measured"]
+    assert (
+        "wheel_std = 0.05"
+        in claims({"noise_levels": {**data, "evolved_under": {"wheel_std": 0.05}}})[0]["measured"]
+    )
 
 
 def test_without_noise_the_trials_are_the_reproductions_tests(levels):

@@ -15,6 +15,7 @@ from mbn.config import Settings, setting
 from mbn.controllers import make_controller, read_controller_spec
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import TESTED, test_specs
+from mbn.experiments.reproduce.stages.common import run_noise
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.world.mazes.load import load_maze
 from mbn.world.sensors import NoiseConfig
@@ -196,6 +197,8 @@ class NoiseLevelsStage(Stage):
                 **{n: out[n]["realistic"][0] for n in CONTROLLERS},
             },
             "trials": {"jitter_per_mark": s.jitter_per_mark, "heldout_repeats": s.heldout_repeats},
+            # the noise the controllers were evolved, validated and tested under ([noise])
+            "evolved_under": {k: v for k, v in run_noise(ctx).as_dict().items() if v},
         }
 
     def summary(self, data: dict[str, Any]) -> str:
