@@ -4,29 +4,25 @@ stages evolve, validate and test under it, drawing from their own keys; off, not
 from __future__ import annotations
 
 import dataclasses
-import shutil
 
 import numpy as np
 import pytest
 
 from mbn.errors import MbnInputError
-from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
 from mbn.experiments.reproduce import REPRODUCE
 from mbn.world.sensors import NoiseConfig
+
+from .test_stages import _copy as copy_quick_run
 
 #: The issue's realistic level.
 REALISTIC = NoiseConfig(sonar_std=0.02, sonar_dropout=0.01, wheel_std=0.05, camera_miss=0.05)
 
 
 def _copy(quick_run, tmp_path, noise: NoiseConfig):
-    out, _ = quick_run
-    folder = tmp_path / "run"
-    shutil.copytree(out, folder)
-    rundir = RunDir(folder)
-    manifest = rundir.read_manifest()
-    config = REPRODUCE.config_from_dict(manifest["config"], str(rundir.manifest))
-    return rundir, manifest["seed"], replace_section(config, noise)
+    """A copy of the quick run (as the stage tests make), its config under ``noise``."""
+    rundir, seed, config = copy_quick_run(quick_run, tmp_path)
+    return rundir, seed, replace_section(config, noise)
 
 
 def test_the_noise_section_is_off_by_default_and_read_from_toml(tmp_path):
