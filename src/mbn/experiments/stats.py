@@ -1,10 +1,23 @@
-"""Statistics of pass/fail counts shared by the pipeline's checks and the sweep's report."""
+"""Statistics shared by the pipeline's checks and the reports: pass/fail counts (the Wilson
+interval), and runs compared by the evaluations they needed to succeed, unsuccessful runs
+censored at the budget (quantiles, the fraction solved against evaluations, the ratio of
+medians with a bootstrap interval, the Mann–Whitney U test and the Vargha–Delaney A12)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
-__all__ = ["Z95", "wilson_interval"]
+import numpy as np
+
+__all__ = [
+    "Z95",
+    "censored_quantiles",
+    "mann_whitney",
+    "median_ratio",
+    "solved_curve",
+    "wilson_interval",
+]
 
 #: The normal quantile of a two-sided 95 % interval.
 Z95 = 1.959963984540054
@@ -23,3 +36,173 @@ def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float,
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
     return min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half))
+
+
+# --- runs compared: evaluations to success, censored at the budget -------------------------
+
+
+def _finite_or_censored(times: Sequence[float | None], budget: float) -> np.ndarray:
+    """Hitting times with the unsuccessful runs (``None``) at the budget (right-censored)."""
+    out = np.asarray([budget if t is None else float(t) for t in times], dtype=float)
+    if np.any(out < 0) or np.any(out > budget):
+        raise ValueError(f"a hitting time outside [0, {budget}]")
+    return out
+
+
+def censored_quantiles(
+    times: Sequence[float | None], budget: float
+) -> dict[str, float | bool | None]:
+    """Median and quartiles of evaluations to success over runs, an unsuccessful run (``None``)
+    counted at ``budget`` (it would need at least that many). A quantile that falls on a
+    censored run is not a number of evaluations but a lower bound: it is given as ``None``, and
+    ``median_censored`` says so of the median ("> budget")."""
+    t = _finite_or_censored(times, budget)
+    if t.size == 0:
+        return {"median": None, "q1": None, "q3": None, "median_censored": False}
+    solved = np.asarray([x is not None for x in times])
+    out: dict[str, float | bool | None] = {}
+    order = np.argsort(t, kind="stable")
+    ts, ok = t[order], solved[order]
+    for name, q in (("q1", 0.25), ("median", 0.5), ("q3", 0.75)):
+        # type-7 quantile; it is a number of evaluations only if both order statistics it
+        # interpolates between are solved runs
+        h = (t.size - 1) * q
+        lo, hi = math.floor(h), math.ceil(h)
+        if ok[lo] and ok[hi]:
+            out[name] = float(ts[lo] + (h - lo) * (ts[hi] - ts[lo]))
+        else:
+            out[name] = None
+    out["median_censored"] = out["median"] is None
+    return out
+
+
+def solved_curve(
+    times: Sequence[float | None], budget: float, points: int = 101
+) -> tuple[np.ndarray, np.ndarray]:
+    """The fraction of runs solved within ``e`` evaluations, for ``e`` from 0 to ``budget``
+    (``points`` values): one minus a survival curve (no run leaves before the budget, so the
+    empirical fraction is exact)."""
+    grid = np.linspace(0.0, float(budget), points)
+    hit = np.asarray([math.inf if t is None else float(t) for t in times], dtype=float)
+    if hit.size == 0:
+        return grid, np.full_like(grid, math.nan)
+    return grid, (hit[None, :] <= grid[:, None]).mean(axis=1)
+
+
+def _median_or_inf(t: np.ndarray, solved: np.ndarray) -> float:
+    """Median of censored times: ``inf`` when it falls on a censored run."""
+    order = np.argsort(t, kind="stable")
+    ts, ok = t[order], solved[order]
+    h = (t.size - 1) * 0.5
+    lo, hi = math.floor(h), math.ceil(h)
+    if not (ok[lo] and ok[hi]):
+        return math.inf
+    return float(ts[lo] + (h - lo) * (ts[hi] - ts[lo]))
+
+
+def median_ratio(
+    a: Sequence[float | None],
+    b: Sequence[float | None],
+    budget: float,
+    *,
+    seed: int = 0,
+    resamples: int = 10_000,
+    level: float = 0.95,
+) -> dict[str, float | bool | None]:
+    """The ratio median(a) / median(b) of evaluations to success (unsuccessful runs censored
+    at ``budget``) with a percentile bootstrap interval: each resample draws ``len(a)`` runs of
+    ``a`` and ``len(b)`` of ``b`` with replacement (``seed``: NumPy's generator). A median that
+    falls on a censored run is infinite, so the ratio (or an end of the interval) can be ``0``
+    or unbounded: an unbounded ratio is ``None`` with ``ratio_unbounded``, an unbounded end
+    ``None``; the ratio is ``None`` too where both medians are censored (it cannot be told).
+    The interval's ends are order statistics of the resampled ratios (resamples with both
+    medians censored left out, their share ``undefined_resamples``)."""
+    ta, tb = _finite_or_censored(a, budget), _finite_or_censored(b, budget)
+    if ta.size == 0 or tb.size == 0:
+        return {"ratio": None, "low": None, "high": None}
+    sa = np.asarray([x is not None for x in a])
+    sb = np.asarray([x is not None for x in b])
+
+    def ratio(ma: float, mb: float) -> float:
+        if math.isinf(ma) and math.isinf(mb):
+            return math.nan
+        if math.isinf(mb):
+            return 0.0
+        if mb == 0:
+            return math.inf if ma > 0 else 1.0
+        return ma / mb
+
+    point = ratio(_median_or_inf(ta, sa), _median_or_inf(tb, sb))
+    rng = np.random.default_rng(seed)
+    ia = rng.integers(0, ta.size, size=(resamples, ta.size))
+    ib = rng.integers(0, tb.size, size=(resamples, tb.size))
+    boots = np.asarray(
+        [
+            ratio(_median_or_inf(ta[i], sa[i]), _median_or_inf(tb[j], sb[j]))
+            for i, j in zip(ia, ib, strict=True)
+        ]
+    )
+    tail = (1 - level) / 2
+    # a resample whose two medians are both censored has no ratio: it is left out, and the
+    # share of those is recorded
+    valid = boots[~np.isnan(boots)]
+
+    def end(q: float) -> float | None:
+        # an order statistic (no interpolation: an end may be infinite); JSON has no
+        # infinity, so an unbounded end is ``None``
+        if not valid.size:
+            return None
+        v = float(np.quantile(valid, q, method="inverted_cdf"))
+        return None if math.isinf(v) else v
+
+    return {
+        "ratio": None if math.isnan(point) or math.isinf(point) else float(point),
+        "ratio_unbounded": bool(math.isinf(point)),
+        "low": end(tail),
+        "high": end(1 - tail),
+        "undefined_resamples": float(np.isnan(boots).mean()),
+    }
+
+
+def mann_whitney(
+    a: Sequence[float | None], b: Sequence[float | None], budget: float
+) -> dict[str, float | None]:
+    """The Mann–Whitney U test of evaluations to success, ``a`` against ``b`` (unsuccessful runs
+    tied at ``budget``, ranks averaged over ties): ``U`` of ``a``, the two-sided p-value of the
+    normal approximation with the tie correction (and a continuity correction of 0.5), and the
+    Vargha–Delaney effect size ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a``
+    needs more evaluations than one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
+    """
+    ta, tb = _finite_or_censored(a, budget), _finite_or_censored(b, budget)
+    m, n = ta.size, tb.size
+    if m == 0 or n == 0:
+        return {"U": None, "p": None, "A12": None, "z": None}
+    pooled = np.concatenate([ta, tb])
+    ranks = _average_ranks(pooled)
+    u = float(ranks[:m].sum() - m * (m + 1) / 2)
+    a12 = u / (m * n)
+    mean = m * n / 2
+    _, counts = np.unique(pooled, return_counts=True)
+    N = m + n
+    var = m * n / 12 * ((N + 1) - float((counts**3 - counts).sum()) / (N * (N - 1)))
+    if var <= 0:  # every run tied
+        return {"U": u, "p": 1.0, "A12": a12, "z": 0.0}
+    z = (abs(u - mean) - 0.5) / math.sqrt(var)
+    z = max(z, 0.0)
+    p = math.erfc(z / math.sqrt(2))
+    return {"U": u, "p": min(1.0, p), "A12": a12, "z": math.copysign(z, u - mean)}
+
+
+def _average_ranks(x: np.ndarray) -> np.ndarray:
+    """Ranks from 1, ties given the mean of the ranks they span."""
+    order = np.argsort(x, kind="stable")
+    ranks = np.empty(x.size, dtype=float)
+    sx = x[order]
+    i = 0
+    while i < x.size:
+        j = i
+        while j + 1 < x.size and sx[j + 1] == sx[i]:
+            j += 1
+        ranks[order[i : j + 1]] = (i + j) / 2 + 1
+        i = j + 1
+    return ranks
