@@ -16,6 +16,7 @@ EPILOG = """\
   mbn run new-behaviours --out runs/nb        new behaviours by programs alone
   mbn run noise --out runs/noise              what survives noise
   mbn run ablations --out runs/ablations      ablations of the program path
+  mbn run programs-vs-dynamics --out runs/pvd programs against dynamics (one seed)
 """
 
 #: The experiments ``mbn run`` knows, with a line each.
@@ -26,6 +27,9 @@ EXPERIMENTS = {
     "level (docs/noise.md)",
     "ablations": "the MBN with parts of its program path changed: wrong or frozen program, exact "
     "products, the multipliers' time constant and size (docs/ablations.md)",
+    "programs-vs-dynamics": "new rules learned by program search on the fixed interpreter, by "
+    "a new CTRNN and by RF re-evolved, same DE and budget: evaluations to success "
+    "(docs/contest.md; over seeds with mbn sweep)",
 }
 
 _EPILOG = """\
@@ -41,6 +45,7 @@ examples:
   mbn run new-behaviours --out runs/nb --resume        continue it
   mbn run noise --out runs/noise                       the noise levels
   mbn run ablations --out runs/ablations               the ablations
+  mbn run programs-vs-dynamics --out runs/pvd          programs against dynamics, one seed
 """
 
 
@@ -58,6 +63,10 @@ def experiment(name: str) -> Any:
         from mbn.experiments.ablations import ABLATIONS
 
         return ABLATIONS
+    if name == "programs-vs-dynamics":
+        from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
+
+        return PROGRAMS_VS_DYNAMICS
     raise KeyError(name)
 
 
@@ -66,7 +75,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     listing = "\n".join(f"  {k:<16}{v}" for k, v in EXPERIMENTS.items())
     cmd = sub.add_parser(
         "run",
-        help="a registered experiment beyond the paper's (new-behaviours, noise, ablations)",
+        help="a registered experiment beyond the paper's (new-behaviours, noise, ablations, "
+        "programs-vs-dynamics)",
         description="Run a registered experiment, stage by stage, checkpointed and resumable.",
         epilog=_EPILOG.format(experiments=listing),
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -1,0 +1,87 @@
+"""``mbn run programs-vs-dynamics``: new behaviours learned by programs against learned as
+dynamics, with the same DE, episodes and budget (``docs/contest.md``).
+
+Stages:
+
+1.–4. ``multiplier``, ``rf``, ``lf_search``, ``lf``: as in ``mbn reproduce`` (the same stage
+   keys: for one seed, the same RF and LF).
+8. ``im_full``: the fully programmable interpreter of RF, as in ``mbn run new-behaviours``.
+14. ``contest``: for each new rule, program search on that interpreter, a new CTRNN from
+   scratch and RF re-evolved, each tested every few generations: evaluations to success.
+
+One run is one sample; ``mbn sweep --experiment programs-vs-dynamics --seeds 0-19`` runs the
+seeds and compares the contenders over them (k of N, censored medians, the solved curve, the
+ratio of medians, Mann–Whitney U and A12).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mbn.experiments.behaviours.stages.im_full import IMFullStage
+from mbn.experiments.behaviours.stages.tests3 import Tests3Settings
+from mbn.experiments.contest.report import claims, write_report
+from mbn.experiments.contest.stages.contest import CONTENDERS, ContestStage
+from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
+from mbn.experiments.reproduce.settings import (
+    DESettings,
+    FollowerSettings,
+    InterpreterSettings,
+    ValidationSettings,
+    derived_seeds,
+)
+from mbn.experiments.reproduce.stages.lf import LFStage
+from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
+from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
+from mbn.experiments.reproduce.stages.rf import RFStage
+from mbn.experiments.reproduce.stages.tests import TestsSettings
+
+__all__ = ["CONTENDERS", "PROGRAMS_VS_DYNAMICS", "RUN_KIND", "STAGES"]
+
+RUN_KIND = "mbn.programs-vs-dynamics"
+
+STAGES = Registry(
+    [MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMFullStage(), ContestStage()]
+)
+
+#: The quick preset: the reproduction's, no agreement curve, a short contest.
+QUICK: dict[str, dict[str, Any]] = {
+    **REPRODUCE_QUICK,
+    "im_full": {"curve": False},
+    "contest": {"generations": 4, "check_every": 2, "variants": 1},
+}
+
+
+def _results(
+    rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
+) -> dict[str, Any]:
+    data = stages["contest"]
+    contest = {
+        rule: {
+            who: {k: d[k] for k in ("solved", "evaluations", "budget", "final_success", "genes")}
+            for who, d in by.items()
+        }
+        for rule, by in data["runs"].items()
+    }
+    return {"tests": data["tests"], "contest": contest, "claims": claims(stages)}
+
+
+#: The experiment ``mbn run programs-vs-dynamics`` runs.
+PROGRAMS_VS_DYNAMICS = Experiment(
+    name="programs-vs-dynamics",
+    kind=RUN_KIND,
+    registry=STAGES,
+    shared=(
+        DESettings,
+        FollowerSettings,
+        InterpreterSettings,
+        ValidationSettings,
+        TestsSettings,
+        Tests3Settings,
+    ),
+    quick=QUICK,
+    seeds=derived_seeds,
+    results=_results,
+    report=write_report,
+)

@@ -1,0 +1,211 @@
+"""Programs against dynamics over runs: what ``mbn sweep --experiment programs-vs-dynamics``
+adds to its report, from each seed's ``results.json`` (``contest``) alone.
+
+Per rule and contender: the runs that reached test success within the budget (k of N, Wilson
+95 %), the median [IQR] of evaluations to success with unsuccessful runs censored at the budget,
+the fraction of runs solved against evaluations, and the runs whose final best passes the test.
+Per rule, program search against each dynamics contender: the ratio of median evaluations with
+a bootstrap 95 % interval, the Mann–Whitney U test and the Vargha–Delaney A12. The median run
+of each contender (by evaluations to success, the lower of the two middle runs of an even
+count) is named, with its controller file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from mbn.experiments.pipeline.document import Section
+from mbn.experiments.stats import (
+    censored_quantiles,
+    mann_whitney,
+    median_ratio,
+    solved_curve,
+    wilson_interval,
+)
+
+__all__ = ["contest_over_runs"]
+
+#: The contender every other is compared with.
+REFERENCE = "programs"
+
+#: Seed of the bootstrap's resampling (NumPy's generator): the report is reproducible.
+BOOTSTRAP_SEED = 0
+
+
+def _pct(x: float | None) -> str:
+    return "–" if x is None else f"{x:.0%}"
+
+
+def _num(x: float | None) -> str:
+    return "> budget" if x is None else f"{x:.0f}"
+
+
+def _median_run(times: Mapping[int, float | None], budget: float) -> int:
+    """The seed of the median run: runs sorted by evaluations to success (censored at the
+    budget, then by seed), the lower middle one."""
+    order = sorted(times, key=lambda s: (budget if times[s] is None else times[s], s))
+    return order[(len(order) - 1) // 2]
+
+
+def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
+    """The statistics of the contest over the runs (``seed -> results.json``)."""
+    per_rule: dict[str, Any] = {}
+    rules: list[str] = []
+    for r in runs.values():
+        for rule in r.get("contest", {}):
+            if rule not in rules:
+                rules.append(rule)
+    for rule in rules:
+        contenders: dict[str, Any] = {}
+        times: dict[str, dict[int, float | None]] = {}
+        budget = None
+        for seed, r in runs.items():
+            for who, d in r.get("contest", {}).get(rule, {}).items():
+                times.setdefault(who, {})[seed] = d["evaluations"]
+                budget = d["budget"] if budget is None else budget
+                if d["budget"] != budget:
+                    raise ValueError(f"{rule}: runs with budgets {budget} and {d['budget']}")
+        assert budget is not None
+        for who, by_seed in times.items():
+            t = list(by_seed.values())
+            solved = sum(x is not None for x in t)
+            final = sum(bool(runs[s]["contest"][rule][who]["final_success"]) for s in by_seed)
+            e, frac = solved_curve(t, budget)
+            median_seed = _median_run(by_seed, budget)
+            contenders[who] = {
+                "runs": len(t),
+                "solved": solved,
+                "solved_wilson95": list(wilson_interval(solved, len(t))),
+                "final_success": final,
+                "final_wilson95": list(wilson_interval(final, len(t))),
+                "evaluations": {str(s): v for s, v in by_seed.items()},
+                **censored_quantiles(t, budget),
+                "curve": {"evaluations": e.tolist(), "solved": frac.tolist()},
+                "median_run": {
+                    "seed": median_seed,
+                    "evaluations": by_seed[median_seed],
+                    "controller": f"seed-{median_seed}/controllers/contest_{rule}_{who}.json",
+                },
+            }
+        versus: dict[str, Any] = {}
+        if REFERENCE in times:
+            a = list(times[REFERENCE].values())
+            for who in times:
+                if who == REFERENCE:
+                    continue
+                b = list(times[who].values())
+                versus[who] = {
+                    "ratio": median_ratio(a, b, budget, seed=BOOTSTRAP_SEED),
+                    "mann_whitney": mann_whitney(a, b, budget),
+                }
+        per_rule[rule] = {"budget": budget, "contenders": contenders, "versus": versus}
+    return {"rules": per_rule, "reference": REFERENCE}
+
+
+def _ratio_text(r: Mapping[str, Any]) -> str:
+    if r["ratio"] is None:
+        return "unbounded" if r.get("ratio_unbounded") else "undefined (both medians censored)"
+    lo = "0" if r["low"] == 0 else ("–" if r["low"] is None else f"{r['low']:.2f}")
+    hi = "∞" if r["high"] is None else f"{r['high']:.2f}"
+    return f"{r['ratio']:.2f} [{lo}, {hi}]"
+
+
+def contest_over_runs(
+    out: Path, runs: Mapping[int, Mapping[str, Any]]
+) -> tuple[dict[str, Any], list[Section], list[tuple[str, str]]]:
+    """The contest's statistics (for ``sweep.json``), its report sections and figures: the
+    solved curves (drawn into ``out/figures``) and each contender's median run's final best
+    from its start marks (the picture its seed's report drew)."""
+    from mbn.viz.contest import solved_curves
+
+    stats = statistics(runs)
+    secs: list[Section] = []
+    images: list[tuple[str, str]] = []
+    curves: dict[str, dict[str, Any]] = {}
+    for rule, data in stats["rules"].items():
+        rows = []
+        for who, c in data["contenders"].items():
+            lo, hi = c["solved_wilson95"]
+            flo, fhi = c["final_wilson95"]
+            q1, med, q3 = c["q1"], c["median"], c["q3"]
+            m = c["median_run"]
+            rows.append(
+                [
+                    who,
+                    f"{c['solved']} of {c['runs']} [{_pct(lo)}, {_pct(hi)}]",
+                    f"{_num(med)} [{_num(q1)}, {_num(q3)}]",
+                    f"{c['final_success']} of {c['runs']} [{_pct(flo)}, {_pct(fhi)}]",
+                    f"seed {m['seed']} (`{m['controller']}`)",
+                ]
+            )
+            curves.setdefault(rule, {})[who] = (
+                c["curve"]["evaluations"],
+                c["curve"]["solved"],
+                c["runs"],
+            )
+        vs_rows = []
+        for who, v in data["versus"].items():
+            u = v["mann_whitney"]
+            vs_rows.append(
+                [
+                    f"{stats['reference']} : {who}",
+                    _ratio_text(v["ratio"]),
+                    "–" if u["U"] is None else f"{u['U']:.1f}",
+                    "–" if u["p"] is None else f"{u['p']:.3g}",
+                    "–" if u["A12"] is None else f"{u['A12']:.2f}",
+                ]
+            )
+        secs.append(
+            Section(
+                f"Programs against dynamics: {rule}",
+                [
+                    f"Budget {data['budget']} evaluations per run. *Solved*: the run's best "
+                    "passed the test (every start mark and the jittered target) within the "
+                    "budget, with a Wilson 95 % interval; evaluations to success: median "
+                    "[interquartile range], unsolved runs censored at the budget ('> budget': "
+                    "the quantile falls on an unsolved run); *final*: the run's last best passes "
+                    "the test. The median run (by evaluations to success) is named with its "
+                    "controller.",
+                ],
+                table=(
+                    [
+                        "contender",
+                        "solved (Wilson 95 %)",
+                        "evaluations to success, median [IQR]",
+                        "final best passes",
+                        "median run",
+                    ],
+                    rows,
+                ),
+            )
+        )
+        if vs_rows:
+            secs.append(
+                Section(
+                    f"Program search against each dynamics contender: {rule}",
+                    [
+                        "Ratio of median evaluations to success (below 1: program search needs "
+                        "fewer) with a bootstrap 95 % interval (10 000 resamples of the runs); "
+                        "the Mann–Whitney U test of the evaluations (unsolved runs tied at the "
+                        "budget; two-sided, normal approximation with tie correction) and the "
+                        "Vargha–Delaney A12 = P(program search needs more) (0.5: no "
+                        "difference; below 0.5, program search is faster).",
+                    ],
+                    table=(["contenders", "ratio [95 %]", "U", "p", "A12"], vs_rows),
+                )
+            )
+    for rule, data in stats["rules"].items():
+        for who, c in data["contenders"].items():
+            m = c["median_run"]["seed"]
+            picture = f"seed-{m}/figures/contest_{rule}_{who}.png"
+            if (out / picture).is_file():  # drawn by the seed's report
+                images.append((picture, f"{rule}, {who}: the median run's final best (seed {m})"))
+    if curves:
+        budget = max(d["budget"] for d in stats["rules"].values())
+        file = "figures/contest_solved.png"
+        (out / "figures").mkdir(exist_ok=True)
+        solved_curves(curves, budget, out / file)
+        images.append((file, "Fraction of runs solved against evaluations, per contender"))
+    return stats, secs, images

@@ -1,0 +1,123 @@
+"""The claims and the report of ``mbn run programs-vs-dynamics`` (one seed's run; the
+statistics over runs are the sweep's, :mod:`mbn.experiments.contest.over_runs`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.document import Section, claims_section, write_document
+from mbn.io import read_json
+
+__all__ = ["TITLE", "claims", "write_report"]
+
+TITLE = "mbn: learning programs against learning dynamics"
+
+#: The claim of Donnarumma et al. (Adaptive Behavior 2016) this experiment measures.
+CLAIM_2016 = "learning programs is better than learning dynamics (Donnarumma et al. 2016)"
+
+
+def _evals(d: dict[str, Any]) -> str:
+    return f"{d['evaluations']}" if d["solved"] else f"> {d['budget']} (unsolved)"
+
+
+def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """One run cannot judge a claim about runs: the 2016 claim is stated with what this run
+    measured and judged only over runs (``mbn sweep --experiment programs-vs-dynamics``)."""
+    runs = stages["contest"]["runs"]
+    parts = []
+    for rule, by in runs.items():
+        parts.append(f"{rule}: " + ", ".join(f"{who} {_evals(d)}" for who, d in by.items()))
+    return [
+        {
+            "claim": CLAIM_2016,
+            "measured": "evaluations to test success in this run: " + "; ".join(parts),
+            "target": "over runs: median evaluations of program search below the dynamics' "
+            "(Mann–Whitney U over at least 20 seeds, `mbn sweep`)",
+            "pass": None,
+        }
+    ]
+
+
+def write_report(rundir: RunDir) -> None:
+    """``report.md``, ``report.html`` and the checks figure."""
+    from mbn.viz.contest import contest_checks
+    from mbn.viz.runs import test_trajectories
+    from mbn.world.mazes.load import load_maze
+
+    results = read_json(rundir.results)
+    stages = {name: rundir.read_stage(name) for name in results["stages"]}
+    data = stages["contest"]
+    file = "figures/contest.png"
+    contest_checks(data["runs"], rundir.root / file)
+    maze = load_maze(data["mazes"]["test"])
+    pictures = []
+    for rule, by in data["runs"].items():
+        trajectories = rundir.load_trajectories(f"contest_{rule}")
+        for who in by:
+            short = f"{who}_{rule.replace('-', '_')}"
+            t = data["tests"][short]
+            picture = f"figures/contest_{rule}_{who}.png"
+            test_trajectories(
+                maze,
+                trajectories[who],
+                data["details"][short],
+                f"{who}, {rule}, final best in {maze.name}: {t['successes']}/{t['trials']}",
+                rundir.root / picture,
+            )
+            pictures.append((picture, f"{rule}, {who}: the final best from each start mark"))
+    rows = []
+    for rule, by in data["runs"].items():
+        for who, d in by.items():
+            short = f"{who}_{rule.replace('-', '_')}"
+            t = data["tests"]
+            cells = [
+                rule,
+                who,
+                str(d["genes"]),
+                _evals(d),
+                f"{d['best_fitness']:.2f}",
+            ]
+            for suffix in ("", "_jitter", "_heldout"):
+                x = t[f"{short}{suffix}"]
+                cells.append(f"{x['successes']}/{x['trials']}")
+            im = t.get(f"im_{short}_jitter")
+            cells.append("-" if im is None else f"{im['successes']}/{im['trials']}")
+            rows.append(cells)
+    secs = [
+        Section(
+            "What this run did",
+            [
+                f"Seed {results['seed']}. Each new rule learned by each contender with the same "
+                f"DE (population {data['popsize']}), the same crossroad episodes and the same "
+                f"budget of {data['budget']} evaluations: "
+                + "; ".join(f"**{k}**, {v}" for k, v in data["contenders"].items())
+                + f". Every {data['check_every']} generations the best so far was tested as a "
+                f"network on {data['mazes']['test']} (every start mark and the jittered starts); "
+                "its evaluations to success are those spent when it first passed "
+                "(docs/contest.md). One run says little: the comparison is over runs "
+                "(`mbn sweep --experiment programs-vs-dynamics`).",
+            ],
+        ),
+        claims_section(claims(stages)),
+        Section(
+            "Contenders",
+            table=(
+                [
+                    "rule",
+                    "contender",
+                    "genes",
+                    "evaluations to success",
+                    "final fitness",
+                    "marks",
+                    "jittered",
+                    f"held-out ({data['mazes']['heldout']})",
+                    "through the interpreter (jittered)",
+                ],
+                rows,
+            ),
+            images=[(file, "Best fitness per check; filled: the best then passed the test")],
+        ),
+        Section("Each contender's final best", images=pictures),
+    ]
+    write_document(rundir.root, "report", TITLE, secs)

@@ -1,0 +1,421 @@
+"""Stage ``contest``: programs against dynamics. For each new rule (straight-right and
+straight-left by default), three contenders are evolved with the same DE (``[de]``: population,
+F, CR), the same crossroad episodes and perturbed copies, and the same budget of evaluations:
+
+* ``programs``: DE over the programs of the fixed fully programmable interpreter of ``im_full``
+  (its sha256 checked before and after), each program scored as the network it encodes (as the
+  ``programs`` stage of ``mbn run new-behaviours`` does);
+* ``scratch``: a new 3-neuron CTRNN, the follower genome's 12 genes within the followers'
+  bounds, from a random population (as RF is evolved);
+* ``neighbour``: RF's network re-evolved on all its 12 genes, from a population around RF
+  (RF itself and copies with Gaussian noise of ``[contest] neighbour_sigma``).
+
+Every ``check_every`` generations (and at generation 0) the best genome so far is tested as the
+network it encodes on the three-tile test maze: every start mark once, and where every mark
+passes, the jittered starts.
+It *succeeds* when every mark succeeds and at least ``[contest] jitter_target`` of the jittered
+trials do; a run's evaluations to success are those DE had spent when it first did
+(``popsize × (generation + 1)``), and a run that never did is censored at the budget. The check
+measures; it never selects (DE sees only the crossroad fitness). At the end each contender's
+best is tested on the marks, the jittered starts and the held-out maze, and the programs'
+through the interpreter itself too, multipliers and all (with its agreement).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    make_controller,
+    read_controller_spec,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig
+from mbn.experiments.behaviours.stages.programs import (
+    _program_fitness,
+    check_digest,
+    program_network,
+)
+from mbn.experiments.behaviours.stages.tests3 import _specs
+from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.reproduce.protocol import SUFFIXES
+from mbn.experiments.reproduce.stages.common import (
+    MADE_BY,
+    de_config,
+    read_network,
+    stage_perturbations,
+    task,
+)
+from mbn.experiments.trials import (
+    TrialGroup,
+    agreement,
+    run_loaded_trials,
+    run_trial_groups,
+    run_trials,
+    summary,
+)
+from mbn.io import read_json, write_json_atomic
+from mbn.networks.ctrnn import CTRNN
+from mbn.world.mazes.load import load_maze
+from mbn.world.rules import parse_rule
+
+__all__ = ["CONTENDERS", "ContestSettings", "ContestStage", "neighbour_population"]
+
+#: The contenders, in the report's order, with a line each.
+CONTENDERS: dict[str, str] = {
+    "programs": "program search on the fixed fully programmable interpreter",
+    "scratch": "dynamics from scratch: a new 3-neuron CTRNN (12 genes)",
+    "neighbour": "dynamics from a neighbour: RF re-evolved on its 12 genes",
+}
+
+#: What the record of a rule's start-mark trials keeps of each contender's trajectory.
+TRAJECTORY_FIELDS = ("t", "pose", "stalled")
+
+#: Folded into the stage key for the neighbour's first population.
+NEIGHBOUR_KEY = 1000
+
+
+@dataclass(frozen=True)
+class ContestSettings(Settings):
+    """Programs against dynamics: the rules, the contenders, their budget and the check."""
+
+    section = "contest"
+    recorded_before: ClassVar[dict[str, Any]] = {}
+    rules: tuple[str, ...] = setting(
+        ("straight-right", "straight-left"),
+        doc="the new rules each contender learns",
+        source="docs/contest.md",
+    )
+    contenders: tuple[str, ...] = setting(
+        tuple(CONTENDERS),
+        doc="the contenders: programs, scratch, neighbour",
+        source="docs/contest.md",
+    )
+    generations: int = setting(
+        300,
+        doc="DE generations of every contender (the budget: popsize x (generations + 1) "
+        "evaluations)",
+        low=0,
+        high=100_000,
+        source="as [programs] generations",
+    )
+    check_every: int = setting(
+        10,
+        doc="generations between two tests of the best so far (the resolution of evaluations "
+        "to success)",
+        low=1,
+        high=100_000,
+        source="docs/contest.md",
+    )
+    variants: int = setting(
+        4, doc="starts per crossroad", low=1, high=100, source="as [rf] variants"
+    )
+    jitter_target: float = setting(
+        0.95,
+        doc="share of the jittered trials a check needs (with every start mark) to succeed",
+        low=0.0,
+        high=1.0,
+        source="the paper's protocol and the issue's 95 %",
+    )
+    neighbour_sigma: float = setting(
+        2.0,
+        doc="Gaussian spread of the neighbour's first population around RF's genes (RF itself "
+        "is its first member)",
+        low=0.0,
+        high=100.0,
+        source="docs/contest.md (a tenth of the followers' weight bound)",
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        names = []
+        for r in self.rules:
+            try:
+                names.append(parse_rule(r).name)
+            except MbnInputError as exc:
+                raise MbnInputError(f"contest.rules: {exc}") from None
+        if not names or len(set(names)) != len(names):
+            raise MbnInputError("contest.rules: at least one rule, none listed twice")
+        if not self.contenders or len(set(self.contenders)) != len(self.contenders):
+            raise MbnInputError("contest.contenders: at least one, none listed twice")
+        for c in self.contenders:
+            if c not in CONTENDERS:
+                raise MbnInputError(
+                    f"contest.contenders: {c!r} is not one of {', '.join(CONTENDERS)}"
+                )
+
+
+@dataclass(frozen=True)
+class _Contender:
+    """One DE of the contest: its config, fitness, first population and genes -> network."""
+
+    config: DEConfig
+    fitness: Callable[[jax.Array], jax.Array]
+    population: np.ndarray | None
+    network: Callable[[Any], CTRNN]
+
+
+def _contender(
+    ctx: StageContext, name: str, rule: str, interp: Any, rf: CTRNN, variants: int
+) -> _Contender:
+    s: ContestSettings = ctx.settings
+    de = ctx.section("de")
+    bound = ctx.section("followers").weight_bound
+    if name == "programs":
+        config = DEConfig(
+            num_dims=interp.num_programs,
+            popsize=de.popsize,
+            F=de.F,
+            CR=de.CR,
+            maximize=True,
+            lower=0.0,
+            upper=1.0,
+            init_low=0.0,
+            init_high=1.0,
+        )
+        return _Contender(
+            config,
+            _program_fitness(ctx, interp, rf, rule, variants),
+            None,
+            lambda genes: program_network(interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)),
+        )
+    genome = Genome() if name == "scratch" else Genome.around(rf, Genome().connections)
+    fitness = robust_fitness(
+        crossroad_fitness(genome, task(ctx, rule, variants)),
+        stage_perturbations(ctx, genome.size),
+    )
+    population = None
+    if name == "neighbour":
+        population = neighbour_population(
+            genome.genes_of(rf),
+            jax.random.fold_in(ctx.key, NEIGHBOUR_KEY),
+            de.popsize,
+            s.neighbour_sigma,
+            bound,
+        )
+    return _Contender(
+        de_config(ctx, genome.size, bound),
+        fitness,
+        population,
+        lambda genes: genome.network(jnp.asarray(genes)),
+    )
+
+
+def neighbour_population(
+    genes: np.ndarray, key: jax.Array, popsize: int, sigma: float, bound: float
+) -> np.ndarray:
+    """The neighbour's first population: ``genes`` (RF's) first, then copies with Gaussian
+    noise of ``sigma`` on every gene, clipped to ``[-bound, bound]``."""
+    noise = np.array(jax.random.normal(key, (popsize, genes.size)), dtype=float)  # a copy
+    noise[0] = 0.0
+    return np.clip(genes[None] + sigma * noise, -bound, bound)
+
+
+def _check_specs(ctx: StageContext, rule: str) -> dict[str, Any]:
+    t = ctx.section("tests")
+    return _specs(rule, t, ctx)
+
+
+def _check(
+    ctx: StageContext, maze: Any, specs: dict[str, Any], net: CTRNN, rule: str
+) -> dict[str, Any]:
+    """The best so far tested as a network: the start marks, and the jittered starts only
+    where every mark passed (a check that fails a mark fails; its jittered count is not run)."""
+    loaded = make_controller(
+        CTRNNControllerSpec(net=net, behavior=rule), None, where="contest", check_stability=False
+    )
+
+    def trials(spec: Any) -> dict[str, Any]:
+        verdicts, _, _, _ = run_trial_groups(
+            [maze],
+            [TrialGroup("trials", 0, spec, loaded.initial_state)],
+            loaded.controller,
+            seconds=spec.seconds,
+            dt=loaded.dt,
+            sensors=loaded.sensors,
+            camera=loaded.camera,
+        )
+        return summary(verdicts["trials"])
+
+    marks = trials(specs[""])
+    if marks["successes"] < marks["trials"]:
+        return {"marks": [marks["successes"], marks["trials"]], "jitter": None, "success": False}
+    jitter = trials(specs["_jitter"])
+    ok = jitter["success_rate"] >= ctx.settings.jitter_target
+    return {
+        "marks": [marks["successes"], marks["trials"]],
+        "jitter": [jitter["successes"], jitter["trials"]],
+        "success": bool(ok),
+    }
+
+
+class ContestStage(Stage):
+    name = "contest"
+    key_id = 14
+    needs = ("rf", "im_full")
+    settings = ContestSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: ContestSettings = ctx.settings
+        spec = read_controller_spec(ctx.rundir.controller_file("im_full"))
+        if not isinstance(spec, InterpreterControllerSpec):
+            raise MbnInputError(f"{ctx.rundir.controller_file('im_full')}: not an interpreter")
+        interp = spec.interpreter
+        digest = ctx.read("im_full")["sha256"]
+        check_digest(interp, digest, "contest")
+        rf = read_network(ctx, "rf")
+        tests3 = ctx.section("tests3")
+        maze, heldout = load_maze(tests3.maze), load_maze(tests3.heldout_maze)
+        popsize = ctx.section("de").popsize
+        budget = popsize * (s.generations + 1)
+        marks = sorted({0, *range(0, s.generations + 1, s.check_every), s.generations})
+        runs: dict[str, dict[str, Any]] = {}
+        tests: dict[str, Any] = {}
+        agree: dict[str, Any] = {}
+        details: dict[str, Any] = {}
+        for r, rule_text in enumerate(s.rules):
+            rule = parse_rule(rule_text).name
+            specs = _check_specs(ctx, rule)
+            runs[rule] = {}
+            trajectories: dict[str, Any] = {}
+            for c_index, who in enumerate(CONTENDERS):
+                if who not in s.contenders:
+                    continue
+                c = _contender(ctx, who, rule, interp, rf, s.variants)
+                name = f"contest_{rule}_{who}"
+                key = jax.random.fold_in(jax.random.fold_in(ctx.key, r), c_index)
+                log = ctx.rundir.checkpoint_file(name).with_suffix(".checks.json")
+                checks: list[dict[str, Any]] = read_json(log) if log.exists() else []
+                done = {int(x["generation"]) for x in checks}
+                result = None
+                for g in marks:
+                    if g in done:
+                        continue
+                    result = ctx.evolve(
+                        name, c.config, c.fitness, key, g, f"{rule}: {who}", c.population
+                    )
+                    best = [float(x) for x in np.asarray(result.data["best_genome"])]
+                    last = checks[-1] if checks else None
+                    if last is not None and last["best_genome"] == best:
+                        verdict = {k: last[k] for k in ("marks", "jitter", "success")}
+                    else:
+                        verdict = _check(ctx, maze, specs, c.network(best), rule)
+                    checks.append(
+                        {
+                            "generation": g,
+                            "evaluations": popsize * (g + 1),
+                            "best_fitness": float(result.data["best_fitness"]),
+                            "best_genome": best,
+                            **verdict,
+                        }
+                    )
+                    write_json_atomic(log, checks)
+                if result is None:  # every check was done before: the final state
+                    result = ctx.evolve(
+                        name,
+                        c.config,
+                        c.fitness,
+                        key,
+                        s.generations,
+                        f"{rule}: {who}",
+                        c.population,
+                    )
+                hit = next((x for x in checks if x["success"]), None)
+                net = c.network(result.data["best_genome"])
+                save_controller(
+                    ctx.rundir.controller_file(name),
+                    CTRNNControllerSpec(
+                        net=net,
+                        behavior=rule,
+                        metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed},
+                    ),
+                )
+                plain = make_controller(
+                    CTRNNControllerSpec(net=net, behavior=rule), None, where=name
+                )
+                short = f"{who}_{rule.replace('-', '_')}"
+                verdicts = {}
+                for suffix in SUFFIXES:
+                    if suffix == "":  # the start marks, recorded for the report's pictures
+                        got, ran, _ = run_trials(
+                            maze,
+                            specs[suffix],
+                            plain.controller,
+                            plain.initial_state,
+                            dt=plain.dt,
+                            sensors=plain.sensors,
+                            camera=plain.camera,
+                            record_every=2,
+                        )
+                        trajectories[who] = ran.trajectory
+                        details[short] = {
+                            "success": got["success"].astype(int).tolist(),
+                            "correct": got["correct"].astype(int).tolist(),
+                            "judged": got["judged"].astype(int).tolist(),
+                            "stall": np.round(got["stall"].astype(float), 5).tolist(),
+                        }
+                    else:
+                        m = heldout if suffix == "_heldout" else maze
+                        got, _, _ = run_loaded_trials(m, specs[suffix], plain)
+                    verdicts[suffix] = got
+                    tests[f"{short}{suffix}"] = summary(got)
+                record: dict[str, Any] = {
+                    "solved": hit is not None,
+                    "evaluations": None if hit is None else hit["evaluations"],
+                    "generation": None if hit is None else hit["generation"],
+                    "budget": budget,
+                    "best_fitness": float(result.data["best_fitness"]),
+                    "history": result.data["history"],
+                    "checks": [{k: v for k, v in x.items() if k != "best_genome"} for x in checks],
+                    "network": net.to_dict(),
+                    "genes": len(checks[-1]["best_genome"]),
+                    "final_success": bool(
+                        tests[f"{short}"]["successes"] == tests[f"{short}"]["trials"]
+                        and tests[f"{short}_jitter"]["success_rate"] >= s.jitter_target
+                    ),
+                }
+                if who == "programs":
+                    program = np.clip(np.asarray(result.data["best_genome"], float), 0.0, 1.0)
+                    im = dataclasses.replace(spec, programs={rule: program.tolist()})
+                    emulated = make_controller(im, rule, where="contest programs")
+                    for suffix in SUFFIXES:
+                        m = heldout if suffix == "_heldout" else maze
+                        got, _, _ = run_loaded_trials(m, specs[suffix], emulated)
+                        tests[f"im_{short}{suffix}"] = summary(got)
+                        agree[f"im_{short}{suffix}"] = agreement(got, verdicts[suffix])
+                    record["program"] = program.tolist()
+                runs[rule][who] = record
+            ctx.rundir.save_trajectories(f"contest_{rule}", trajectories, TRAJECTORY_FIELDS)
+            check_digest(interp, digest, f"contest ({rule})")
+        return {
+            "runs": runs,
+            "tests": tests,
+            "agreement": agree,
+            "details": details,
+            "budget": budget,
+            "popsize": popsize,
+            "check_every": s.check_every,
+            "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
+            "sha256": digest,
+            "contenders": {k: CONTENDERS[k] for k in CONTENDERS if k in s.contenders},
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        parts = []
+        for rule, by in data["runs"].items():
+            for who, d in by.items():
+                e = d["evaluations"]
+                parts.append(f"{rule} {who}: " + (f"{e} evaluations" if e else "unsolved"))
+        return "; ".join(parts)
