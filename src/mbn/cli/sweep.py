@@ -15,7 +15,7 @@ __all__ = ["EPILOG", "EXPERIMENT_NAMES", "add_commands", "seed_list"]
 
 #: What ``--experiment`` takes (``mbn.experiments.sweep.specs.SWEEP_EXPERIMENTS``; named here so
 #: that ``mbn --help`` imports no experiment).
-EXPERIMENT_NAMES = ("new-behaviours", "reproduce")
+EXPERIMENT_NAMES = ("new-behaviours", "programs-vs-dynamics", "reproduce")
 
 EPILOG = """\
   mbn sweep --seeds 0-9 --out runs/sweep        10 seeds on a local Ray, one per core
@@ -23,8 +23,8 @@ EPILOG = """\
 """
 
 _SWEEP_EPILOG = """\
-Each seed K runs `mbn reproduce --seed K` (or, with --experiment new-behaviours, `mbn run
-new-behaviours --seed K`) into DIR/seed-K (a normal run folder: `mbn evaluate` loads its
+Each seed K runs `mbn reproduce --seed K` (or, with --experiment NAME, `mbn run NAME --seed
+K`) into DIR/seed-K (a normal run folder: `mbn evaluate` loads its
 controllers) as one Ray task asking for --cpus-per-run CPUs, its XLA and BLAS threads
 pinned to that many. Without --address a local Ray is started with one CPU per core of this
 machine; with one, the sweep joins that cluster (`ray start --head` on one machine, `ray start
@@ -42,6 +42,7 @@ examples:
   mbn sweep --seeds 0-9 --out runs/sweep
   mbn sweep --seeds 0,2,5-7 --quick --out runs/q
   mbn sweep --seeds 0-4 --experiment new-behaviours --out runs/nb-sweep
+  mbn sweep --seeds 0-19 --experiment programs-vs-dynamics --out runs/pvd
   mbn sweep --seeds 0-99 --out /shared/sweep --address head-node:6379
   mbn sweep --summarize --out runs/sweep
 """
@@ -81,8 +82,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "--experiment",
         choices=EXPERIMENT_NAMES,
         default=None,
-        help="the experiment each seed runs: reproduce (default, `mbn reproduce`) or "
-        "new-behaviours (`mbn run new-behaviours`)",
+        help="the experiment each seed runs: reproduce (default, `mbn reproduce`), "
+        "new-behaviours or programs-vs-dynamics (`mbn run NAME`; the latter compared over "
+        "the seeds: docs/contest.md)",
     )
     sw.add_argument(
         "--config",

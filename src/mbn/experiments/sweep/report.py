@@ -68,7 +68,10 @@ def summary_line(data: dict[str, Any]) -> str:
     """The sweep in one line: seeds meeting every target, failures named, wall time."""
     summ = data["summary"]
     n = len(summ["seeds"])
-    line = f"sweep: {summ['meet_every_target']}/{n} seeds meet every target"
+    if summ.get("targets") or "analysis" not in summ:
+        line = f"sweep: {summ['meet_every_target']}/{n} seeds meet every target"
+    else:  # an experiment without per-run targets (compared over runs)
+        line = f"sweep: {summ['finished']}/{n} seeds finished (no per-run targets)"
     failed = [(s, data["runs"].get(str(s), {}).get("error")) for s in summ["failed"]]
     if failed:
         first = "; ".join(f"seed {s}: {e}" for s, e in failed[:3])
@@ -83,7 +86,11 @@ def summary_line(data: dict[str, Any]) -> str:
 
 
 def _sections(
-    out: Path, data: dict[str, Any], images: list[tuple[str, str]], spec: SweepSpec
+    out: Path,
+    data: dict[str, Any],
+    images: list[tuple[str, str]],
+    spec: SweepSpec,
+    extra: list[Section] | None = None,
 ) -> list[Section]:
     summ = data["summary"]
     settings = data["settings"]
@@ -99,11 +106,17 @@ def _sections(
             [
                 f"{n} seeds ({format_seeds(seeds)}), each a full `{spec.command}` run in "
                 f"`seed-K/`; {summ['finished']} finished, {len(summ['failed'])} failed. "
-                f"**{summ['meet_every_target']} of {n} seeds meet every target.**" + quick,
+                + (
+                    f"**{summ['meet_every_target']} of {n} seeds meet every target.**"
+                    if spec.targets
+                    else "The runs have no per-run targets: they are compared over runs."
+                )
+                + quick,
                 summary_line(data) + ".",
             ],
         )
     )
+    secs.extend(extra or [])
     target_of = {t.test: t for t in spec.targets if t.source == "tests"}
     rows, status = [], []
     for name in spec.tests:
@@ -233,6 +246,11 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     finished = [s for s in seeds if runs[s] is not None]
     images: list[tuple[str, str]] = []
     (out / "figures").mkdir(exist_ok=True)
+    extra: list[Section] = []
+    if spec.analysis is not None:
+        completed = {s: r for s, r in runs.items() if r is not None}
+        summ["analysis"], extra, more = spec.analysis(out, completed) if completed else ({}, [], [])
+        images.extend(more)
     if finished:
         curves = de_curves(out, finished, spec)
         if curves:
@@ -262,5 +280,5 @@ def summarize_folder(out: Path) -> dict[str, Any]:
             )
         )
     write_sweep(out, data)
-    write_document(out, "sweep", spec.title, _sections(out, data, images, spec))
+    write_document(out, "sweep", spec.title, _sections(out, data, images, spec, extra))
     return data

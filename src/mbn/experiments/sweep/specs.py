@@ -2,9 +2,11 @@
 tests its report tabulates and plots, and where its stages record their DE curves.
 
 ``mbn sweep --experiment NAME``: ``reproduce`` (the default: the paper's experiment, targets
-:data:`~mbn.experiments.sweep.targets.TARGETS`) or ``new-behaviours`` (``docs/behaviours.md``:
+:data:`~mbn.experiments.sweep.targets.TARGETS`), ``new-behaviours`` (``docs/behaviours.md``:
 the fully programmable interpreter, the new rules by programs alone and the three-behaviour MBN;
-targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section).
+targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section) or
+``programs-vs-dynamics`` (``docs/contest.md``: no per-run target; its comparison over runs is
+the spec's ``analysis``).
 """
 
 from __future__ import annotations
@@ -12,13 +14,15 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from mbn.errors import MbnInputError
 from mbn.experiments.reproduce.protocol import SUFFIXES, TEST_NAMES
 from mbn.experiments.sweep.targets import TARGETS, Target
 
 if TYPE_CHECKING:
+    from mbn.experiments.pipeline.document import Section
     from mbn.experiments.pipeline.rundir import RunDir
     from mbn.experiments.pipeline.runner import Experiment
 
@@ -49,6 +53,8 @@ class SweepSpec:
         de_stages: the stages whose DE best-fitness curves are drawn, with their titles.
         curve: reads one stage's curve from a seed folder (``None`` where it has none).
         load: the experiment (imported when a run needs it).
+        analysis: statistics over the finished runs beyond the per-test ones, ``(folder,
+            {seed: results.json}) -> (statistics, report sections, figures)`` (``None``: none).
     """
 
     name: str
@@ -61,6 +67,13 @@ class SweepSpec:
     de_stages: Mapping[str, str]
     curve: Callable[[RunDir, str], list[float] | None]
     load: Callable[[], Experiment]
+    analysis: (
+        Callable[
+            [Path, Mapping[int, Mapping[str, Any]]],
+            tuple[dict[str, Any], list[Section], list[tuple[str, str]]],
+        ]
+        | None
+    ) = None
 
 
 def stage_history(rundir: RunDir, stage: str) -> list[float] | None:
@@ -211,8 +224,47 @@ NEW_BEHAVIOURS_SPEC = SweepSpec(
     load=_load_new_behaviours,
 )
 
+
+def _load_contest() -> Experiment:
+    from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
+
+    return PROGRAMS_VS_DYNAMICS
+
+
+def _contest_analysis(
+    out: Path, runs: Mapping[int, Mapping[str, Any]]
+) -> tuple[dict[str, Any], list[Section], list[tuple[str, str]]]:
+    from mbn.experiments.contest.over_runs import contest_over_runs
+
+    return contest_over_runs(out, runs)
+
+
+_CONTEST_STEMS = tuple(
+    f"{prefix}{who}_{rule}"
+    for rule in ("straight_right", "straight_left")
+    for prefix, who in (("", "programs"), ("im_", "programs"), ("", "scratch"), ("", "neighbour"))
+)
+
+CONTEST_SPEC = SweepSpec(
+    name="programs-vs-dynamics",
+    title="mbn sweep: learning programs against learning dynamics, over seeds",
+    command="mbn run programs-vs-dynamics",
+    targets=(),
+    tests=tuple(f"{stem}{suffix}" for stem in _CONTEST_STEMS for suffix in SUFFIXES),
+    groups=_by_trials("Start marks (each contender's final best)", _CONTEST_STEMS),
+    targets_text="No test has a per-run target: the contenders are compared over runs "
+    "(below). `im_programs_*` is program search's final program through the interpreter itself; "
+    "the others are the networks.",
+    de_stages={"rf": "RF (12 genes)"},
+    curve=stage_history,
+    load=_load_contest,
+    analysis=_contest_analysis,
+)
+
 #: The experiments a sweep can run, by name.
-SWEEP_EXPERIMENTS: dict[str, SweepSpec] = {s.name: s for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC)}
+SWEEP_EXPERIMENTS: dict[str, SweepSpec] = {
+    s.name: s for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC, CONTEST_SPEC)
+}
 
 
 def sweep_spec(name: str | None) -> SweepSpec:

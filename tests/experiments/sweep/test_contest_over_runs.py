@@ -1,0 +1,110 @@
+"""Programs against dynamics over runs (``mbn.experiments.contest.over_runs``), from
+``results.json`` files as the experiment writes them: k of N with Wilson intervals, censored
+medians, the median run, the comparisons, the report's sections and the solved-curve figure;
+and the sweep's view of the experiment (no per-run targets)."""
+
+from __future__ import annotations
+
+import pytest
+
+from mbn.experiments.contest.over_runs import contest_over_runs, statistics
+from mbn.experiments.stats import mann_whitney, median_ratio, wilson_interval
+from mbn.experiments.sweep.report import summary_line
+from mbn.experiments.sweep.specs import CONTEST_SPEC, sweep_spec
+
+BUDGET = 5418
+
+
+def _results(times: dict[str, int | None], final: dict[str, bool] | None = None):
+    final = final or {}
+    return {
+        "contest": {
+            "straight-right": {
+                who: {
+                    "solved": t is not None,
+                    "evaluations": t,
+                    "budget": BUDGET,
+                    "final_success": final.get(who, t is not None),
+                    "genes": 14 if who == "programs" else 12,
+                }
+                for who, t in times.items()
+            }
+        },
+        "tests": {},
+    }
+
+
+RUNS = {
+    0: _results({"programs": 180, "scratch": None, "neighbour": 900}),
+    1: _results({"programs": 360, "scratch": 2000, "neighbour": None}),
+    2: _results({"programs": None, "scratch": None, "neighbour": 540}, {"programs": False}),
+    3: _results({"programs": 540, "scratch": 4000, "neighbour": 720}),
+    4: _results({"programs": 720, "scratch": None, "neighbour": 1800}, {"neighbour": False}),
+}
+
+
+def test_statistics_count_runs_and_censor_the_unsolved():
+    s = statistics(RUNS)["rules"]["straight-right"]
+    assert s["budget"] == BUDGET
+    p, sc, nb = (s["contenders"][w] for w in ("programs", "scratch", "neighbour"))
+    assert (p["solved"], sc["solved"], nb["solved"]) == (4, 2, 4)
+    assert p["solved_wilson95"] == pytest.approx(wilson_interval(4, 5))
+    assert nb["final_success"] == 3  # seed 4's last best no longer passes
+    # programs: 180, 360, 540, 720, censored: median 540; scratch: 2000, 4000, 3 censored
+    assert p["median"] == 540 and p["q1"] == 360 and p["q3"] == 720
+    assert sc["median"] is None and sc["median_censored"] is True
+    assert p["median_run"] == {
+        "seed": 3,
+        "evaluations": 540,
+        "controller": "seed-3/controllers/contest_straight-right_programs.json",
+    }
+    times = {
+        w: [RUNS[k]["contest"]["straight-right"][w]["evaluations"] for k in RUNS]
+        for w in s["contenders"]
+    }
+    vs = s["versus"]["neighbour"]
+    assert vs["mann_whitney"] == mann_whitney(times["programs"], times["neighbour"], BUDGET)
+    assert vs["ratio"] == median_ratio(times["programs"], times["neighbour"], BUDGET, seed=0)
+    assert vs["ratio"]["ratio"] == pytest.approx(540 / 900)
+    # scratch's median is censored: programs' ratio to it is 0
+    assert s["versus"]["scratch"]["ratio"]["ratio"] == 0.0
+    assert set(s["versus"]) == {"scratch", "neighbour"}
+    curve = p["curve"]
+    assert curve["solved"][0] == 0.0 and curve["solved"][-1] == pytest.approx(0.8)
+
+
+def test_the_report_sections_and_the_figure(tmp_path):
+    stats, secs, images = contest_over_runs(tmp_path, RUNS)
+    assert stats == statistics(RUNS)
+    titles = [s.title for s in secs]
+    assert titles == [
+        "Programs against dynamics: straight-right",
+        "Program search against each dynamics contender: straight-right",
+    ]
+    header, rows = secs[0].table
+    assert "median run" in header
+    assert [r[0] for r in rows] == ["programs", "scratch", "neighbour"]
+    assert rows[0][1].startswith("4 of 5") and rows[1][2].startswith("> budget")
+    assert [r[0] for r in secs[1].table[1]] == ["programs : scratch", "programs : neighbour"]
+    ((file, _),) = images
+    assert (tmp_path / file).stat().st_size > 0
+
+
+def test_the_sweep_runs_it_without_per_run_targets():
+    assert sweep_spec("programs-vs-dynamics") is CONTEST_SPEC
+    assert CONTEST_SPEC.targets == () and CONTEST_SPEC.analysis is not None
+    assert "programs_straight_right_jitter" in CONTEST_SPEC.tests
+    assert "im_programs_straight_left_heldout" in CONTEST_SPEC.tests
+    data = {
+        "summary": {
+            "seeds": [0, 1],
+            "finished": 2,
+            "failed": [],
+            "meet_every_target": 2,
+            "per_seed": {"0": {"state": "done"}, "1": {"state": "done"}},
+            "targets": {},
+            "analysis": {},
+        },
+        "runs": {},
+    }
+    assert summary_line(data) == "sweep: 2/2 seeds finished (no per-run targets)"
