@@ -1,5 +1,5 @@
 """``mbn sweep`` on the command line: bad input is one line and exit status 2 with nothing
-touched, Ray missing says how to install it, and (CI) a tiny sweep of 2 quick seeds on a local
+touched, Ray missing says how to install it, and (CI) a tiny sweep of one quick seed on a local
 Ray, end to end, then rerun."""
 
 from __future__ import annotations
@@ -142,19 +142,20 @@ mbn_seconds = 40.0
 """
 
 
-def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
-    """CI: 2 quick seeds on a local Ray through the command line, then the same command. A
-    config trims the quick budgets further (every stage still runs, and the report)."""
+def _tiny_sweep(tmp_path, seeds: list[int]) -> None:
+    """Quick seeds on a local Ray through the command line, then the same command. A config
+    trims the quick budgets further (every stage still runs, and the report)."""
     pytest.importorskip("ray")
     out = tmp_path / "sweep"
     tiny = tmp_path / "tiny.toml"
     tiny.write_text(TINY)
-    cmd = [sys.executable, "-m", "mbn", "sweep", "--seeds", "0-1", "--quick", "--out", str(out)]
+    text = f"{seeds[0]}-{seeds[-1]}" if len(seeds) > 1 else str(seeds[0])
+    cmd = [sys.executable, "-m", "mbn", "sweep", "--seeds", text, "--quick", "--out", str(out)]
     cmd += ["--config", str(tiny)]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "sweep: " in proc.stdout and "seeds meet every target" in proc.stdout
-    for s in (0, 1):
+    for s in seeds:
         folder = out / f"seed-{s}"
         for f in (
             "results.json",
@@ -168,19 +169,32 @@ def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
     for f in ("sweep.json", "sweep.md", "sweep.html"):
         assert (out / f).is_file()
     data = json.loads((out / "sweep.json").read_text())
-    assert data["settings"]["seeds"] == [0, 1] and data["settings"]["quick"] is True
-    assert data["summary"]["finished"] == 2
-    for s in ("0", "1"):
-        run = data["runs"][s]
+    assert data["settings"]["seeds"] == seeds and data["settings"]["quick"] is True
+    assert data["summary"]["finished"] == len(seeds)
+    for s in seeds:
+        run = data["runs"][str(s)]
         assert run["state"] == "done"
         env = run["worker"]["env"]  # what the Ray worker saw: threads pinned to 1
         assert "intra_op_parallelism_threads=1" in env["XLA_FLAGS"]
         assert "--xla_cpu_multi_thread_eigen=false" in env["XLA_FLAGS"]
         assert env["OMP_NUM_THREADS"] == env["OPENBLAS_NUM_THREADS"] == "1"
-    results = {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in (0, 1)}
+    results = {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in seeds}
     t0 = time.perf_counter()
     again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr[-3000:]
-    assert "2 of 2 seeds were finished before: kept" in again.stdout
+    n = len(seeds)
+    assert f"{n} of {n} seeds were finished before: kept" in again.stdout
     assert time.perf_counter() - t0 < 60  # no Ray, no stage: only the report
-    assert {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in (0, 1)} == results
+    assert {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in seeds} == results
+
+
+def test_tiny_sweep_of_one_seed_on_local_ray_then_rerun_skips_it(tmp_path):
+    """CI: one quick seed on a local Ray, end to end, then the same command (the two-seed
+    sweep below is the slow version: seeds side by side on Ray)."""
+    _tiny_sweep(tmp_path, [0])
+
+
+@pytest.mark.slow
+def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
+    """2 quick seeds at once on a local Ray, then the same command."""
+    _tiny_sweep(tmp_path, [0, 1])
