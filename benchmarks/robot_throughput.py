@@ -25,6 +25,7 @@ sub-steps); ``interpreter_80`` and ``mbn_80`` as ``mbn reproduce`` runs them sin
 Prints one JSON line; compile time is measured apart from run time.
 
     python benchmarks/robot_throughput.py [--steps 200] [--repeats 3] [--only workload|world]
+        [--batches 126,4096] [--cases follower,interpreter,mbn] [--parts N]
 """
 
 from __future__ import annotations
@@ -208,9 +209,16 @@ def workload_specs() -> dict:
     }
 
 
-def workload(steps: int, repeats: int, parts: int = 1) -> dict:
-    """Robot-steps/s of the experiment's controllers (see the module's docstring); with
-    ``parts > 1`` also with each batch run in that many parts at once (keys ``..._parts``)."""
+def workload(
+    steps: int,
+    repeats: int,
+    parts: int = 1,
+    batches: tuple[int, ...] = (126, 4096),
+    only: tuple[str, ...] | None = None,
+) -> dict:
+    """Robot-steps/s of the experiment's controllers (see the module's docstring) at each of
+    ``batches``; with ``parts > 1`` also with each batch run in that many parts at once (keys
+    ``..._parts``); ``only`` names the cases to run (default: all)."""
     specs = workload_specs()
     crossroads = [crossroad(kind) for kind in CROSSROAD_KINDS]
     fig4 = [builtin_maze("fig4")]
@@ -230,11 +238,18 @@ def workload(steps: int, repeats: int, parts: int = 1) -> dict:
         ("interpreter_80", crossroads),
         ("mbn_80", fig4),
     )
+    unknown = set(only or ()) - {name for name, _ in cases}
+    if unknown:
+        raise SystemExit(
+            f"--cases: unknown case(s) {sorted(unknown)}; known: {[n for n, _ in cases]}"
+        )
     for name, mazes in cases:
+        if only is not None and name not in only:
+            continue
         left = ("interpreter", "interpreter_blocks", "interpreter_80")
         program = "left" if name in left else None
         loaded = make_controller(specs[name], program, check_stability=False)
-        for batch in (126, 4096):
+        for batch in batches:
             m = measure_loaded(mazes, batch, steps, repeats, loaded)
             out[f"{name}_{batch}"] = m["robot_steps_per_s"]
             compile_s[f"{name}_{batch}"] = m["compile_s"]
@@ -283,7 +298,22 @@ def main() -> None:
         default=len(os.sched_getaffinity(0)),
         help="also run each workload batch in this many parts at once (default: the cores)",
     )
+    parser.add_argument(
+        "--batches",
+        default="126,4096",
+        help="comma-separated batch sizes of the workload cases (default: 126,4096)",
+    )
+    parser.add_argument(
+        "--cases",
+        default=None,
+        help="comma-separated workload cases to run (default: all), e.g. follower,interpreter,mbn",
+    )
     args = parser.parse_args()
+    try:
+        batches = tuple(int(b) for b in args.batches.split(","))
+    except ValueError:
+        parser.error(f"--batches: not a comma-separated list of integers: {args.batches!r}")
+    cases = None if args.cases is None else tuple(args.cases.split(","))
     if args.only == "workload":
         print(
             json.dumps(
@@ -291,7 +321,7 @@ def main() -> None:
                     "benchmark": "robot_throughput",
                     "unit": "robot-steps/s (100 ms steps, 10 sonars, float32)",
                     "num_steps": args.steps,
-                    "workload": workload(args.steps, args.repeats, args.parts),
+                    "workload": workload(args.steps, args.repeats, args.parts, batches, cases),
                     "machine": machine(),
                     "versions": {"jax": jax.__version__, "numpy": np.__version__},
                 }
@@ -312,7 +342,9 @@ def main() -> None:
     odd = measure([stretched], 4096, args.steps, args.repeats)
     result = {
         "benchmark": "robot_throughput",
-        "workload": {} if args.only == "world" else workload(args.steps, args.repeats, args.parts),
+        "workload": {}
+        if args.only == "world"
+        else workload(args.steps, args.repeats, args.parts, batches, cases),
         "unit": "robot-steps/s (100 ms steps, 10 sonars, 3-neuron CTRNN x 4 sub-steps, float32)",
         "num_steps": args.steps,
         "robot_steps_per_s": figures,
