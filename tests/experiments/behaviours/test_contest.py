@@ -54,8 +54,15 @@ def test_every_contender_gets_the_same_budget_and_checks(contest_run):
     by = data["runs"][RULE]
     assert list(by) == list(CONTENDERS)
     generations = [0, *range(s.check_every, s.generations + 1, s.check_every)]
+    assert s.stop_when_solved
     for who, d in by.items():
-        assert [c["generation"] for c in d["checks"]] == generations, who
+        # checked every check_every generations until the first success (then it stops)
+        n = len(d["checks"])
+        assert [c["generation"] for c in d["checks"]] == generations[:n], who
+        assert d["solved"] or n == len(generations), f"{who}: unsolved runs spend the budget"
+        assert all(not c["success"] for c in d["checks"][:-1]), f"{who}: ran on after success"
+        # DE stopped at the last check: its history holds the generations up to it
+        assert len(d["history"]["best"]) - 1 == d["checks"][-1]["generation"], who
         assert [c["evaluations"] for c in d["checks"]] == [popsize * (g + 1) for g in generations]
         fitness = [c["best_fitness"] for c in d["checks"]]
         assert fitness == sorted(fitness), f"{who}: DE's best never gets worse"

@@ -16,7 +16,10 @@ passes, the jittered starts.
 It *succeeds* when every mark succeeds and at least ``[contest] jitter_target`` of the jittered
 trials do; a run's evaluations to success are those DE had spent when it first did
 (``popsize × (generation + 1)``), and a run that never did is censored at the budget. The check
-measures; it never selects (DE sees only the crossroad fitness). At the end each contender's
+measures; it never selects (DE sees only the crossroad fitness). A contender stops at its first
+successful check (``[contest] stop_when_solved``; its evaluations to success are known then, and
+its best then is its product); one that never succeeds runs the whole budget. At the end each
+contender's
 best is tested on the marks, the jittered starts and the held-out maze, and the programs'
 through the interpreter itself too, multipliers and all (with its agreement).
 """
@@ -128,6 +131,13 @@ class ContestSettings(Settings):
         low=0.0,
         high=1.0,
         source="the paper's protocol and the issue's 95 %",
+    )
+    stop_when_solved: bool = setting(
+        True,
+        doc="stop a contender at its first successful check (its evaluations to success are "
+        "known then; the final tests take that best); false: every contender runs its whole "
+        "budget",
+        source="docs/contest.md",
     )
     neighbour_sigma: float = setting(
         2.0,
@@ -299,8 +309,11 @@ class ContestStage(Stage):
                 log = ctx.rundir.checkpoint_file(name).with_suffix(".checks.json")
                 checks: list[dict[str, Any]] = read_json(log) if log.exists() else []
                 done = {int(x["generation"]) for x in checks}
+                solved_at = next((int(x["generation"]) for x in checks if x["success"]), None)
                 result = None
                 for g in marks:
+                    if s.stop_when_solved and solved_at is not None:
+                        break
                     if g in done:
                         continue
                     result = ctx.evolve(
@@ -322,13 +335,16 @@ class ContestStage(Stage):
                         }
                     )
                     write_json_atomic(log, checks)
+                    if verdict["success"] and solved_at is None:
+                        solved_at = g
                 if result is None:  # every check was done before: the final state
+                    stop = solved_at if s.stop_when_solved and solved_at is not None else None
                     result = ctx.evolve(
                         name,
                         c.config,
                         c.fitness,
                         key,
-                        s.generations,
+                        s.generations if stop is None else stop,
                         f"{rule}: {who}",
                         c.population,
                     )
