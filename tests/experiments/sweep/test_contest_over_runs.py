@@ -108,3 +108,37 @@ def test_the_sweep_runs_it_without_per_run_targets():
         "runs": {},
     }
     assert summary_line(data) == "sweep: 2/2 seeds finished (no per-run targets)"
+
+
+def _im_tests(marks: tuple[int, int], jitter: tuple[int, int]) -> dict:
+    short = "straight_right"
+    return {
+        f"im_programs_{short}": {"successes": marks[0], "trials": marks[1]},
+        f"im_programs_{short}_jitter": {
+            "successes": jitter[0],
+            "trials": jitter[1],
+            "success_rate": jitter[0] / jitter[1],
+        },
+    }
+
+
+def test_program_search_counts_the_programs_that_pass_through_the_interpreter(tmp_path):
+    runs = {k: {**r, "config": {"contest": {"jitter_target": 0.95}}} for k, r in RUNS.items()}
+    given = [((11, 11), (220, 220)), ((10, 11), (220, 220)), ((11, 11), (209, 220))]
+    given += [((11, 11), (208, 220)), ((11, 11), (185, 220))]
+    for k, (m, j) in zip(runs, given, strict=True):
+        runs[k] = {**runs[k], "tests": _im_tests(m, j)}
+    c = statistics(runs)["rules"]["straight-right"]["contenders"]
+    # seed 0 passes; seed 1 fails a mark; seed 2 at 95.0 % passes; 94.5 % and 84 % do not
+    assert c["programs"]["interpreter_success"] == 2
+    assert c["programs"]["interpreter_wilson95"] == pytest.approx(wilson_interval(2, 5))
+    assert "interpreter_success" not in c["scratch"]
+    _, secs, _ = contest_over_runs(tmp_path, runs)
+    header, rows = secs[0].table
+    col = header.index("through the interpreter")
+    assert rows[0][col].startswith("2 of 5") and rows[1][col] == "–"
+    # runs without the interpreter's tests (older results): no count, no claim
+    assert (
+        "interpreter_success"
+        not in statistics(RUNS)["rules"]["straight-right"]["contenders"]["programs"]
+    )

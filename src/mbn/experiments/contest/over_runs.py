@@ -49,6 +49,19 @@ def _median_run(times: Mapping[int, float | None], budget: float) -> int:
     return order[(len(order) - 1) // 2]
 
 
+def _through_interpreter(r: Mapping[str, Any], rule: str) -> bool | None:
+    """Whether a run's final program passes the test run by the interpreter itself (its
+    ``im_programs_RULE`` tests: every start mark, and the jittered target of the run's
+    ``[contest]``), or None where the run has no such tests."""
+    short = rule.replace("-", "_")
+    tests = r.get("tests", {})
+    marks, jitter = tests.get(f"im_programs_{short}"), tests.get(f"im_programs_{short}_jitter")
+    if marks is None or jitter is None:
+        return None
+    target = float(r.get("config", {}).get("contest", {}).get("jitter_target", 0.95))
+    return bool(marks["successes"] == marks["trials"] and jitter["success_rate"] >= target)
+
+
 def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
     """The statistics of the contest over the runs (``seed -> results.json``)."""
     per_rule: dict[str, Any] = {}
@@ -74,12 +87,21 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
             final = sum(bool(runs[s]["contest"][rule][who]["final_success"]) for s in by_seed)
             e, frac = solved_curve(t, budget)
             median_seed = _median_run(by_seed, budget)
+            through = [_through_interpreter(runs[s], rule) for s in by_seed]
+            interp: dict[str, Any] = {}
+            if who == REFERENCE and through and all(x is not None for x in through):
+                n_ok = sum(bool(x) for x in through)
+                interp = {
+                    "interpreter_success": n_ok,
+                    "interpreter_wilson95": list(wilson_interval(n_ok, len(t))),
+                }
             contenders[who] = {
                 "runs": len(t),
                 "solved": solved,
                 "solved_wilson95": list(wilson_interval(solved, len(t))),
                 "final_success": final,
                 "final_wilson95": list(wilson_interval(final, len(t))),
+                **interp,
                 "evaluations": {str(s): v for s, v in by_seed.items()},
                 **censored_quantiles(t, budget),
                 "curve": {"evaluations": e.tolist(), "solved": frac.tolist()},
@@ -131,12 +153,20 @@ def contest_over_runs(
             flo, fhi = c["final_wilson95"]
             q1, med, q3 = c["q1"], c["median"], c["q3"]
             m = c["median_run"]
+            if "interpreter_success" in c:
+                ilo, ihi = c["interpreter_wilson95"]
+                interp_text = (
+                    f"{c['interpreter_success']} of {c['runs']} [{_pct(ilo)}, {_pct(ihi)}]"
+                )
+            else:
+                interp_text = "–"
             rows.append(
                 [
                     who,
                     f"{c['solved']} of {c['runs']} [{_pct(lo)}, {_pct(hi)}]",
                     f"{_num(med)} [{_num(q1)}, {_num(q3)}]",
                     f"{c['final_success']} of {c['runs']} [{_pct(flo)}, {_pct(fhi)}]",
+                    interp_text,
                     f"seed {m['seed']} (`{m['controller']}`)",
                 ]
             )
@@ -166,8 +196,11 @@ def contest_over_runs(
                     "budget, with a Wilson 95 % interval; evaluations to success: median "
                     "[interquartile range], unsolved runs censored at the budget ('> budget': "
                     "the quantile falls on an unsolved run); *final*: the run's last best passes "
-                    "the test. The median run (by evaluations to success) is named with its "
-                    "controller.",
+                    "the test; *through the interpreter*: program search's last program passes "
+                    "it run by the fixed interpreter itself, multipliers and all (what an MBN "
+                    "would do with it; the checks and the other columns test the network the "
+                    "program encodes). The median run (by evaluations to success) is named with "
+                    "its controller.",
                 ],
                 table=(
                     [
@@ -175,6 +208,7 @@ def contest_over_runs(
                         "solved (Wilson 95 %)",
                         "evaluations to success, median [IQR]",
                         "final best passes",
+                        "through the interpreter",
                         "median run",
                     ],
                     rows,
