@@ -82,7 +82,11 @@ def rate_boxes(
     groups: Sequence[tuple[str, Sequence[str]]],
 ) -> None:
     """Box plots of the per-seed rates of each test (seeds as dots), one panel per group
-    (``(title, [test names])``); a red tick marks each test's target."""
+    (``(title, [test names])``; a group without tests has no panel); a red tick marks each
+    test's target."""
+    groups = [(title, names) for title, names in groups if names]
+    if not groups:
+        raise ValueError("rate_boxes: no test to draw")
     fig = new_figure((11, 3.3 * len(groups)))
     axes = np.atleast_1d(fig.subplots(len(groups), 1)).ravel()
     rng = np.random.default_rng(0)  # the dots' horizontal spread only

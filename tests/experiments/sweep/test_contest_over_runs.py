@@ -5,6 +5,8 @@ and the sweep's view of the experiment (no per-run targets)."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from mbn.experiments.contest.over_runs import contest_over_runs, statistics
@@ -80,6 +82,7 @@ def test_the_report_sections_and_the_figure(tmp_path):
     assert titles == [
         "Programs against dynamics: straight-right",
         "Program search against each dynamics contender: straight-right",
+        "The 2016 claim over runs",
     ]
     header, rows = secs[0].table
     assert "median run" in header
@@ -142,3 +145,78 @@ def test_program_search_counts_the_programs_that_pass_through_the_interpreter(tm
         "interpreter_success"
         not in statistics(RUNS)["rules"]["straight-right"]["contenders"]["programs"]
     )
+
+
+def _runs_of(n: int, programs: int | None, other: int | None) -> dict[int, dict]:
+    return {
+        k: _results({"programs": programs + k, "scratch": other, "neighbour": other})
+        if programs is not None
+        else _results({"programs": None, "scratch": other + k, "neighbour": other + k})
+        for k in range(n)
+    }
+
+
+def test_the_2016_claim_is_judged_over_20_runs_whichever_way_it_falls():
+    # program search always faster (others never solve): holds
+    fast = statistics(_runs_of(20, 180, None))["claim"]
+    assert fast["pass"] is True and "faster" in fast["measured"]
+    # program search never solves, the others do: fails, and says so
+    slow = statistics(_runs_of(20, None, 900))["claim"]
+    assert slow["pass"] is False and "slower" in slow["measured"]
+    # no difference (the same evaluations): fails as not 'faster'
+    same = {k: _results({"programs": 900, "scratch": 900, "neighbour": 900}) for k in range(20)}
+    tie = statistics(same)["claim"]
+    assert tie["pass"] is False and "no clear difference" in tie["measured"]
+    # fewer than 20 runs: figures given, no verdict
+    few = statistics(_runs_of(8, 180, None))["claim"]
+    assert few["pass"] is None and few["measured"].startswith("preliminary, 8 runs")
+
+
+def test_a_claim_no_run_judges_is_not_counted_as_failing(tmp_path):
+    from mbn.experiments.sweep.summary import summarize
+
+    runs = {
+        k: {**r, "claims": [{"claim": "c", "pass": None, "target": "t"}]} for k, r in RUNS.items()
+    }
+    s = summarize(runs, {}, CONTEST_SPEC)
+    assert s["claims"] == [{"claim": "c", "runs": 5, "hold": 0, "judged": 0, "criterion": "t"}]
+
+
+def test_a_contest_sweep_folder_is_summarized_into_its_report(tmp_path):
+    """``mbn sweep --summarize`` on a programs-vs-dynamics folder: the per-seed rates drawn (an
+    experiment without agreement targets), the contest's sections and its claim over runs."""
+    from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
+    from mbn.experiments.sweep.report import summarize_folder
+    from mbn.experiments.sweep.run import seed_dir
+
+    from .conftest import fake_sweep
+
+    config = PROGRAMS_VS_DYNAMICS.config(quick=True).to_dict()
+    for seed, r in RUNS.items():
+        folder = seed_dir(tmp_path, seed)
+        (folder / "stages").mkdir(parents=True)
+        tests = {
+            name: {"trials": 20, "successes": 19, "success_rate": 0.95}
+            for name in CONTEST_SPEC.tests
+        }
+        claim = {"claim": "learning programs ...", "measured": "", "target": "t", "pass": None}
+        results = {**r, "seed": seed, "config": config, "tests": tests, "claims": [claim]}
+        (folder / "run.json").write_text(json.dumps({"seed": seed, "config": config}))
+        (folder / "results.json").write_text(json.dumps(results))
+        (folder / "report.html").write_text("<html></html>")
+        curve = [float(g + seed) for g in range(5)]
+        (folder / "stages" / "rf.json").write_text(
+            json.dumps({"history": {"best": curve, "mean": curve}})
+        )
+    fake_sweep(tmp_path, list(RUNS), config)
+    sweep = json.loads((tmp_path / "sweep.json").read_text())
+    sweep["settings"]["experiment"] = "programs-vs-dynamics"
+    (tmp_path / "sweep.json").write_text(json.dumps(sweep))
+    data = summarize_folder(tmp_path)
+    assert data["summary"]["finished"] == 5
+    assert data["summary"]["analysis"]["claim"]["pass"] is None  # 5 runs: not judged
+    md = (tmp_path / "sweep.md").read_text()
+    assert "The 2016 claim over runs" in md and "preliminary, 5 runs" in md
+    assert "not judged per run (5 runs)" in md
+    for figure in ("sweep_rates.png", "sweep_de.png", "contest_solved.png"):
+        assert (tmp_path / "figures" / figure).stat().st_size > 0

@@ -81,7 +81,7 @@ def test_a_new_behaviours_summary_counts_its_own_targets_and_claims():
     }
     # its claims name a target, not a criterion: the summary shows the target
     assert s["claims"] == [
-        {"claim": "a new behaviour", "runs": 2, "hold": 2, "criterion": "marks all"}
+        {"claim": "a new behaviour", "runs": 2, "hold": 2, "judged": 2, "criterion": "marks all"}
     ]
 
 

@@ -101,7 +101,7 @@ def test_summarize_pools_trials_and_counts_seeds_and_claims():
     assert s["targets"]["rf_jitter"]["seeds_meeting"] == 2
     assert s["per_seed"]["1"]["missed"] == ["rf_jitter"]
     assert s["per_seed"]["3"] == {"state": "failed", "error": "RuntimeError: boom"}
-    assert s["claims"] == [{"claim": "c1", "runs": 3, "hold": 2, "criterion": "x"}]
+    assert s["claims"] == [{"claim": "c1", "runs": 3, "hold": 2, "judged": 3, "criterion": "x"}]
 
 
 def test_claims_naming_a_run_s_own_connections_count_together():
@@ -117,7 +117,7 @@ def test_claims_naming_a_run_s_own_connections_count_together():
         runs[seed] = r
     s = summarize(runs, {})
     key = "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1)"
-    assert s["claims"] == [{"claim": key, "runs": 3, "hold": 2, "criterion": "x"}]
+    assert s["claims"] == [{"claim": key, "runs": 3, "hold": 2, "judged": 3, "criterion": "x"}]
     assert claim_key("The MBN follows the right wall (section 3.2)") == (
         "The MBN follows the right wall (section 3.2)"
     )

@@ -33,6 +33,65 @@ REFERENCE = "programs"
 #: Seed of the bootstrap's resampling (NumPy's generator): the report is reproducible.
 BOOTSTRAP_SEED = 0
 
+#: The fewest runs per contender over which the 2016 claim is judged (the issue's 20 seeds).
+MIN_RUNS = 20
+
+#: The two-sided level of the Mann–Whitney test for a verdict.
+ALPHA = 0.05
+
+CLAIM = "learning programs is better than learning dynamics (Donnarumma et al. 2016)"
+
+
+def comparison_verdict(v: Mapping[str, Any]) -> str:
+    """``faster``, ``slower`` or ``no clear difference`` for program search against one
+    contender: faster where the Mann–Whitney p < ``ALPHA`` with A12 < 0.5 and the bootstrap
+    interval of the ratio of medians lies below 1 (slower: p < ``ALPHA``, A12 > 0.5, the
+    interval above 1)."""
+    u, r = v["mann_whitney"], v["ratio"]
+    if u["p"] is None or u["p"] >= ALPHA:
+        return "no clear difference"
+    high = r.get("high")
+    low = r.get("low")
+    if u["A12"] < 0.5 and high is not None and high < 1.0:
+        return "faster"
+    # an unbounded low end (None beside an unbounded ratio) lies above 1 too
+    above = (low is not None and low > 1.0) or (low is None and bool(r.get("ratio_unbounded")))
+    if u["A12"] > 0.5 and above:
+        return "slower"
+    return "no clear difference"
+
+
+def claim_over_runs(stats: Mapping[str, Any]) -> dict[str, Any]:
+    """The 2016 claim judged over the runs: it holds where program search is ``faster`` than
+    every dynamics contender on every rule, and fails otherwise; with fewer than ``MIN_RUNS``
+    runs of a contender it is not judged (``pass`` None), its figures given as preliminary."""
+    parts, verdicts, fewest = [], [], None
+    for rule, data in stats["rules"].items():
+        for who, v in data["versus"].items():
+            verdict = comparison_verdict(v)
+            verdicts.append(verdict)
+            u = v["mann_whitney"]
+            a12 = "–" if u["A12"] is None else f"{u['A12']:.2f}"
+            p = "–" if u["p"] is None else f"{u['p']:.3g}"
+            parts.append(
+                f"{rule}, programs : {who}: ratio {_ratio_text(v['ratio'])}, p {p}, A12 {a12}: "
+                f"{verdict}"
+            )
+        for c in data["contenders"].values():
+            fewest = c["runs"] if fewest is None else min(fewest, c["runs"])
+    judged = fewest is not None and fewest >= MIN_RUNS and bool(verdicts)
+    measured = "; ".join(parts) if parts else "no comparison"
+    if not judged:
+        measured = f"preliminary, {fewest or 0} runs (a verdict needs {MIN_RUNS}): {measured}"
+    return {
+        "claim": CLAIM,
+        "measured": measured,
+        "target": f"program search faster than every dynamics contender on every rule (ratio of "
+        f"medians' 95 % interval below 1, Mann–Whitney p < {ALPHA}, A12 < 0.5), over at least "
+        f"{MIN_RUNS} runs each",
+        "pass": (all(v == "faster" for v in verdicts)) if judged else None,
+    }
+
 
 def _pct(x: float | None) -> str:
     return "–" if x is None else f"{x:.0%}"
@@ -123,7 +182,9 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
                     "mann_whitney": mann_whitney(a, b, budget),
                 }
         per_rule[rule] = {"budget": budget, "contenders": contenders, "versus": versus}
-    return {"rules": per_rule, "reference": REFERENCE}
+    out = {"rules": per_rule, "reference": REFERENCE}
+    out["claim"] = claim_over_runs(out)
+    return out
 
 
 def _ratio_text(r: Mapping[str, Any]) -> str:
@@ -230,6 +291,23 @@ def contest_over_runs(
                     table=(["contenders", "ratio [95 %]", "U", "p", "A12"], vs_rows),
                 )
             )
+    claim = stats["claim"]
+    holds = {True: "yes", False: "no", None: "not judged"}[claim["pass"]]
+    secs.append(
+        Section(
+            "The 2016 claim over runs",
+            [
+                "Whether program search needs fewer evaluations to success than learning new "
+                "dynamics, judged over the runs; the claim fails if any comparison is not "
+                "'faster' (whichever way it falls, it is reported).",
+            ],
+            table=(
+                ["claim", "measured", "target", "holds"],
+                [[claim["claim"], claim["measured"], claim["target"], holds]],
+            ),
+            status=[claim["pass"]],
+        )
+    )
     for rule, data in stats["rules"].items():
         for who, c in data["contenders"].items():
             m = c["median_run"]["seed"]

@@ -212,13 +212,23 @@ def _sections(
             ],
             table=(
                 ["claim", "criterion", "runs reproducing it"],
-                [[c["claim"], c["criterion"], f"{c['hold']} of {c['runs']}"] for c in claims],
+                [[c["claim"], c["criterion"], _claim_count(c)] for c in claims],
             ),
-            status=[c["hold"] == c["runs"] for c in claims],
+            status=[
+                None if c.get("judged", c["runs"]) == 0 else c["hold"] == c["runs"] for c in claims
+            ],
         )
     )
     secs.append(Section("Figures", [], images=images))
     return secs
+
+
+def _claim_count(c: dict[str, Any]) -> str:
+    """'k of N' runs reproducing a claim; a claim no run judges (each run's verdict None) is
+    'not judged per run' (an experiment's analysis over runs may judge it)."""
+    if c.get("judged", c["runs"]) == 0:
+        return f"not judged per run ({c['runs']} runs)"
+    return f"{c['hold']} of {c['runs']}"
 
 
 def summarize_folder(out: Path) -> dict[str, Any]:

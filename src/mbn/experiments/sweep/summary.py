@@ -137,10 +137,17 @@ def summarize(
         for c in r.get("claims", []):
             entry = claims.setdefault(
                 claim_key(c["claim"]),
-                {"runs": 0, "hold": 0, "criterion": c.get("criterion", c.get("target", ""))},
+                {
+                    "runs": 0,
+                    "hold": 0,
+                    "judged": 0,
+                    "criterion": c.get("criterion", c.get("target", "")),
+                },
             )
             entry["runs"] += 1
             entry["hold"] += int(bool(c["pass"]))
+            # a claim a run does not judge (pass None: judged over runs, or not measured)
+            entry["judged"] += int(c["pass"] is not None)
     return {
         "seeds": seeds,
         "finished": len(finished),
