@@ -82,7 +82,9 @@ def claim_over_runs(stats: Mapping[str, Any]) -> dict[str, Any]:
     judged = fewest is not None and fewest >= MIN_RUNS and bool(verdicts)
     measured = "; ".join(parts) if parts else "no comparison"
     if not judged:
-        measured = f"preliminary, {fewest or 0} runs (a verdict needs {MIN_RUNS}): {measured}"
+        n = fewest or 0
+        runs = f"{n} run{'s' * (n != 1)}"
+        measured = f"preliminary, {runs} (a verdict needs {MIN_RUNS}): {measured}"
     return {
         "claim": CLAIM,
         "measured": measured,
@@ -188,11 +190,17 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
 
 
 def _ratio_text(r: Mapping[str, Any]) -> str:
-    if r["ratio"] is None:
-        return "unbounded" if r.get("ratio_unbounded") else "undefined (both medians censored)"
-    lo = "0" if r["low"] == 0 else ("–" if r["low"] is None else f"{r['low']:.2f}")
-    hi = "∞" if r["high"] is None else f"{r['high']:.2f}"
-    return f"{r['ratio']:.2f} [{lo}, {hi}]"
+    """``point [low, high]``: 0 and ∞ where a median (or an end) falls on an unsolved run."""
+
+    def num(x: float) -> str:
+        return "0" if x == 0 else f"{x:.2f}"
+
+    if r["ratio"] is None and not r.get("ratio_unbounded"):
+        return "undefined (both medians censored)"
+    point = "∞" if r["ratio"] is None else num(r["ratio"])
+    lo = ("∞" if r.get("ratio_unbounded") else "–") if r["low"] is None else num(r["low"])
+    hi = "∞" if r["high"] is None else num(r["high"])
+    return f"{point} [{lo}, {hi}]"
 
 
 def contest_over_runs(
