@@ -61,7 +61,7 @@ def solved_curves(
                 frac,
                 where="post",
                 color=CONTENDER_COLORS.get(who, "C7"),
-                label=f"{who} ({n} runs)",
+                label=f"{who} ({n} run{'s' * (n != 1)})",
             )
         ax.set_xlim(0, budget)
         ax.set_ylim(-0.02, 1.02)
