@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mbn.experiments.contest.over_runs import CLAIM_2016, CRITERION
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.io import read_json
@@ -12,9 +13,6 @@ from mbn.io import read_json
 __all__ = ["TITLE", "claims", "write_report"]
 
 TITLE = "mbn: learning programs against learning dynamics"
-
-#: The claim of Donnarumma et al. (Adaptive Behavior 2016) this experiment measures.
-CLAIM_2016 = "learning programs is better than learning dynamics (Donnarumma et al. 2016)"
 
 
 def _evals(d: dict[str, Any]) -> str:
@@ -24,8 +22,6 @@ def _evals(d: dict[str, Any]) -> str:
 def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One run cannot judge a claim about runs: the 2016 claim is stated with what this run
     measured and judged only over runs (``mbn sweep --experiment programs-vs-dynamics``)."""
-    from mbn.experiments.contest.over_runs import CRITERION
-
     runs = stages["contest"]["runs"]
     parts = []
     for rule, by in runs.items():

@@ -46,7 +46,13 @@ from mbn.networks.ctrnn import CTRNN
 from mbn.networks.programmable import Interpreter
 from mbn.world.rules import parse_rule
 
-__all__ = ["ProgramsSettings", "ProgramsStage", "check_digest", "program_network"]
+__all__ = [
+    "ProgramsSettings",
+    "ProgramsStage",
+    "check_digest",
+    "program_fitness",
+    "program_network",
+]
 
 #: Folded (plus the attempt's number) into a rule's key for each further attempt.
 ATTEMPT_KEY = 100
@@ -115,7 +121,7 @@ def program_network(interp: Interpreter, base: CTRNN, program: Any) -> CTRNN:
     return genome.network(jnp.asarray(interp.decode(jnp.asarray(program, base.W.dtype))))
 
 
-def _program_fitness(
+def program_fitness(
     ctx: StageContext, interp: Interpreter, base: CTRNN, rule: str, variants: int
 ) -> Callable[[jax.Array], jax.Array]:
     """Fitness of a population of programs ``(P, K)``: the rule's crossroad fitness of the
@@ -257,7 +263,7 @@ class ProgramsStage(Stage):
         programs = dict(spec.programs)
         for r, rule_text in enumerate(s.rules):
             rule = parse_rule(rule_text).name
-            fitness = _program_fitness(ctx, interp, base, rule, s.variants)
+            fitness = program_fitness(ctx, interp, base, rule, s.variants)
             tries = []
             for a in range(attempts):
                 key = jax.random.fold_in(ctx.key, r)

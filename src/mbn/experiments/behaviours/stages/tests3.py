@@ -28,7 +28,7 @@ from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["Tests3Settings", "Tests3Stage"]
+__all__ = ["Tests3Settings", "Tests3Stage", "trial_specs"]
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,7 @@ class Tests3Settings(Settings):
     )
 
 
-def _specs(
+def trial_specs(
     behavior: str,
     t: Any,
     ctx: StageContext,
@@ -93,7 +93,7 @@ class Tests3Stage(Stage):
             plain = make_controller(
                 CTRNNControllerSpec(net=net, substeps=im.substeps), None, where=f"{rule} network"
             )
-            specs = _specs(rule, t, ctx)
+            specs = trial_specs(rule, t, ctx)
             for suffix in SUFFIXES:
                 got, _, _ = run_loaded_trials(new[suffix], specs[suffix], emulated)
                 ref, _, _ = run_loaded_trials(new[suffix], specs[suffix], plain)
@@ -104,7 +104,7 @@ class Tests3Stage(Stage):
         loaded = make_controller(mbn3, None, where="mbn3")
         initial = loaded.initial_rule or "none"
         for mazes, name in ((new, "mbn3"), (old, "mbn3_two_tiles")):
-            specs = _specs("tiles", t, ctx, initial, tuple(mbn3.tile_rules))
+            specs = trial_specs("tiles", t, ctx, initial, tuple(mbn3.tile_rules))
             for suffix in SUFFIXES:
                 if name == "mbn3" and suffix == "":
                     # the start marks, recorded for the report's pictures

@@ -46,11 +46,11 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
 from mbn.experiments.behaviours.stages.programs import (
-    _program_fitness,
     check_digest,
+    program_fitness,
     program_network,
 )
-from mbn.experiments.behaviours.stages.tests3 import _specs
+from mbn.experiments.behaviours.stages.tests3 import trial_specs
 from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES
@@ -197,7 +197,7 @@ def _contender(
         )
         return _Contender(
             config,
-            _program_fitness(ctx, interp, rf, rule, variants),
+            program_fitness(ctx, interp, rf, rule, variants),
             None,
             lambda genes: program_network(interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)),
         )
@@ -235,7 +235,7 @@ def neighbour_population(
 
 def _check_specs(ctx: StageContext, rule: str) -> dict[str, Any]:
     t = ctx.section("tests")
-    return _specs(rule, t, ctx)
+    return trial_specs(rule, t, ctx)
 
 
 def _check(
