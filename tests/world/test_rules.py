@@ -73,3 +73,15 @@ def test_rule_exit_in_a_maze_for_every_rule():
         assert rule_exit(tee, (3, 3), "N", rule.initials) == want
     with pytest.raises(MbnInputError, match="unknown rule"):
         rule_exit(plus, (3, 3), "N", "upward")
+
+
+def test_parse_rules_names_each_rule_and_says_where_one_is_wrong():
+    from mbn.world.rules import parse_rules
+
+    assert parse_rules(["SRL", "straight-left", "right"], "x.rules") == [
+        "straight-right",
+        "straight-left",
+        "right",
+    ]
+    with pytest.raises(MbnInputError, match=r"^x\.rules: unknown rule 'SSS'"):
+        parse_rules(["right", "SSS"], "x.rules")

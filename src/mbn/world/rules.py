@@ -28,6 +28,7 @@ Junction exits are coded as in :mod:`mbn.world.junctions` (0 back, 1 right, 2 st
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +44,7 @@ __all__ = [
     "all_rules",
     "open_mask",
     "parse_rule",
+    "parse_rules",
     "rule_exit_codes",
 ]
 
@@ -115,6 +117,18 @@ def parse_rule(text: str | Rule) -> Rule:
         f"unknown rule {text!r}: a name ({', '.join(NAMED_RULES)}) or an order of the exits "
         "right, straight and left, each once (e.g. 'SRL' or 'straight>right>left')"
     )
+
+
+def parse_rules(texts: Sequence[str | Rule], where: str) -> list[str]:
+    """The names of the rules ``texts`` (:func:`parse_rule`), in order; a text that names no rule
+    is one error prefixed with ``where`` (e.g. ``"contest.rules"``)."""
+    names = []
+    for text in texts:
+        try:
+            names.append(parse_rule(text).name)
+        except MbnInputError as exc:
+            raise MbnInputError(f"{where}: {exc}") from None
+    return names
 
 
 def all_rules() -> tuple[Rule, ...]:

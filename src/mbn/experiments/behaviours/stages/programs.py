@@ -44,7 +44,7 @@ from mbn.experiments.reproduce.stages.common import (
 )
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.programmable import Interpreter
-from mbn.world.rules import parse_rule
+from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
     "ProgramsSettings",
@@ -93,12 +93,7 @@ class ProgramsSettings(Settings):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        names = []
-        for r in self.rules:
-            try:
-                names.append(parse_rule(r).name)
-            except MbnInputError as exc:
-                raise MbnInputError(f"programs.rules: {exc}") from None
+        names = parse_rules(self.rules, "programs.rules")
         if len(set(names)) != len(names):
             raise MbnInputError("programs.rules: a rule is listed twice")
         if set(names) & {"right", "left"}:

@@ -72,7 +72,7 @@ from mbn.experiments.trials import (
 from mbn.io import read_json, write_json_atomic
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
-from mbn.world.rules import parse_rule
+from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = ["CONTENDERS", "ContestSettings", "ContestStage", "neighbour_population"]
 
@@ -150,12 +150,7 @@ class ContestSettings(Settings):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        names = []
-        for r in self.rules:
-            try:
-                names.append(parse_rule(r).name)
-            except MbnInputError as exc:
-                raise MbnInputError(f"contest.rules: {exc}") from None
+        names = parse_rules(self.rules, "contest.rules")
         if not names or len(set(names)) != len(names):
             raise MbnInputError("contest.rules: at least one rule, none listed twice")
         if not self.contenders or len(set(self.contenders)) != len(self.contenders):
@@ -233,11 +228,6 @@ def neighbour_population(
     return np.clip(genes[None] + sigma * noise, -bound, bound)
 
 
-def _check_specs(ctx: StageContext, rule: str) -> dict[str, Any]:
-    t = ctx.section("tests")
-    return trial_specs(rule, t, ctx)
-
-
 def _check(
     ctx: StageContext, maze: Any, specs: dict[str, Any], net: CTRNN, rule: str
 ) -> dict[str, Any]:
@@ -297,7 +287,7 @@ class ContestStage(Stage):
         details: dict[str, Any] = {}
         for r, rule_text in enumerate(s.rules):
             rule = parse_rule(rule_text).name
-            specs = _check_specs(ctx, rule)
+            specs = trial_specs(rule, ctx.section("tests"), ctx)
             runs[rule] = {}
             trajectories: dict[str, Any] = {}
             for c_index, who in enumerate(CONTENDERS):
