@@ -12,7 +12,9 @@ The workload cases (``workload``) run what the experiment runs, built from contr
 way ``mbn evaluate`` and the test stage load them (``mbn.controllers.make_controller``): the
 3-neuron follower at ``NETWORK_SUBSTEPS`` (20 sub-steps of 5 ms), the 21-neuron interpreter of a
 follower with 3 programmable connections (6-neuron multipliers) running a program, and the whole
-MBN (program module, interpreter and camera) in ``fig4``, which has tiles; batches 126 and 4096.
+MBN (program module, interpreter and camera) in ``fig4``, which has tiles; batches 126 and 4096;
+the sonars cast as far as the inputs read them (2 m, ``mbn.world.rollout.input_reach``), as the
+experiment's rollouts cast them (the world cases cast the whole 5 m).
 Beside them: the same 21-neuron interpreter simulated by its structure (``interpreter_blocks``:
 the neurons beside a batch of multipliers, :mod:`mbn.networks.structured`), and the fully
 programmable interpreter of the follower genome (its 12 connections, 75 neurons) simulated so
@@ -63,8 +65,8 @@ from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.mazes.builtin import CROSSROAD_KINDS, builtin_maze, crossroad
 from mbn.world.mazes.generate import corridor_maze
 from mbn.world.mazes.model import Maze
-from mbn.world.rollout import RolloutConfig, junction_arrays, rollout
-from mbn.world.sensors import SensorConfig
+from mbn.world.rollout import RolloutConfig, input_reach, junction_arrays, rollout
+from mbn.world.sensors import NoiseConfig, SensorConfig
 
 
 def measure(mazes: list[Maze], batch: int, steps: int, repeats: int) -> dict:
@@ -95,7 +97,11 @@ def measure_loaded(
     junctions = junction_arrays(mazes, world)
     maze_index = np.arange(batch) % len(mazes)
     poses = np.stack([mazes[m].starts[i % len(mazes[m].starts)] for i, m in enumerate(maze_index)])
-    config = RolloutConfig(steps=steps, sensors=loaded.sensors, camera=loaded.camera)
+    # the sonars cast as far as the inputs read them, as the experiment's rollouts do
+    reach = input_reach(loaded.sensors, NoiseConfig())
+    config = RolloutConfig(
+        steps=steps, sensors=loaded.sensors, camera=loaded.camera, sonar_reach=reach
+    )
     run = jax.jit(
         lambda state, p, m: rollout(
             world, loaded.controller, state, p, m, config, junctions=junctions

@@ -17,7 +17,7 @@ from mbn.control.ctrnn import CTRNNState, ctrnn_controller, initial_state
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import make_ctrnn
 from mbn.precision import scope
-from mbn.world.engine import CameraConfig, compile_mazes
+from mbn.world.engine import CameraConfig, compile_mazes, march_steps
 from mbn.world.geometry import collides
 from mbn.world.junctions import junction_sequence
 from mbn.world.mazes.builtin import crossroad
@@ -27,6 +27,7 @@ from mbn.world.rollout import (
     RolloutConfig,
     Shared,
     concatenate_states,
+    input_reach,
     junction_arrays,
     rollout,
 )
@@ -252,6 +253,48 @@ def test_sonar_choice_and_bad_config():
         SensorConfig(near=2.0, far=1.0)
     with pytest.raises(MbnInputError, match="repeat"):
         SensorConfig(sonars=(1, 1))
+
+
+def test_a_sonar_reach_at_the_inputs_far_changes_no_episode():
+    """Casting the sonars only as far as the inputs read them (``input_reach``) leaves every
+    episode and every statistic a fitness reads bit for bit as it was, in float32 as the
+    experiment runs: the poses, the junction exits, S, and the shortest range clipped at far."""
+    mazes = [crossroad(k) for k in ("LSR", "SR", "L")]
+    world = compile_mazes(mazes)
+    junctions = junction_arrays(mazes, world)
+    rng = np.random.default_rng(3)
+    n = 24
+    net = make_ctrnn(
+        rng.uniform(-20, 20, (n, 3, 3)), rng.uniform(-20, 20, (n, 3, 3)), 0.5, dtype=np.float32
+    )
+    mi = jnp.asarray(np.arange(n) % 3)
+    poses = jnp.asarray(np.stack([mazes[i % 3].starts[0] for i in range(n)]), jnp.float32)
+    sensors = SensorConfig()
+    reach = input_reach(sensors, NoiseConfig())
+    assert reach == sensors.far == 2.0
+    assert march_steps(world, reach) < world.n_march  # it does shorten the rays
+    out = {}
+    for r in (None, reach):
+        cfg = RolloutConfig(steps=150, sonar_reach=r)
+        out[r] = jax.jit(
+            lambda s, cfg=cfg: rollout(
+                world, ctrnn_controller(), s, poses, mi, cfg, junctions=junctions
+            )
+        )(initial_state(net)).stats
+    a, b = out[None], out[reach]
+    for name in ("final_pose", "S_mean", "junction_exit", "stall_fraction", "mean_v"):
+        np.testing.assert_array_equal(np.asarray(getattr(a, name)), np.asarray(getattr(b, name)))
+    np.testing.assert_array_equal(
+        np.minimum(np.asarray(a.min_range), 2.0), np.minimum(np.asarray(b.min_range), 2.0)
+    )
+    assert len(np.unique(np.asarray(a.final_pose)[:, 0])) > n // 2  # the robots went places
+    # where S is read otherwise, the reach is the whole range
+    assert input_reach(SensorConfig(normalization="metres"), NoiseConfig()) is None
+    assert input_reach(sensors, NoiseConfig(sonar_std=0.02)) is None
+    assert input_reach(sensors, NoiseConfig(sonar_dropout=0.1, wheel_std=0.05)) == 2.0
+    for bad in (0.0, -1.0, 5.5):
+        with pytest.raises(MbnInputError, match="sonar_reach"):
+            RolloutConfig(sonar_reach=bad)
 
 
 from hypothesis import given, settings  # noqa: E402

@@ -172,6 +172,34 @@ def test_sonar_noise_is_seeded_and_clipped_to_the_range(corridor):
         sense(world, mc, mi, place, noise=noise)
 
 
+def test_a_sonar_reach_reads_walls_within_it_exactly():
+    """With ``reach``, a wall within it reads bit for bit as without; one beyond reads either
+    its distance or the 5 m miss. Random poses in a crossroad (float64 here)."""
+    from mbn.world.mazes.builtin import crossroad
+
+    maze = crossroad("LSR")
+    rng = np.random.default_rng(0)
+    n = 400
+    x0, x1, y0, y1 = maze.bounds
+    pose = np.stack(
+        [rng.uniform(x0, x1, n), rng.uniform(y0, y1, n), rng.uniform(-math.pi, math.pi, n)], -1
+    )
+    world, mc, mi = in_maze(maze, n)
+    free = ~np.asarray(overlaps(world, mc, locate(world, mc, jnp.asarray(pose))))
+    pose = jnp.asarray(pose[free])
+    world, mc, mi = in_maze(maze, len(pose))
+    place = locate(world, mc, pose)
+    full = np.asarray(sense(world, mc, mi, place, ALL_SONARS).ranges)
+    for reach in (0.5, 2.0):
+        short = np.asarray(sense(world, mc, mi, place, ALL_SONARS, reach=reach).ranges)
+        within = full <= reach
+        assert within.any() and (~within).any()
+        np.testing.assert_array_equal(short[within], full[within])
+        beyond = short[~within]
+        assert np.all((beyond == full[~within]) | (beyond == SONAR_MAX_RANGE))
+    assert np.any(short[~within] == SONAR_MAX_RANGE) and np.any(full[~within] < SONAR_MAX_RANGE)
+
+
 # ---------------------------------------------------------------------------------------------
 # the Gymnasium environment and the rollout: one step, the same poses
 

@@ -40,7 +40,7 @@ from mbn.world.engine import World, compile_mazes
 from mbn.world.mazes.builtin import CROSSROAD_KINDS, check_approaches, crossroad
 from mbn.world.mazes.model import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED
-from mbn.world.rollout import EpisodeStats, RolloutConfig, junction_arrays
+from mbn.world.rollout import EpisodeStats, RolloutConfig, input_reach, junction_arrays
 from mbn.world.rules import parse_rule
 from mbn.world.sensors import NoiseConfig, SensorConfig
 
@@ -144,6 +144,9 @@ class CrossroadTask:
         return max(1, round(self.seconds / self.dt))
 
     def rollout_config(self, **kw: Any) -> RolloutConfig:
+        """The task's rollout settings; the sonars are cast only as far as its inputs and its
+        fitness read them (:func:`mbn.world.rollout.input_reach`) unless ``kw`` says."""
+        kw.setdefault("sonar_reach", input_reach(self.sensors, self.noise))
         return RolloutConfig(
             steps=self.steps, dt=self.dt, sensors=self.sensors, noise=self.noise, **kw
         )

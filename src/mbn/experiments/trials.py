@@ -36,6 +36,7 @@ from mbn.world.rollout import (
     RolloutConfig,
     RolloutResult,
     concatenate_states,
+    input_reach,
     junction_arrays,
     rollout,
 )
@@ -418,6 +419,11 @@ def run_trial_groups(
         record_controller=record_controller,
         max_junctions=max(8, *(g.spec.junctions for g in groups)),
         noise=noise or NoiseConfig(),
+        # the sonars only as far as the inputs read them; a recorded trajectory keeps the
+        # ranges themselves (the pictures draw them)
+        sonar_reach=(
+            None if record_every else input_reach(sensors or SensorConfig(), noise or NoiseConfig())
+        ),
     )
     if config.noise.enabled and key is None:
         raise MbnInputError("the trials' noise is on: pass a PRNG key (a seed)")

@@ -590,14 +590,22 @@ def cast(
     oy: Array,
     angle: Array,
     max_range: float | Array = SONAR_MAX_RANGE,
+    *,
+    reach: float | None = None,
 ) -> Array:
     """Exact distance along rays to the first solid cell, capped at ``max_range``.
 
     ``words``, ``ci``, ``cj`` from :func:`window_words` for the robot (shape ``(B, ...)``);
     ray origins ``ox, oy`` and headings ``angle`` of shape ``(B, k)``, each origin within
-    ``_RING_RADIUS`` of the robot's pose and in free space.
+    ``_RING_RADIUS`` of the robot's pose and in free space. ``reach`` (static, metres) marches
+    only the lattice steps a ray of that length needs (:func:`march_steps`): a wall within
+    ``reach`` reads exactly as without it, one beyond reads either its distance or
+    ``max_range`` (the miss).
     """
-    return cast_along(world, mc, words, ci, cj, ox, oy, jnp.cos(angle), jnp.sin(angle), max_range)
+    steps = None if reach is None else march_steps(world, reach)
+    return cast_along(
+        world, mc, words, ci, cj, ox, oy, jnp.cos(angle), jnp.sin(angle), max_range, steps=steps
+    )
 
 
 def march_steps(world: World, max_range: float) -> int:

@@ -68,6 +68,7 @@ __all__ = [
     "Trajectory",
     "concatenate_states",
     "episode_batch",
+    "input_reach",
     "junction_arrays",
     "map_controller",
     "rollout",
@@ -182,6 +183,10 @@ class RolloutConfig:
     ``steps`` robot steps of ``dt`` seconds; ``camera`` None switches the camera off (it then
     reads 0); ``record_every`` > 0 records a trajectory sample every that many steps (the first
     sample is the start); ``max_junctions`` junction passes are kept per episode (all are counted).
+    ``sonar_reach`` (metres) casts the sonars only that far: a wall within it reads exactly as
+    without it, one beyond reads either its distance or the 5 m miss (None: the whole 5 m). Set
+    it where nothing reads a range beyond it (:func:`input_reach`): the rays are most of a
+    follower's robot-step (``docs/speed.md``).
     """
 
     steps: int = 200
@@ -192,8 +197,13 @@ class RolloutConfig:
     record_every: int = 0
     record_controller: bool = False
     max_junctions: int = 8
+    sonar_reach: float | None = None
 
     def __post_init__(self) -> None:
+        if self.sonar_reach is not None and not (0.0 < self.sonar_reach <= SONAR_MAX_RANGE):
+            raise MbnInputError(
+                f"sonar_reach must be in (0, {SONAR_MAX_RANGE}] m or None, got {self.sonar_reach!r}"
+            )
         if not (isinstance(self.steps, int) and self.steps >= 1):
             raise MbnInputError(f"steps must be an integer >= 1, got {self.steps!r}")
         if not (self.dt > 0 and math.isfinite(self.dt)):
@@ -202,6 +212,18 @@ class RolloutConfig:
             raise MbnInputError(f"record_every must be >= 0, got {self.record_every!r}")
         if self.max_junctions < 1:
             raise MbnInputError(f"max_junctions must be >= 1, got {self.max_junctions!r}")
+
+
+def input_reach(sensors: SensorConfig, noise: NoiseConfig) -> float | None:
+    """The :attr:`RolloutConfig.sonar_reach` that changes nothing a controller reading the
+    normalised sonars (``Observation.S``, ``inputs``) sees, nor a statistic clipped at the
+    sensors' ``far`` (``EpisodeStats.min_range / far``, ``S_mean``): ``far`` when S saturates
+    there (proximity or distance) and the ranges get no Gaussian noise (a far wall's noisy range
+    could then fall inside ``far``); None otherwise. Ranges beyond ``far`` (``Observation.ranges``,
+    ``EpisodeStats.range_mean``, a trajectory's ``ranges``) may then read the 5 m miss."""
+    if sensors.normalization == "metres" or noise.sonar_std > 0:
+        return None
+    return float(sensors.far)
 
 
 class Trajectory(NamedTuple):
@@ -318,6 +340,7 @@ def sense_at(scene: Scene, place: Place, step: Array) -> Sensed:
         cfg.camera,
         cfg.noise,
         step_key(scene, step),
+        cfg.sonar_reach,
     )
     return Sensed(place, reading)
 

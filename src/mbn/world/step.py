@@ -135,6 +135,7 @@ def sense(
     camera: CameraConfig | None = None,
     noise: NoiseConfig = NO_NOISE,
     key: Array | None = None,
+    reach: float | None = None,
 ) -> Reading:
     """What robots at ``place`` sense.
 
@@ -151,6 +152,9 @@ def sense(
             one more, at most 3).
         key: this step's PRNG key (required when one of them is on); folded with 0 (ranges),
             2 (dropouts) and 3 (camera).
+        reach: cast the sonars only this far (metres; :func:`mbn.world.engine.cast`): a wall
+            within it reads exactly, one beyond reads its distance or the 5 m miss. None: the
+            sonars' whole range.
 
     Returns:
         The :class:`Reading`: ranges ``(B, k)`` in the precision of the pose, the rest int32.
@@ -158,7 +162,15 @@ def sense(
     pose = place.pose
     origins, angles = sonar_rays(pose, SONAR_POSES[list(sonars)])
     ranges = cast(
-        world, mc, place.words, place.ci, place.cj, origins[..., 0], origins[..., 1], angles
+        world,
+        mc,
+        place.words,
+        place.ci,
+        place.cj,
+        origins[..., 0],
+        origins[..., 1],
+        angles,
+        reach=reach,
     )
     sensing = (noise.sonar_std, noise.sonar_dropout, noise.camera_miss, noise.camera_false)
     if any(level > 0 for level in sensing) and key is None:
