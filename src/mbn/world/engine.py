@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import partial
+from functools import partial, reduce
 from typing import Any, NamedTuple
 
 import jax
@@ -766,40 +766,43 @@ def collides_cells(
     octagon against each solid cell under the body's bounding square (``n_body`` cells a side):
     the two lattice axes and the octagon's edge normals. On the segment path: against the wall
     rectangles listed for the pose's culling cell.
+
+    Written cell by cell and corner by corner on ``(B,)`` arrays, the batch along the fast axis:
+    XLA fuses it into one loop over the robots, about 6 x faster on a CPU than the same arithmetic
+    on ``(B, cells)`` and ``(B, 8)`` arrays, and the same booleans (``docs/speed.md``).
     """
     if world.mode == "segments":
         return _collides_rects(world, words, pose)
     n = world.n_body
-    d = jnp.arange(n)
-    di = jnp.repeat(d, n)
-    dj = jnp.tile(d, n)  # (C,)
-    cell = mc.cell[..., None]
-    ox, oy = mc.origin[..., 0:1], mc.origin[..., 1:2]
+    x, y, th = pose[..., 0], pose[..., 1], pose[..., 2]
+    cell, half, side = mc.cell, mc.half, mc.side
+    ox, oy = mc.origin[..., 0], mc.origin[..., 1]
     # first cell under the body's bounding square, relative to the pose's cell
-    i0 = jnp.floor((pose[..., 0:1] - _BODY_RADIUS - ox) / cell).astype(jnp.int32) - ci[..., None]
-    j0 = jnp.floor((pose[..., 1:2] - _BODY_RADIUS - oy) / cell).astype(jnp.int32) - cj[..., None]
-    li, lj = i0 + di, j0 + dj  # (B, C) relative to the pose's cell
-    x0 = ox + (ci[..., None] + li) * cell  # lower-left corners
-    y0 = oy + (cj[..., None] + lj) * cell
-    half = mc.half[..., None]
-    solid = _bit(words, world.n_words, (half + li) * mc.side[..., None] + half + lj)
-    th = pose[..., 2:3]
+    i0 = jnp.floor((x - _BODY_RADIUS - ox) / cell).astype(jnp.int32) - ci
+    j0 = jnp.floor((y - _BODY_RADIUS - oy) / cell).astype(jnp.int32) - cj
     c, s = jnp.cos(th), jnp.sin(th)
-    bx = jnp.asarray(BODY[:, 0], pose.dtype)
-    by = jnp.asarray(BODY[:, 1], pose.dtype)
-    wx = pose[..., 0:1] + c * bx - s * by  # (B, 8)
-    wy = pose[..., 1:2] + s * bx + c * by
-    sep = (jnp.max(wx, -1, keepdims=True) <= x0) | (jnp.min(wx, -1, keepdims=True) >= x0 + cell)
-    sep = sep | (jnp.max(wy, -1, keepdims=True) <= y0)
-    sep = sep | (jnp.min(wy, -1, keepdims=True) >= y0 + cell)
-    cx, cy = x0 + cell / 2 - pose[..., 0:1], y0 + cell / 2 - pose[..., 1:2]
-    for a in range(len(_AXES)):
-        ax, ay = float(_AXES[a, 0]), float(_AXES[a, 1])
-        nx, ny = c * ax - s * ay, s * ax + c * ay  # (B, 1) world-frame normal
-        centre = cx * nx + cy * ny
-        extent = cell / 2 * (jnp.abs(nx) + jnp.abs(ny))
-        sep = sep | (centre - extent >= _AXES_MAX[a]) | (centre + extent <= _AXES_MIN[a])
-    return jnp.any(solid & ~sep, axis=-1)
+    corners_x = [x + c * float(bx) - s * float(by) for bx, by in BODY]
+    corners_y = [y + s * float(bx) + c * float(by) for bx, by in BODY]
+    x_max, x_min = reduce(jnp.maximum, corners_x), reduce(jnp.minimum, corners_x)
+    y_max, y_min = reduce(jnp.maximum, corners_y), reduce(jnp.minimum, corners_y)
+    normals = []  # the octagon's edge normals in the world frame, and a cell's half extent on them
+    for ax, ay in _AXES:
+        nx, ny = c * float(ax) - s * float(ay), s * float(ax) + c * float(ay)
+        normals.append((nx, ny, cell / 2 * (jnp.abs(nx) + jnp.abs(ny))))
+    hit = jnp.zeros(x.shape, bool)
+    for di in range(n):
+        for dj in range(n):
+            li, lj = i0 + di, j0 + dj  # relative to the pose's cell
+            x0 = ox + (ci + li) * cell  # the cell's lower-left corner
+            y0 = oy + (cj + lj) * cell
+            solid = _bit(words, world.n_words, ((half + li) * side + half + lj)[..., None])[..., 0]
+            sep = (x_max <= x0) | (x_min >= x0 + cell) | (y_max <= y0) | (y_min >= y0 + cell)
+            cx, cy = x0 + cell / 2 - x, y0 + cell / 2 - y
+            for a, (nx, ny, extent) in enumerate(normals):
+                centre = cx * nx + cy * ny
+                sep = sep | (centre - extent >= _AXES_MAX[a]) | (centre + extent <= _AXES_MIN[a])
+            hit = hit | (solid & ~sep)
+    return hit
 
 
 class CameraReading(NamedTuple):
