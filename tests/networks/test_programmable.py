@@ -23,6 +23,7 @@ from mbn.networks.programmable import (
     run_network,
 )
 from mbn.paper import W_RF, published_lf, published_rf
+from mbn.precision import scope
 
 
 @pytest.fixture(scope="module")
@@ -68,13 +69,27 @@ def test_interpreter_wiring_follows_equation_2(mul):
 
 def test_codec_round_trip_and_bounds(mul):
     rf = published_rf()
-    interp = build_interpreter(rf, differing_connections(rf, published_lf()), mul)
+    progs = differing_connections(rf, published_lf())
+    interp = build_interpreter(rf, progs, mul)
     p_rf, p_lf = interp.program_of(rf), interp.program_of(published_lf())
     np.testing.assert_allclose(interp.decode(p_rf), [66.3, 0.0, -19.0], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(interp.decode(p_lf), [-4.0, 18.0, 0.0], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(interp.encode(interp.lower), 0.0)
     np.testing.assert_allclose(interp.encode(interp.upper), 1.0)
     assert np.all((np.asarray(p_rf) > 0) & (np.asarray(p_rf) < 1))
+    # a weight on its bound codes to 0 or 1 exactly, and every weight within them into [0, 1],
+    # in the experiment's float32 too: a program is checked against [0, 1] exactly (controller
+    # files), and on a GPU the division once rounded a weight on its upper bound to 1 + 1 ulp
+    lo, hi = (np.asarray(b, np.float32) for b in (interp.lower, interp.upper))
+    weights = np.concatenate([lo[None], hi[None], lo + (hi - lo) * np.linspace(0, 1, 101)[:, None]])
+    weights = np.clip(weights, lo, hi)
+    with scope("float32"):
+        rf32 = published_rf(dtype=jnp.float32)
+        interp32 = build_interpreter(rf32, progs, mul)
+        codes = np.asarray(interp32.encode(weights))
+    assert codes.dtype == np.float32
+    assert np.all((codes >= 0) & (codes <= 1))
+    np.testing.assert_array_equal(codes[:2], [[0, 0, 0], [1, 1, 1]])
     with pytest.raises(MbnInputError, match=r"W\[1,2\] = 100 is outside its bounds"):
         interp.encode([100.0, 0.0, 0.0])
     with pytest.raises(MbnInputError, match=r"program: values must be in \[0, 1\]"):

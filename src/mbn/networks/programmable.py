@@ -243,7 +243,7 @@ class Interpreter:
         return slice(start, start + self.mul_size)
 
     def encode(self, weights: ArrayLike) -> Array:
-        """Program ``p = (w - min) / (max - min)`` (eq. 2) for weights ``(..., K)``.
+        """Program ``p = (w - min) / (max - min)`` (eq. 2) for weights ``(..., K)``, in [0, 1].
 
         Raises:
             MbnInputError: a weight outside its bounds (its code would leave [0, 1]).
@@ -262,7 +262,10 @@ class Interpreter:
                 f"weights: {self.connections[c]} = {w_np[..., c].ravel()[0]:g} is outside its "
                 f"bounds [{lo[c]:g}, {hi[c]:g}]"
             )
-        return (w - self.lower) / (self.upper - self.lower)
+        # within its bounds a weight's code is in [0, 1]; the division may round past an end
+        # by an ulp where XLA computes it as a product by the reciprocal (on a GPU), and a
+        # program is checked against [0, 1] exactly (``check_program``, controller files)
+        return jnp.clip((w - self.lower) / (self.upper - self.lower), 0.0, 1.0)
 
     def decode(self, program: ArrayLike) -> Array:
         """Weights ``min + p * (max - min)`` for a program ``(..., K)`` in [0, 1]."""
