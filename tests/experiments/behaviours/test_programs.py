@@ -141,3 +141,51 @@ def test_the_quick_experiment_runs_end_to_end_and_resumes(tmp_path):
     lines = [x for x in bad.stderr.strip().splitlines() if "WARNING" not in x]
     assert len(lines) == 1 and "weights were changed" in lines[0], bad.stderr
     assert not (out / "stages" / "tests3.json").exists()
+
+
+def test_approaches_are_checked_and_reach_the_programs_crossroads(monkeypatch):
+    """``[programs] approaches`` (default the paper's crossroads, entered from the south) is
+    checked, and the program search's episodes are the crossroads entered those ways."""
+    import jax
+
+    from mbn.experiments.behaviours.stages import programs as stage
+    from mbn.experiments.reproduce.settings import FollowerSettings
+    from mbn.networks.multiplier import load_default
+    from mbn.networks.programmable import all_connections, build_interpreter
+    from mbn.paper import published_rf
+
+    assert ProgramsSettings().approaches == ("south",)
+    assert ProgramsSettings(approaches=("south", "west")).approaches == ("south", "west")
+    with pytest.raises(MbnInputError, match=r"programs\.approaches"):
+        ProgramsSettings(approaches=("west", "west"))
+    with pytest.raises(MbnInputError, match="north"):
+        ProgramsSettings(approaches=("north",))
+
+    seen = []
+
+    class Recorded(stage.CrossroadTask):
+        def arrays(self):
+            seen.append(self.approaches)
+            return super().arrays()
+
+    monkeypatch.setattr(stage, "CrossroadTask", Recorded)
+    followers = FollowerSettings(episode_seconds=0.5, perturbation_copies=0)
+    ctx = type(
+        "Ctx",
+        (),
+        {
+            "section": staticmethod(lambda name: followers),
+            "seeds": {"crossroad_jitter": 0},
+            "key": jax.random.key(0),
+        },
+    )()
+    rf = published_rf(dtype=np.float32)
+    interp = build_interpreter(rf, all_connections(rf, bound=20.0)[:2], load_default())
+    values = {}
+    for approaches in (("south",), ("south", "west")):
+        fitness = stage.program_fitness(ctx, interp, rf, "straight-right", 1, approaches)
+        values[approaches] = np.asarray(fitness(np.full((2, 2), 0.5, np.float32)))
+        assert seen[-1] == approaches
+    # one start per crossroad: 7 episodes from the south, 14 with the west, each at most 1.1
+    assert values[("south",)].shape == (2,) and np.all(values[("south",)] <= 7 * 1.1)
+    assert not np.array_equal(values[("south",)], values[("south", "west")])
