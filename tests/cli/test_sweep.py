@@ -188,13 +188,6 @@ def _tiny_sweep(tmp_path, seeds: list[int]) -> None:
     assert {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in seeds} == results
 
 
-def test_tiny_sweep_of_one_seed_on_local_ray_then_rerun_skips_it(tmp_path):
-    """CI: one quick seed on a local Ray, end to end, then the same command (the two-seed
-    sweep below is the slow version: seeds side by side on Ray)."""
-    _tiny_sweep(tmp_path, [0])
-
-
-@pytest.mark.slow
 def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
-    """2 quick seeds at once on a local Ray, then the same command."""
+    """CI: 2 quick seeds side by side on a local Ray, end to end, then the same command."""
     _tiny_sweep(tmp_path, [0, 1])

@@ -55,6 +55,40 @@ def test_every_ablation_has_its_row(ablations):
             assert all(0.0 <= v <= 1.0 for v in row["agreement"].values())
 
 
+def test_the_ablations_are_tests_a_sweep_tabulates(ablations):
+    """``results.json`` records every ablation's trials as tests (``mbn sweep --experiment
+    ablations`` compares them over seeds): the MBN's, and the interpreter's where it changes;
+    the sweep's report tabulates each of them."""
+    from mbn.experiments.ablations import ablation_tests
+    from mbn.experiments.sweep.specs import ABLATIONS_SPEC
+    from mbn.experiments.sweep.summary import summarize
+
+    _, data = ablations
+    tests = ablation_tests(data["variants"])
+    expected = {f"{v}_mbn_{x}" for v in CI_VARIANTS for x in ("jitter", "heldout")}
+    expected |= {
+        f"{v}_im_{net}_jitter"
+        for v in CI_VARIANTS
+        if v not in ("wrong_program", "frozen_program")
+        for net in ("rf", "lf")
+    }
+    assert set(tests) == expected
+    assert set(tests) <= set(ABLATIONS_SPEC.tests)
+    assert [t for t in ABLATIONS_SPEC.tests if t.endswith("_mbn_jitter")] == [
+        f"{v}_mbn_jitter" for v in VARIANTS
+    ]
+    row = data["variants"]["as_run"]["mbn_jitter"]
+    assert tests["as_run_mbn_jitter"] == {
+        "trials": row["trials"],
+        "successes": row["successes"],
+        "success_rate": row["rate"],
+    }
+    s = summarize({0: {"tests": tests}, 1: {"tests": tests}}, spec=ABLATIONS_SPEC)
+    pooled = s["tests"]["as_run_mbn_jitter"]["pooled"]
+    assert pooled["trials"] == 2 * row["trials"] and pooled["successes"] == 2 * row["successes"]
+    assert s["tests"]["tau_50_mbn_jitter"]["rates"] == []  # not run here: no rate, no crash
+
+
 def test_the_unchanged_mbn_is_the_reproductions_tests(ablations):
     rundir, data = ablations
     stage = rundir.read_stage("tests")

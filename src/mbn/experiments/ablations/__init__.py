@@ -20,7 +20,7 @@ from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
 from mbn.experiments.reproduce.settings import derived_seeds
 from mbn.experiments.reproduce.stages.tests import TestsSettings
 
-__all__ = ["ABLATIONS", "RUN_KIND", "STAGES"]
+__all__ = ["ABLATIONS", "RUN_KIND", "STAGES", "ablation_tests"]
 
 RUN_KIND = "mbn.ablations"
 
@@ -33,10 +33,29 @@ QUICK: dict[str, dict[str, Any]] = {
 }
 
 
+def ablation_tests(variants: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The ablations' trials as tests, the way ``results.json`` records them for a sweep: per
+    variant ``V``, the MBN's ``V_mbn_jitter`` and ``V_mbn_heldout`` and, where the interpreter
+    changes, its ``V_im_rf_jitter`` and ``V_im_lf_jitter`` (``trials``, ``successes``,
+    ``success_rate``)."""
+    tests: dict[str, dict[str, Any]] = {}
+    for variant, row in variants.items():
+        for part in ("mbn_jitter", "mbn_heldout", "im_rf_jitter", "im_lf_jitter"):
+            if part in row:
+                r = row[part]
+                tests[f"{variant}_{part}"] = {
+                    "trials": int(r["trials"]),
+                    "successes": int(r["successes"]),
+                    "success_rate": float(r["rate"]),
+                }
+    return tests
+
+
 def _results(
     rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
 ) -> dict[str, Any]:
-    return {"variants": stages["ablations"]["variants"], "claims": claims(stages)}
+    variants = stages["ablations"]["variants"]
+    return {"variants": variants, "tests": ablation_tests(variants), "claims": claims(stages)}
 
 
 #: The experiment ``mbn run ablations`` runs.

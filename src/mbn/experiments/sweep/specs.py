@@ -6,7 +6,8 @@ tests its report tabulates and plots, and where its stages record their DE curve
 the fully programmable interpreter, the new rules by programs alone and the three-behaviour MBN;
 targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section) or
 ``programs-vs-dynamics`` (``docs/contest.md``: no per-run target; its comparison over runs is
-the spec's ``analysis``).
+the spec's ``analysis``) or ``ablations`` (``docs/ablations.md``: no per-run target; each
+ablation's success over the runs).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
     from mbn.experiments.pipeline.runner import Experiment
 
 __all__ = [
+    "ABLATIONS_SPEC",
     "DEFAULT_EXPERIMENT",
     "NEW_BEHAVIOURS_TARGETS",
     "SWEEP_EXPERIMENTS",
@@ -261,9 +263,61 @@ CONTEST_SPEC = SweepSpec(
     analysis=_contest_analysis,
 )
 
+
+def _load_ablations() -> Experiment:
+    from mbn.experiments.ablations import ABLATIONS
+
+    return ABLATIONS
+
+
+#: The ablations of ``mbn run ablations`` (``AblationsSettings.variants``' default, in order;
+#: named here so that a sweep's report imports no experiment).
+_ABLATIONS = (
+    "as_run",
+    "wrong_program",
+    "frozen_program",
+    "exact_products",
+    "tau_5",
+    "tau_10",
+    "tau_20",
+    "tau_50",
+    "mul3",
+)
+#: The ablations that change the interpreter (its trials with RF's and LF's programs too).
+_ABLATIONS_IM = ("as_run", "exact_products", "tau_5", "tau_10", "tau_20", "tau_50", "mul3")
+
+ABLATIONS_SPEC = SweepSpec(
+    name="ablations",
+    title="mbn sweep: ablations of the program path, over seeds",
+    command="mbn run ablations",
+    targets=(),
+    tests=(
+        *(f"{v}_mbn{x}" for v in _ABLATIONS for x in ("_jitter", "_heldout")),
+        *(f"{v}_im_{net}_jitter" for v in _ABLATIONS_IM for net in ("rf", "lf")),
+    ),
+    groups=(
+        ("MBN, jittered starts", tuple(f"{v}_mbn_jitter" for v in _ABLATIONS)),
+        ("MBN, held-out maze", tuple(f"{v}_mbn_heldout" for v in _ABLATIONS)),
+        ("IM with RF's program, jittered", tuple(f"{v}_im_rf_jitter" for v in _ABLATIONS_IM)),
+        ("IM with LF's program, jittered", tuple(f"{v}_im_lf_jitter" for v in _ABLATIONS_IM)),
+    ),
+    targets_text="No ablation has a per-run target: each is measured over the runs "
+    "(`docs/ablations.md`). `V_mbn_*` is the MBN with ablation V on the test maze's jittered "
+    "starts and on the held-out maze; `V_im_rf_jitter` and `V_im_lf_jitter` the interpreter "
+    "of ablation V with RF's and LF's program, where V changes it.",
+    de_stages={
+        "rf": "RF (12 genes)",
+        "lf_search": "LF search (the chosen triple)",
+        "lf": "LF (3 genes)",
+        "pm": "PM (program module)",
+    },
+    curve=_reproduce_curve,
+    load=_load_ablations,
+)
+
 #: The experiments a sweep can run, by name.
 SWEEP_EXPERIMENTS: dict[str, SweepSpec] = {
-    s.name: s for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC, CONTEST_SPEC)
+    s.name: s for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC, CONTEST_SPEC, ABLATIONS_SPEC)
 }
 
 
