@@ -15,7 +15,7 @@ __all__ = ["EPILOG", "EXPERIMENT_NAMES", "add_commands", "seed_list"]
 
 #: What ``--experiment`` takes (``mbn.experiments.sweep.specs.SWEEP_EXPERIMENTS``; named here so
 #: that ``mbn --help`` imports no experiment).
-EXPERIMENT_NAMES = ("ablations", "new-behaviours", "programs-vs-dynamics", "reproduce")
+EXPERIMENT_NAMES = ("ablations", "new-behaviours", "noise", "programs-vs-dynamics", "reproduce")
 
 EPILOG = """\
   mbn sweep --seeds 0-9 --out runs/sweep        10 seeds on a local Ray, one per core
@@ -83,7 +83,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         choices=EXPERIMENT_NAMES,
         default=None,
         help="the experiment each seed runs: reproduce (default, `mbn reproduce`), "
-        "new-behaviours, programs-vs-dynamics or ablations (`mbn run NAME`; "
+        "new-behaviours, programs-vs-dynamics, ablations or noise (`mbn run NAME`; "
         "programs-vs-dynamics compared over the seeds: docs/contest.md)",
     )
     sw.add_argument(

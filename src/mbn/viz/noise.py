@@ -8,7 +8,7 @@ from typing import Any
 
 from mbn.viz.style import new_figure, save_png
 
-__all__ = ["success_vs_noise"]
+__all__ = ["success_vs_noise", "success_vs_noise_over_runs"]
 
 #: How the figures name the controllers.
 LABELS = {
@@ -55,4 +55,42 @@ def success_vs_noise(
     axes[0].set_ylabel("trials passed (%)")
     axes[1].legend(loc="lower left", fontsize=8)
     fig.suptitle(f"Success under noise: {channel} (95 % Wilson intervals)")
+    save_png(fig, path)
+
+
+def success_vs_noise_over_runs(
+    channel: str,
+    curves: Mapping[str, Sequence[Mapping[str, Any]]],
+    runs: int,
+    path: Path,
+    unit: str = "",
+) -> None:
+    """The same figure over runs: ``curves[controller]`` holds the points of one channel, each
+    ``{"level", "jitter", "heldout"}`` with the runs' ``median``, ``q1`` and ``q3`` (rates). One
+    line per controller through the medians, its interquartile range as a band; 50 % and 95 %
+    marked, the levels evenly spaced and labelled."""
+    fig = new_figure((10, 4))
+    axes = fig.subplots(1, 2, sharey=True)
+    panels = (("jitter", "jittered test"), ("heldout", "held-out maze"))
+    for ax, (test, what) in zip(axes, panels, strict=True):
+        ticks: list[float] = []
+        for k, (name, points) in enumerate(curves.items()):
+            levels = [float(p["level"]) for p in points]
+            x = list(range(len(levels)))
+            med = [100 * p[test]["median"] for p in points]
+            q1 = [100 * p[test]["q1"] for p in points]
+            q3 = [100 * p[test]["q3"] for p in points]
+            ax.fill_between(x, q1, q3, color=f"C{k}", alpha=0.15, lw=0)
+            ax.plot(x, med, marker="o", ms=4, lw=1.2, color=f"C{k}", label=LABELS.get(name, name))
+            if len(levels) > len(ticks):
+                ticks = levels
+        ax.set_xticks(range(len(ticks)), [f"{v:g}" for v in ticks])
+        for y, style in ((95, ":"), (50, "--")):
+            ax.axhline(y, color="0.5", lw=0.8, ls=style)
+        ax.set_xlabel(f"{channel}" + (f" ({unit})" if unit else ""))
+        ax.set_title(f"{what}")
+        ax.set_ylim(-3, 103)
+    axes[0].set_ylabel("trials passed (%), median over runs")
+    axes[1].legend(loc="lower left", fontsize=8)
+    fig.suptitle(f"Success under noise over {runs} runs: {channel} (bands: interquartile range)")
     save_png(fig, path)

@@ -88,3 +88,49 @@ def test_levels_must_start_at_zero_and_increase():
         NoiseLevelsSettings(wheel_std=(0.0, 0.2, 0.1))
     with pytest.raises(MbnInputError, match=r"noise\.sonar_dropout"):
         NoiseLevelsSettings(sonar_dropout=(0.0, 2.0))
+
+
+def test_the_levels_over_runs(levels, tmp_path):
+    """``mbn sweep --experiment noise``: each run's trials become tests (``noise_tests``), the
+    sweep's spec names the ones it tabulates, and over runs each channel's points carry the
+    runs' median, quartiles and pooled trials; a controller that does not read a channel has no
+    curve; the report has a section and a figure per channel."""
+    from mbn.experiments.noise.over_runs import CONTROLLER_NAMES, noise_over_runs, noise_tests
+    from mbn.experiments.sweep.specs import NOISE_SPEC
+    from mbn.experiments.sweep.summary import summarize
+
+    _, data = levels
+    assert tuple(CONTROLLERS) == CONTROLLER_NAMES
+    tests = noise_tests(data)
+    assert set(NOISE_SPEC.tests) <= set(tests)
+    assert "rf_camera_miss_1_jitter" not in tests and "mbn_camera_miss_1_jitter" in tests
+    drop = data["curves"]["mbn"]["sonar_dropout"][1]["jitter"]
+    assert tests["mbn_sonar_dropout_1_jitter"] == {
+        "trials": drop["trials"],
+        "successes": drop["successes"],
+        "success_rate": drop["rate"],
+    }
+    # a second run whose MBN passed nothing without noise
+    worse = {k: dict(v) for k, v in tests.items()}
+    worse["mbn_none_jitter"] = {**worse["mbn_none_jitter"], "successes": 0, "success_rate": 0.0}
+    results = {
+        s: {"tests": t, "levels": data["levels"], "channels": data["channels"]}
+        for s, t in ((0, tests), (1, worse))
+    }
+    stats, sections, images = noise_over_runs(tmp_path, results)
+    assert stats["runs"] == 2
+    assert set(stats["channels"]) == {"sonar_dropout", "camera_miss", "program_std"}
+    assert set(stats["channels"]["camera_miss"]) == {"mbn"}
+    none = stats["channels"]["sonar_dropout"]["mbn"][0]
+    assert none["level"] == 0.0
+    rate = tests["mbn_none_jitter"]["success_rate"]
+    assert none["jitter"]["rates"] == [rate, 0.0]
+    assert none["jitter"]["median"] == pytest.approx(rate / 2)
+    n = tests["mbn_none_jitter"]["trials"]
+    assert none["jitter"]["pooled"]["trials"] == 2 * n
+    assert none["jitter"]["pooled"]["successes"] == tests["mbn_none_jitter"]["successes"]
+    assert [s.title for s in sections] == [f"Noise over runs: {c}" for c in stats["channels"]]
+    for file, _ in images:
+        assert (tmp_path / file).is_file()
+    s = summarize(results, spec=NOISE_SPEC)
+    assert s["tests"]["mbn_realistic_jitter"]["pooled"]["trials"] == 2 * n

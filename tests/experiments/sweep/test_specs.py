@@ -23,6 +23,7 @@ def test_the_command_line_offers_every_experiment_a_sweep_runs():
     assert tuple(sorted(SWEEP_EXPERIMENTS)) == EXPERIMENT_NAMES
     assert sweep_spec(None) is REPRODUCE_SPEC and REPRODUCE_SPEC.targets == TARGETS
     assert sweep_spec("ablations").load().name == "ablations"
+    assert sweep_spec("noise").load().name == "noise"
     with pytest.raises(MbnInputError, match="--experiment nope: not an experiment a sweep runs"):
         sweep_spec("nope")
 

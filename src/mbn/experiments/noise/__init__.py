@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mbn.experiments.noise.over_runs import noise_tests
 from mbn.experiments.noise.report import claims, write_report
 from mbn.experiments.noise.stages.levels import NoiseLevelsStage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
@@ -44,7 +45,13 @@ def _results(
     rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
 ) -> dict[str, Any]:
     data = stages["noise_levels"]
-    return {"realistic": data["realistic"], "claims": claims(stages)}
+    return {
+        "realistic": data["realistic"],
+        "channels": data["channels"],
+        "levels": data["levels"],
+        "tests": noise_tests(data),
+        "claims": claims(stages),
+    }
 
 
 #: The experiment ``mbn run noise`` runs.

@@ -7,7 +7,8 @@ the fully programmable interpreter, the new rules by programs alone and the thre
 targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section) or
 ``programs-vs-dynamics`` (``docs/contest.md``: no per-run target; its comparison over runs is
 the spec's ``analysis``) or ``ablations`` (``docs/ablations.md``: no per-run target; each
-ablation's success over the runs).
+ablation's success over the runs) or ``noise`` (``docs/noise.md``: no per-run target; each
+channel level by level over the runs, the spec's ``analysis``).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ __all__ = [
     "ABLATIONS_SPEC",
     "DEFAULT_EXPERIMENT",
     "NEW_BEHAVIOURS_TARGETS",
+    "NOISE_SPEC",
     "SWEEP_EXPERIMENTS",
     "SweepSpec",
     "sweep_spec",
@@ -315,9 +317,58 @@ ABLATIONS_SPEC = SweepSpec(
     load=_load_ablations,
 )
 
+
+def _load_noise() -> Experiment:
+    from mbn.experiments.noise import NOISE
+
+    return NOISE
+
+
+def _noise_analysis(
+    out: Path, runs: Mapping[int, Mapping[str, Any]]
+) -> tuple[dict[str, Any], list[Section], list[tuple[str, str]]]:
+    from mbn.experiments.noise.over_runs import noise_over_runs
+
+    return noise_over_runs(out, runs)
+
+
+#: The controllers of ``mbn run noise`` (``noise.over_runs.CONTROLLER_NAMES``).
+_NOISE_CONTROLLERS = ("rf", "im_rf", "im_lf", "mbn")
+
+NOISE_SPEC = SweepSpec(
+    name="noise",
+    title="mbn sweep: the controllers under noise, over seeds",
+    command="mbn run noise",
+    targets=(),
+    tests=tuple(
+        f"{n}_{p}_{x}"
+        for p in ("none", "realistic")
+        for n in _NOISE_CONTROLLERS
+        for x in ("jitter", "heldout")
+    ),
+    groups=tuple(
+        (title, tuple(f"{n}_{p}_{x}" for n in _NOISE_CONTROLLERS))
+        for p, what in (("none", "No noise"), ("realistic", "Realistic noise"))
+        for x, title in (("jitter", f"{what}, jittered"), ("heldout", f"{what}, held out"))
+    ),
+    targets_text="No run has a per-run target here (`docs/noise.md`): `N_none_*` is controller N "
+    "without noise, `N_realistic_*` under the realistic noise (sonar 2 cm, dropout 1 %, wheels "
+    "5 %, camera misses 5 %); the sections below give each channel level by level over the runs.",
+    de_stages={
+        "rf": "RF (12 genes)",
+        "lf_search": "LF search (the chosen triple)",
+        "lf": "LF (3 genes)",
+        "pm": "PM (program module)",
+    },
+    curve=_reproduce_curve,
+    load=_load_noise,
+    analysis=_noise_analysis,
+)
+
 #: The experiments a sweep can run, by name.
 SWEEP_EXPERIMENTS: dict[str, SweepSpec] = {
-    s.name: s for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC, CONTEST_SPEC, ABLATIONS_SPEC)
+    s.name: s
+    for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC, CONTEST_SPEC, ABLATIONS_SPEC, NOISE_SPEC)
 }
 
 
