@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +19,34 @@ LABELS = {
 }
 
 
+def _panels(
+    channel: str,
+    curves: Mapping[str, Sequence[Mapping[str, Any]]],
+    draw: Callable[[Any, int, str, Sequence[Mapping[str, Any]], str], None],
+    unit: str,
+) -> Any:
+    """Two panels (jittered test, held-out maze) of success against a channel's levels, drawn
+    evenly spaced and labelled (they are chosen roughly geometric), 50 % and 95 % marked;
+    ``draw(ax, k, controller, points, test)`` draws controller ``k``'s line."""
+    fig = new_figure((10, 4))
+    axes = fig.subplots(1, 2, sharey=True)
+    panels = (("jitter", "jittered test"), ("heldout", "held-out maze"))
+    for ax, (test, what) in zip(axes, panels, strict=True):
+        ticks: list[float] = []
+        for k, (name, points) in enumerate(curves.items()):
+            draw(ax, k, name, points, test)
+            if len(points) > len(ticks):
+                ticks = [float(p["level"]) for p in points]
+        ax.set_xticks(range(len(ticks)), [f"{v:g}" for v in ticks])
+        for y, style in ((95, ":"), (50, "--")):
+            ax.axhline(y, color="0.5", lw=0.8, ls=style)
+        ax.set_xlabel(f"{channel}" + (f" ({unit})" if unit else ""))
+        ax.set_title(f"{what}")
+        ax.set_ylim(-3, 103)
+    axes[1].legend(loc="lower left", fontsize=8)
+    return fig, axes
+
+
 def success_vs_noise(
     channel: str,
     curves: Mapping[str, Sequence[Mapping[str, Any]]],
@@ -27,33 +55,19 @@ def success_vs_noise(
 ) -> None:
     """``curves[controller]``: the points of one channel, each ``{"level", "jitter",
     "heldout"}`` with ``rate`` and ``wilson95``. Two panels (jittered test, held-out maze),
-    success against level, the 95 % Wilson interval as error bars, 50 % and 95 % marked. The
-    levels are drawn evenly spaced and labelled (they are chosen roughly geometric)."""
-    fig = new_figure((10, 4))
-    axes = fig.subplots(1, 2, sharey=True)
-    panels = (("jitter", "jittered test"), ("heldout", "held-out maze"))
-    for ax, (test, what) in zip(axes, panels, strict=True):
-        ticks: list[float] = []
-        for k, (name, points) in enumerate(curves.items()):
-            levels = [float(p["level"]) for p in points]
-            x = list(range(len(levels)))
-            rate = [100 * p[test]["rate"] for p in points]
-            # the interval's ends less the rate (>= 0 up to rounding)
-            lo = [max(0.0, 100 * (p[test]["rate"] - p[test]["wilson95"][0])) for p in points]
-            hi = [max(0.0, 100 * (p[test]["wilson95"][1] - p[test]["rate"])) for p in points]
-            shift = [v + 0.06 * (k - 1.5) for v in x]
-            ax.errorbar(shift, rate, yerr=[lo, hi], marker="o", ms=4, capsize=2, lw=1.2,
-                        label=LABELS.get(name, name), color=f"C{k}")  # fmt: skip
-            if len(levels) > len(ticks):
-                ticks = levels
-        ax.set_xticks(range(len(ticks)), [f"{v:g}" for v in ticks])
-        for y, style in ((95, ":"), (50, "--")):
-            ax.axhline(y, color="0.5", lw=0.8, ls=style)
-        ax.set_xlabel(f"{channel}" + (f" ({unit})" if unit else ""))
-        ax.set_title(f"{what}")
-        ax.set_ylim(-3, 103)
+    success against level, the 95 % Wilson interval as error bars, 50 % and 95 % marked."""
+
+    def draw(ax: Any, k: int, name: str, points: Sequence[Mapping[str, Any]], test: str) -> None:
+        x = [v + 0.06 * (k - 1.5) for v in range(len(points))]
+        rate = [100 * p[test]["rate"] for p in points]
+        # the interval's ends less the rate (>= 0 up to rounding)
+        lo = [max(0.0, 100 * (p[test]["rate"] - p[test]["wilson95"][0])) for p in points]
+        hi = [max(0.0, 100 * (p[test]["wilson95"][1] - p[test]["rate"])) for p in points]
+        ax.errorbar(x, rate, yerr=[lo, hi], marker="o", ms=4, capsize=2, lw=1.2,
+                    label=LABELS.get(name, name), color=f"C{k}")  # fmt: skip
+
+    fig, axes = _panels(channel, curves, draw, unit)
     axes[0].set_ylabel("trials passed (%)")
-    axes[1].legend(loc="lower left", fontsize=8)
     fig.suptitle(f"Success under noise: {channel} (95 % Wilson intervals)")
     save_png(fig, path)
 
@@ -67,30 +81,17 @@ def success_vs_noise_over_runs(
 ) -> None:
     """The same figure over runs: ``curves[controller]`` holds the points of one channel, each
     ``{"level", "jitter", "heldout"}`` with the runs' ``median``, ``q1`` and ``q3`` (rates). One
-    line per controller through the medians, its interquartile range as a band; 50 % and 95 %
-    marked, the levels evenly spaced and labelled."""
-    fig = new_figure((10, 4))
-    axes = fig.subplots(1, 2, sharey=True)
-    panels = (("jitter", "jittered test"), ("heldout", "held-out maze"))
-    for ax, (test, what) in zip(axes, panels, strict=True):
-        ticks: list[float] = []
-        for k, (name, points) in enumerate(curves.items()):
-            levels = [float(p["level"]) for p in points]
-            x = list(range(len(levels)))
-            med = [100 * p[test]["median"] for p in points]
-            q1 = [100 * p[test]["q1"] for p in points]
-            q3 = [100 * p[test]["q3"] for p in points]
-            ax.fill_between(x, q1, q3, color=f"C{k}", alpha=0.15, lw=0)
-            ax.plot(x, med, marker="o", ms=4, lw=1.2, color=f"C{k}", label=LABELS.get(name, name))
-            if len(levels) > len(ticks):
-                ticks = levels
-        ax.set_xticks(range(len(ticks)), [f"{v:g}" for v in ticks])
-        for y, style in ((95, ":"), (50, "--")):
-            ax.axhline(y, color="0.5", lw=0.8, ls=style)
-        ax.set_xlabel(f"{channel}" + (f" ({unit})" if unit else ""))
-        ax.set_title(f"{what}")
-        ax.set_ylim(-3, 103)
+    line per controller through the medians, its interquartile range as a band."""
+
+    def draw(ax: Any, k: int, name: str, points: Sequence[Mapping[str, Any]], test: str) -> None:
+        x = list(range(len(points)))
+        q1 = [100 * p[test]["q1"] for p in points]
+        q3 = [100 * p[test]["q3"] for p in points]
+        ax.fill_between(x, q1, q3, color=f"C{k}", alpha=0.15, lw=0)
+        med = [100 * p[test]["median"] for p in points]
+        ax.plot(x, med, marker="o", ms=4, lw=1.2, color=f"C{k}", label=LABELS.get(name, name))
+
+    fig, axes = _panels(channel, curves, draw, unit)
     axes[0].set_ylabel("trials passed (%), median over runs")
-    axes[1].legend(loc="lower left", fontsize=8)
     fig.suptitle(f"Success under noise over {runs} runs: {channel} (bands: interquartile range)")
     save_png(fig, path)

@@ -6,8 +6,8 @@ tests its report tabulates and plots, and where its stages record their DE curve
 the fully programmable interpreter, the new rules by programs alone and the three-behaviour MBN;
 targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section) or
 ``programs-vs-dynamics`` (``docs/contest.md``: no per-run target; its comparison over runs is
-the spec's ``analysis``) or ``ablations`` (``docs/ablations.md``: no per-run target; each
-ablation's success over the runs) or ``noise`` (``docs/noise.md``: no per-run target; each
+the spec's ``analysis``), ``ablations`` (``docs/ablations.md``: no per-run target; each
+ablation's success over the runs) and ``noise`` (``docs/noise.md``: no per-run target; each
 channel level by level over the runs, the spec's ``analysis``).
 """
 
@@ -133,6 +133,14 @@ def _by_trials(first: str, stems: tuple[str, ...]) -> tuple[tuple[str, tuple[str
     )
 
 
+#: The DE stages of the reproduction (and of the experiments that run its stages first).
+REPRODUCE_DE_STAGES = {
+    "rf": "RF (12 genes)",
+    "lf_search": "LF search (the chosen triple)",
+    "lf": "LF (3 genes)",
+    "pm": "PM (program module)",
+}
+
 REPRODUCE_SPEC = SweepSpec(
     name="reproduce",
     title="mbn sweep: the reproduction over seeds",
@@ -144,12 +152,7 @@ REPRODUCE_SPEC = SweepSpec(
     "trial for RF, LF, the IM with each program and the MBN; at least 95 % on the jittered "
     "starts and on the held-out maze for each; the interpreter takes its network's exits in at "
     "least 98 % of the jittered trials. The published weights have no target.",
-    de_stages={
-        "rf": "RF (12 genes)",
-        "lf_search": "LF search (the chosen triple)",
-        "lf": "LF (3 genes)",
-        "pm": "PM (program module)",
-    },
+    de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
     load=_load_reproduce,
 )
@@ -307,12 +310,7 @@ ABLATIONS_SPEC = SweepSpec(
     "(`docs/ablations.md`). `V_mbn_*` is the MBN with ablation V on the test maze's jittered "
     "starts and on the held-out maze; `V_im_rf_jitter` and `V_im_lf_jitter` the interpreter "
     "of ablation V with RF's and LF's program, where V changes it.",
-    de_stages={
-        "rf": "RF (12 genes)",
-        "lf_search": "LF search (the chosen triple)",
-        "lf": "LF (3 genes)",
-        "pm": "PM (program module)",
-    },
+    de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
     load=_load_ablations,
 )
@@ -354,12 +352,7 @@ NOISE_SPEC = SweepSpec(
     targets_text="No run has a per-run target here (`docs/noise.md`): `N_none_*` is controller N "
     "without noise, `N_realistic_*` under the realistic noise (sonar 2 cm, dropout 1 %, wheels "
     "5 %, camera misses 5 %); the sections below give each channel level by level over the runs.",
-    de_stages={
-        "rf": "RF (12 genes)",
-        "lf_search": "LF search (the chosen triple)",
-        "lf": "LF (3 genes)",
-        "pm": "PM (program module)",
-    },
+    de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
     load=_load_noise,
     analysis=_noise_analysis,
