@@ -99,6 +99,31 @@ def test_final_tests_and_the_programs_through_the_interpreter(contest_run):
     assert data["sha256"] == rundir.read_stage("im_full")["sha256"]
 
 
+def test_program_search_is_checked_through_the_interpreter(contest_run):
+    """By default (``[contest] program_checks = "interpreter"``) program search's best so far is
+    checked as the fixed interpreter runs it: the last check's start marks are those of the
+    interpreter with that program."""
+    import dataclasses
+
+    from mbn.controllers import make_controller
+    from mbn.experiments.trials import TrialSpec, run_loaded_trials, summary
+    from mbn.world.mazes.load import load_maze
+
+    rundir, data = contest_run
+    config = _config()
+    assert config["contest"].program_checks == "interpreter"
+    assert data["program_checks"] == "interpreter"
+    log = rundir.checkpoint_file(f"contest_{RULE}_programs").with_suffix(".checks.json")
+    last = json.loads(log.read_text())[-1]
+    spec = read_controller_spec(rundir.controller_file("im_full"))
+    program = np.clip(np.asarray(last["best_genome"], float), 0.0, 1.0)
+    im = dataclasses.replace(spec, programs={RULE: program.tolist()})
+    loaded = make_controller(im, RULE, where="test")
+    marks = TrialSpec(behavior=RULE, initial="right", seconds=config["tests"].seconds)
+    got, _, _ = run_loaded_trials(load_maze(config["tests3"].maze), marks, loaded)
+    assert [summary(got)["successes"], summary(got)["trials"]] == last["marks"]
+
+
 def test_the_neighbour_starts_at_rf_and_its_copies_around_it():
     genes = np.linspace(-19.0, 19.0, 12)
     pop = neighbour_population(genes, jax.random.PRNGKey(0), 50, 2.0, 20.0)
@@ -113,6 +138,8 @@ def test_the_neighbour_starts_at_rf_and_its_copies_around_it():
 
 
 def test_settings_refuse_unknown_contenders_and_repeated_rules():
+    with pytest.raises(MbnInputError, match="program_checks"):
+        ContestSettings(program_checks="both")
     with pytest.raises(MbnInputError, match=r"contest\.contenders: 'lamarck' is not one of"):
         ContestSettings(contenders=("programs", "lamarck"))
     with pytest.raises(MbnInputError, match=r"contest\.rules"):

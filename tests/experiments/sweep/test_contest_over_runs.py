@@ -86,6 +86,16 @@ def test_the_report_sections_and_the_figure(tmp_path):
     ]
     header, rows = secs[0].table
     assert "median run" in header
+    # runs recorded before [contest] program_checks checked programs as networks; the report
+    # says how the checks of the runs it pools ran
+    assert stats["program_checks"] == ["network"]
+    assert "ran on the network the program encodes" in secs[0].text[0]
+    mixed = {**RUNS, 99: {**RUNS[next(iter(RUNS))], "program_checks": "interpreter"}}
+    assert statistics(mixed)["program_checks"] == ["interpreter", "network"]
+    _, secs2, _ = contest_over_runs(
+        tmp_path, {k: {**r, "program_checks": "interpreter"} for k, r in RUNS.items()}
+    )
+    assert "ran through the fixed interpreter" in secs2[0].text[0]
     assert [r[0] for r in rows] == ["programs", "scratch", "neighbour"]
     assert rows[0][1].startswith("4 of 5") and rows[1][2].startswith("> budget")
     assert [r[0] for r in secs[1].table[1]] == ["programs : scratch", "programs : neighbour"]

@@ -64,7 +64,13 @@ def _results(
         }
         for rule, by in data["runs"].items()
     }
-    return {"tests": data["tests"], "contest": contest, "claims": claims(stages)}
+    return {
+        "tests": data["tests"],
+        "contest": contest,
+        # how program search's checks ran (runs before the setting: as networks)
+        "program_checks": data.get("program_checks", "network"),
+        "claims": claims(stages),
+    }
 
 
 #: The experiment ``mbn run programs-vs-dynamics`` runs.

@@ -128,6 +128,19 @@ def _through_interpreter(r: Mapping[str, Any], rule: str) -> bool | None:
     return bool(marks["successes"] == marks["trials"] and jitter["success_rate"] >= target)
 
 
+def _checks_text(ways: list[str]) -> str:
+    """How program search's checks ran over the runs (``[contest] program_checks``)."""
+    said = {
+        "interpreter": "through the fixed interpreter",
+        "network": "on the network the program encodes",
+    }
+    if not ways:
+        return "as no run recorded"
+    if len(ways) == 1:
+        return said[ways[0]]
+    return "in some runs " + " and in others ".join(said[w] for w in ways)
+
+
 def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
     """The statistics of the contest over the runs (``seed -> results.json``)."""
     per_rule: dict[str, Any] = {}
@@ -189,7 +202,8 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
                     "mann_whitney": mann_whitney(a, b, budget),
                 }
         per_rule[rule] = {"budget": budget, "contenders": contenders, "versus": versus}
-    out = {"rules": per_rule, "reference": REFERENCE}
+    ways = sorted({str(r.get("program_checks", "network")) for r in runs.values()})
+    out = {"rules": per_rule, "reference": REFERENCE, "program_checks": ways}
     out["claim"] = claim_over_runs(out)
     return out
 
@@ -270,11 +284,11 @@ def contest_over_runs(
                     "budget, with a Wilson 95 % interval; evaluations to success: median "
                     "[interquartile range], unsolved runs censored at the budget ('> budget': "
                     "the quantile falls on an unsolved run); *final*: the run's last best passes "
-                    "the test; *through the interpreter*: program search's last program passes "
-                    "it run by the fixed interpreter itself, multipliers and all (what an MBN "
-                    "would do with it; the checks and the other columns test the network the "
-                    "program encodes). The median run (by evaluations to success) is named with "
-                    "its controller.",
+                    "the test as its network; *through the interpreter*: program search's last "
+                    "program passes it run by the fixed interpreter itself, multipliers and all "
+                    "(what an MBN would do with it). Program search's checks, and so its "
+                    f"*solved* and evaluations, ran {_checks_text(stats['program_checks'])}. "
+                    "The median run (by evaluations to success) is named with its controller.",
                 ],
                 table=(
                     [

@@ -89,8 +89,15 @@ def write_report(rundir: RunDir) -> None:
                 f"DE (population {data['popsize']}), the same crossroad episodes and the same "
                 f"budget of {data['budget']} evaluations: "
                 + "; ".join(f"**{k}**, {v}" for k, v in data["contenders"].items())
-                + f". Every {data['check_every']} generations the best so far was tested as a "
-                f"network on {data['mazes']['test']} (every start mark and the jittered starts); "
+                + f". Every {data['check_every']} generations the best so far was tested on "
+                f"{data['mazes']['test']} (every start mark and the jittered starts): a dynamics "
+                "contender's as its network, program search's "
+                + (
+                    "as the fixed interpreter runs the program"
+                    if data.get("program_checks", "network") == "interpreter"
+                    else "as the network the program encodes"
+                )
+                + "; "
                 "its evaluations to success are those spent when it first passed "
                 "(docs/contest.md). One run says little: the comparison is over runs "
                 "(`mbn sweep --experiment programs-vs-dynamics`).",

@@ -10,9 +10,12 @@ F, CR), the same crossroad episodes and perturbed copies, and the same budget of
 * ``neighbour``: RF's network re-evolved on all its 12 genes, from a population around RF
   (RF itself and copies with Gaussian noise of ``[contest] neighbour_sigma``).
 
-Every ``check_every`` generations (and at generation 0) the best genome so far is tested as the
-network it encodes on the three-tile test maze: every start mark once, and where every mark
-passes, the jittered starts.
+Every ``check_every`` generations (and at generation 0) the best genome so far is tested on the
+three-tile test maze: every start mark once, and where every mark passes, the jittered starts.
+A dynamics contender's best is tested as its network; program search's best program as the
+fixed interpreter runs it, multipliers and all (``[contest] program_checks = "interpreter"``,
+the default: what an MBN would do with it), or as the network it encodes (``"network"``, the
+way runs recorded before the setting existed were checked).
 It *succeeds* when every mark succeeds and at least ``[contest] jitter_target`` of the jittered
 trials do; a run's evaluations to success are those DE had spent when it first did
 (``popsize × (generation + 1)``), and a run that never did is censored at the budget. The check
@@ -86,6 +89,8 @@ CONTENDERS: dict[str, str] = {
 #: What the record of a rule's start-mark trials keeps of each contender's trajectory.
 TRAJECTORY_FIELDS = ("t", "pose", "stalled")
 
+#: How program search's best so far can be checked (``[contest] program_checks``).
+PROGRAM_CHECKS = ("interpreter", "network")
 #: Folded into the stage key for the neighbour's first population.
 NEIGHBOUR_KEY = 1000
 
@@ -95,7 +100,8 @@ class ContestSettings(Settings):
     """Programs against dynamics: the rules, the contenders, their budget and the check."""
 
     section = "contest"
-    recorded_before: ClassVar[dict[str, Any]] = {}
+    # runs recorded before ``program_checks`` existed checked programs as their networks
+    recorded_before: ClassVar[dict[str, Any]] = {"program_checks": "network"}
     rules: tuple[str, ...] = setting(
         ("straight-right", "straight-left"),
         doc="the new rules each contender learns",
@@ -139,6 +145,14 @@ class ContestSettings(Settings):
         "budget",
         source="docs/contest.md",
     )
+    program_checks: str = setting(
+        "interpreter",
+        doc="how program search's best so far is checked: 'interpreter' (the fixed interpreter "
+        "runs the program, multipliers and all: what an MBN would do with it) or 'network' "
+        "(the network the program encodes, as its fitness scores it)",
+        choices=PROGRAM_CHECKS,
+        source="docs/contest.md (programs that passed as networks failed in the interpreter)",
+    )
     neighbour_sigma: float = setting(
         2.0,
         doc="Gaussian spread of the neighbour's first population around RF's genes (RF itself "
@@ -164,21 +178,47 @@ class ContestSettings(Settings):
 
 @dataclass(frozen=True)
 class _Contender:
-    """One DE of the contest: its config, fitness, first population and genes -> network."""
+    """One DE of the contest: its config, fitness, first population, genes -> network, and
+    genes -> the controller its checks run."""
 
     config: DEConfig
     fitness: Callable[[jax.Array], jax.Array]
     population: np.ndarray | None
     network: Callable[[Any], CTRNN]
+    checked: Callable[[Any], Any]
 
 
 def _contender(
-    ctx: StageContext, name: str, rule: str, interp: Any, rf: CTRNN, variants: int
+    ctx: StageContext,
+    name: str,
+    rule: str,
+    spec: InterpreterControllerSpec,
+    rf: CTRNN,
+    variants: int,
 ) -> _Contender:
     s: ContestSettings = ctx.settings
     de = ctx.section("de")
     bound = ctx.section("followers").weight_bound
+    interp = spec.interpreter
+
+    def as_network(network: Callable[[Any], CTRNN]) -> Callable[[Any], Any]:
+        return lambda genes: make_controller(
+            CTRNNControllerSpec(net=network(genes), behavior=rule),
+            None,
+            where="contest",
+            check_stability=False,
+        )
+
     if name == "programs":
+        decoded = lambda genes: program_network(  # noqa: E731
+            interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)
+        )
+
+        def in_interpreter(genes: Any) -> Any:
+            program = np.clip(np.asarray(genes, float), 0.0, 1.0)
+            im = dataclasses.replace(spec, programs={rule: program.tolist()})
+            return make_controller(im, rule, where="contest programs")
+
         config = DEConfig(
             num_dims=interp.num_programs,
             popsize=de.popsize,
@@ -194,7 +234,8 @@ def _contender(
             config,
             program_fitness(ctx, interp, rf, rule, variants),
             None,
-            lambda genes: program_network(interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)),
+            decoded,
+            in_interpreter if s.program_checks == "interpreter" else as_network(decoded),
         )
     genome = Genome() if name == "scratch" else Genome.around(rf, Genome().connections)
     fitness = robust_fitness(
@@ -210,11 +251,9 @@ def _contender(
             s.neighbour_sigma,
             bound,
         )
+    network = lambda genes: genome.network(jnp.asarray(genes))  # noqa: E731
     return _Contender(
-        de_config(ctx, genome.size, bound),
-        fitness,
-        population,
-        lambda genes: genome.network(jnp.asarray(genes)),
+        de_config(ctx, genome.size, bound), fitness, population, network, as_network(network)
     )
 
 
@@ -228,14 +267,10 @@ def neighbour_population(
     return np.clip(genes[None] + sigma * noise, -bound, bound)
 
 
-def _check(
-    ctx: StageContext, maze: Any, specs: dict[str, Any], net: CTRNN, rule: str
-) -> dict[str, Any]:
-    """The best so far tested as a network: the start marks, and the jittered starts only
-    where every mark passed (a check that fails a mark fails; its jittered count is not run)."""
-    loaded = make_controller(
-        CTRNNControllerSpec(net=net, behavior=rule), None, where="contest", check_stability=False
-    )
+def _check(ctx: StageContext, maze: Any, specs: dict[str, Any], loaded: Any) -> dict[str, Any]:
+    """The best so far tested (``loaded``: a network, or the interpreter with a program): the
+    start marks, and the jittered starts only where every mark passed (a check that fails a
+    mark fails; its jittered count is not run)."""
 
     def trials(spec: Any) -> dict[str, Any]:
         verdicts, _, _, _ = run_trial_groups(
@@ -293,7 +328,7 @@ class ContestStage(Stage):
             for c_index, who in enumerate(CONTENDERS):
                 if who not in s.contenders:
                     continue
-                c = _contender(ctx, who, rule, interp, rf, s.variants)
+                c = _contender(ctx, who, rule, spec, rf, s.variants)
                 name = f"contest_{rule}_{who}"
                 key = jax.random.fold_in(jax.random.fold_in(ctx.key, r), c_index)
                 log = ctx.rundir.checkpoint_file(name).with_suffix(".checks.json")
@@ -314,7 +349,7 @@ class ContestStage(Stage):
                     if last is not None and last["best_genome"] == best:
                         verdict = {k: last[k] for k in ("marks", "jitter", "success")}
                     else:
-                        verdict = _check(ctx, maze, specs, c.network(best), rule)
+                        verdict = _check(ctx, maze, specs, c.checked(best))
                     checks.append(
                         {
                             "generation": g,
@@ -416,6 +451,7 @@ class ContestStage(Stage):
             "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
             "sha256": digest,
             "contenders": {k: CONTENDERS[k] for k in CONTENDERS if k in s.contenders},
+            "program_checks": s.program_checks,
         }
 
     def summary(self, data: dict[str, Any]) -> str:
