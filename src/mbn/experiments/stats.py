@@ -13,6 +13,7 @@ import numpy as np
 __all__ = [
     "Z95",
     "censored_quantiles",
+    "describe",
     "mann_whitney",
     "median_ratio",
     "solved_curve",
@@ -21,6 +22,21 @@ __all__ = [
 
 #: The normal quantile of a two-sided 95 % interval.
 Z95 = 1.959963984540054
+
+
+def describe(values: Sequence[float]) -> dict[str, float]:
+    """Median, quartiles, min and max of ``values`` (NaN for an empty list)."""
+    a = np.asarray(values, dtype=float)
+    if a.size == 0:
+        return dict.fromkeys(("median", "q1", "q3", "min", "max"), math.nan)
+    q1, med, q3 = np.percentile(a, [25, 50, 75])
+    return {
+        "median": float(med),
+        "q1": float(q1),
+        "q3": float(q3),
+        "min": float(a.min()),
+        "max": float(a.max()),
+    }
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:

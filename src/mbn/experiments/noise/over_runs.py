@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mbn.experiments.stats import wilson_interval
+from mbn.experiments.stats import describe, wilson_interval
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
@@ -55,8 +55,6 @@ def noise_tests(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
 
 def _over(values: list[tuple[float, int, int]]) -> dict[str, Any]:
     """``(rate, successes, trials)`` of the runs -> their spread and the pooled interval."""
-    from mbn.experiments.sweep.summary import describe
-
     rates = [v[0] for v in values]
     k, n = sum(v[1] for v in values), sum(v[2] for v in values)
     return {

@@ -18,9 +18,7 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import numpy as np
-
-from mbn.experiments.stats import Z95, wilson_interval
+from mbn.experiments.stats import Z95, describe, wilson_interval
 from mbn.experiments.sweep.specs import SweepSpec, sweep_spec
 from mbn.experiments.sweep.targets import TARGETS, Target, measure, meets
 
@@ -36,21 +34,6 @@ def claim_key(claim: str) -> str:
     """A claim as the runs share it: its text without what one run names of its own (the LF's
     connections), so that the claims of runs that chose other connections count together."""
     return _RUN_SPECIFIC.sub("", claim)
-
-
-def describe(values: Sequence[float]) -> dict[str, float]:
-    """Median, quartiles, min and max of ``values`` (NaN for an empty list)."""
-    a = np.asarray(values, dtype=float)
-    if a.size == 0:
-        return dict.fromkeys(("median", "q1", "q3", "min", "max"), math.nan)
-    q1, med, q3 = np.percentile(a, [25, 50, 75])
-    return {
-        "median": float(med),
-        "q1": float(q1),
-        "q3": float(q3),
-        "min": float(a.min()),
-        "max": float(a.max()),
-    }
 
 
 def seed_verdict(results: Mapping[str, Any], targets: Sequence[Target] = TARGETS) -> dict[str, Any]:
