@@ -35,7 +35,6 @@ from mbn.networks.ctrnn import CTRNN, euler_step, firing_rate
 from mbn.paper import DEFAULT_TAU
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import EpisodeStats, Shared, rollout
-from mbn.world.sensors import NoiseConfig
 
 __all__ = [
     "Latch",
@@ -544,7 +543,7 @@ def start_mismatch(
     from mbn.control.ctrnn import CTRNNState, ShadowedState, shadowed
     from mbn.world.engine import compile_mazes
     from mbn.world.mazes.builtin import CROSSROAD_KINDS, crossroad
-    from mbn.world.rollout import RolloutConfig, input_reach, junction_arrays
+    from mbn.world.rollout import junction_arrays
 
     task = CrossroadTask()
     mazes = [crossroad(kind, approach=a) for a in approaches for kind in CROSSROAD_KINDS]
@@ -552,13 +551,7 @@ def start_mismatch(
     dtype = im.W.dtype
     world = compile_mazes(mazes)
     junctions = junction_arrays(mazes, world)
-    config = RolloutConfig(
-        steps=task.steps,
-        dt=task.dt,
-        sensors=task.sensors,
-        camera=camera or CameraConfig(),
-        sonar_reach=input_reach(task.sensors, NoiseConfig()),
-    )
+    config = task.rollout_config(camera=camera or CameraConfig())
     controller = shadowed(
         make_mbn_controller(
             program_neurons=tuple(program_neurons),
@@ -611,7 +604,7 @@ def pm_memory_fitness(
     from mbn.experiments.starts import jittered_starts
     from mbn.world.engine import compile_mazes
     from mbn.world.mazes.builtin import crossroad
-    from mbn.world.rollout import RolloutConfig, input_reach, junction_arrays
+    from mbn.world.rollout import junction_arrays
 
     reward = reward or MemoryReward()
     camera = camera or CameraConfig()
@@ -640,13 +633,7 @@ def pm_memory_fitness(
     inputs = [camera_inputs(reward.sequences()[n], dt) for n in names]
     world = compile_mazes(mazes)
     junctions = junction_arrays(mazes, world)
-    config = RolloutConfig(
-        steps=task.steps,
-        dt=dt,
-        sensors=task.sensors,
-        camera=camera,
-        sonar_reach=input_reach(task.sensors, NoiseConfig()),
-    )
+    config = task.rollout_config(camera=camera)
     controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]] = mbn_controller(
         programs=genome.programs, dt=dt, im_substeps=im_substeps, pm_substeps=pm_substeps
     )

@@ -52,6 +52,7 @@ __all__ = [
     "TrialGroup",
     "TrialSpec",
     "agreement",
+    "as_test_record",
     "judge",
     "longest_route",
     "rate_record",
@@ -277,6 +278,16 @@ def rate_record(verdict: dict[str, np.ndarray]) -> dict[str, Any]:
         "trials": s["trials"],
         "rate": s["success_rate"],
         "wilson95": [lo, hi],
+    }
+
+
+def as_test_record(record: dict[str, Any]) -> dict[str, Any]:
+    """A :func:`rate_record` as ``results.json`` keeps a test (``trials``, ``successes``,
+    ``success_rate``): the form a sweep reads (``mbn.experiments.sweep.summary``)."""
+    return {
+        "trials": int(record["trials"]),
+        "successes": int(record["successes"]),
+        "success_rate": float(record["rate"]),
     }
 
 

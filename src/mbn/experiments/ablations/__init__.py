@@ -19,6 +19,7 @@ from mbn.experiments.reproduce import SHARED, controller_stages
 from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
 from mbn.experiments.reproduce.settings import derived_seeds
 from mbn.experiments.reproduce.stages.tests import TestsSettings
+from mbn.experiments.trials import as_test_record
 
 __all__ = ["ABLATIONS", "RUN_KIND", "STAGES", "ablation_tests"]
 
@@ -42,12 +43,7 @@ def ablation_tests(variants: dict[str, Any]) -> dict[str, dict[str, Any]]:
     for variant, row in variants.items():
         for part in ("mbn_jitter", "mbn_heldout", "im_rf_jitter", "im_lf_jitter"):
             if part in row:
-                r = row[part]
-                tests[f"{variant}_{part}"] = {
-                    "trials": int(r["trials"]),
-                    "successes": int(r["successes"]),
-                    "success_rate": float(r["rate"]),
-                }
+                tests[f"{variant}_{part}"] = as_test_record(row[part])
     return tests
 
 

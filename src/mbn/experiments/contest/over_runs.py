@@ -25,7 +25,7 @@ from mbn.experiments.stats import (
     wilson_interval,
 )
 
-__all__ = ["contest_over_runs"]
+__all__ = ["checks_text", "contest_over_runs"]
 
 #: The contender every other is compared with.
 REFERENCE = "programs"
@@ -128,7 +128,7 @@ def _through_interpreter(r: Mapping[str, Any], rule: str) -> bool | None:
     return bool(marks["successes"] == marks["trials"] and jitter["success_rate"] >= target)
 
 
-def _checks_text(ways: list[str]) -> str:
+def checks_text(ways: list[str]) -> str:
     """How program search's checks ran over the runs (``[contest] program_checks``)."""
     said = {
         "interpreter": "through the fixed interpreter",
@@ -287,7 +287,7 @@ def contest_over_runs(
                     "the test as its network; *through the interpreter*: program search's last "
                     "program passes it run by the fixed interpreter itself, multipliers and all "
                     "(what an MBN would do with it). Program search's checks, and so its "
-                    f"*solved* and evaluations, ran {_checks_text(stats['program_checks'])}. "
+                    f"*solved* and evaluations, ran {checks_text(stats['program_checks'])}. "
                     "The median run (by evaluations to success) is named with its controller.",
                 ],
                 table=(

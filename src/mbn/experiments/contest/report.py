@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from mbn.experiments.contest.over_runs import CLAIM_2016, CRITERION
+from mbn.experiments.contest.over_runs import CLAIM_2016, CRITERION, checks_text
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.io import read_json
@@ -92,11 +92,7 @@ def write_report(rundir: RunDir) -> None:
                 + f". Every {data['check_every']} generations the best so far was tested on "
                 f"{data['mazes']['test']} (every start mark and the jittered starts): a dynamics "
                 "contender's as its network, program search's "
-                + (
-                    "as the fixed interpreter runs the program"
-                    if data.get("program_checks", "network") == "interpreter"
-                    else "as the network the program encodes"
-                )
+                + checks_text([data.get("program_checks", "network")])
                 + "; "
                 "its evaluations to success are those spent when it first passed "
                 "(docs/contest.md). One run says little: the comparison is over runs "

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from mbn.experiments.stats import describe, wilson_interval
+from mbn.experiments.trials import as_test_record
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
@@ -27,15 +28,6 @@ CONTROLLER_NAMES = ("rf", "im_rf", "im_lf", "mbn")
 _TESTS = ("jitter", "heldout")
 
 
-def _record(point: Mapping[str, Any], test: str) -> dict[str, Any]:
-    r = point[test]
-    return {
-        "trials": int(r["trials"]),
-        "successes": int(r["successes"]),
-        "success_rate": float(r["rate"]),
-    }
-
-
 def noise_tests(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     """The ``noise_levels`` stage's trials (its ``curves`` and ``realistic``) as tests:
     ``{name: {"trials", "successes", "success_rate"}}`` (names in the module's docstring)."""
@@ -45,11 +37,11 @@ def noise_tests(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             for i, point in enumerate(points):
                 stem = f"{name}_none" if i == 0 else f"{name}_{channel}_{i}"
                 for x in _TESTS:
-                    tests[f"{stem}_{x}"] = _record(point, x)
+                    tests[f"{stem}_{x}"] = as_test_record(point[x])
     for name, point in data["realistic"].items():
         if name in CONTROLLER_NAMES:
             for x in _TESTS:
-                tests[f"{name}_realistic_{x}"] = _record(point, x)
+                tests[f"{name}_realistic_{x}"] = as_test_record(point[x])
     return tests
 
 

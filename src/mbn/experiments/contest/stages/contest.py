@@ -77,7 +77,13 @@ from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
 from mbn.world.rules import parse_rule, parse_rules
 
-__all__ = ["CONTENDERS", "ContestSettings", "ContestStage", "neighbour_population"]
+__all__ = [
+    "CONTENDERS",
+    "ContestSettings",
+    "ContestStage",
+    "neighbour_population",
+    "program_controller",
+]
 
 #: The contenders, in the report's order, with a line each.
 CONTENDERS: dict[str, str] = {
@@ -188,6 +194,14 @@ class _Contender:
     checked: Callable[[Any], Any]
 
 
+def program_controller(spec: InterpreterControllerSpec, rule: str, genes: Any) -> Any:
+    """The fixed interpreter running program search's ``genes`` (clipped to [0, 1]) for
+    ``rule``, multipliers and all: what an MBN would do with the program."""
+    program = np.clip(np.asarray(genes, float), 0.0, 1.0)
+    im = dataclasses.replace(spec, programs={rule: program.tolist()})
+    return make_controller(im, rule, where="contest programs")
+
+
 def _contender(
     ctx: StageContext,
     name: str,
@@ -214,11 +228,6 @@ def _contender(
             interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)
         )
 
-        def in_interpreter(genes: Any) -> Any:
-            program = np.clip(np.asarray(genes, float), 0.0, 1.0)
-            im = dataclasses.replace(spec, programs={rule: program.tolist()})
-            return make_controller(im, rule, where="contest programs")
-
         config = DEConfig(
             num_dims=interp.num_programs,
             popsize=de.popsize,
@@ -235,7 +244,11 @@ def _contender(
             program_fitness(ctx, interp, rf, rule, variants),
             None,
             decoded,
-            in_interpreter if s.program_checks == "interpreter" else as_network(decoded),
+            (
+                (lambda genes: program_controller(spec, rule, genes))
+                if s.program_checks == "interpreter"
+                else as_network(decoded)
+            ),
         )
     genome = Genome() if name == "scratch" else Genome.around(rf, Genome().connections)
     fitness = robust_fitness(
@@ -429,8 +442,7 @@ class ContestStage(Stage):
                 }
                 if who == "programs":
                     program = np.clip(np.asarray(result.data["best_genome"], float), 0.0, 1.0)
-                    im = dataclasses.replace(spec, programs={rule: program.tolist()})
-                    emulated = make_controller(im, rule, where="contest programs")
+                    emulated = program_controller(spec, rule, program)
                     for suffix in SUFFIXES:
                         m = heldout if suffix == "_heldout" else maze
                         got, _, _ = run_loaded_trials(m, specs[suffix], emulated)
