@@ -184,7 +184,7 @@ def test_mazes_the_trials_cannot_use(files, capsys, tmp_path):
 def test_controllers_that_do_not_fit_the_behavior(files, capsys):
     tiles = ("--maze", "fig4", "--behavior", "tiles")
     result = run(capsys, "--controller", files / "straight.json", *tiles)
-    _one_line_error(*result, "--behavior tiles needs an mbn controller")
+    _one_line_error(*result, "--behavior tiles needs a controller that reads the tiles")
     result = run(capsys, "--controller", files / "im.json", *tiles)
     _one_line_error(*result, "is an interpreter controller")
     result = run(capsys, "--controller", files / "mbn.json", *tiles, "--program", "right")

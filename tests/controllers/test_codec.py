@@ -566,3 +566,71 @@ def test_an_mbn_started_as_rf_drives_as_the_interpreter_with_rfs_program_before_
     seen_rest = np.where(camera_rest.any(1), camera_rest.argmax(1), camera_rest.shape[1])
     before = np.arange(camera.shape[1])[None, :] < np.minimum(seen, seen_rest)[:, None]
     assert motor(v_rest, v_im, w_rest, w_im).max() > 0.05
+
+
+# --------------------------------------------------------------------------------------------
+# A CTRNN that reads the tiles itself (the monolithic contender, docs/contest.md)
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tiles_spec():
+    """A 4-neuron CTRNN with I1..I3 and three tile inputs; tile k drives neuron 1 (the turning
+    neuron) by +/-: one-colour tiles turn it left, two-colour ones right, three-colour none."""
+    from mbn.world.engine import CameraConfig
+
+    rng = np.random.default_rng(4)
+    WE = np.zeros((4, 6))
+    WE[0, 0], WE[1, 1], WE[2, 2] = rng.uniform(-3, 3, 3)
+    WE[1, 3], WE[1, 4] = 8.0, -8.0
+    net = make_ctrnn(rng.uniform(-2, 2, (4, 4)), WE, 0.5, bias=rng.uniform(-1, 1, 4))
+    return CTRNNControllerSpec(
+        net,
+        tile_rules=("right", "left", "straight-right"),
+        camera=CameraConfig(range=0.8),
+        metadata={"stage": "test"},
+    )
+
+
+def test_a_ctrnn_with_tile_rules_round_trips_and_reads_the_camera(tmp_path, tiles_spec):
+    path = tmp_path / "mono.json"
+    save_controller(path, tiles_spec)
+    data = json.loads(path.read_text())
+    assert data["kind"] == KIND_CTRNN
+    assert data["tile_rules"] == ["right", "left", "straight-right"]
+    assert data["camera"]["range"] == pytest.approx(0.8)
+    loaded = load_controller(path)
+    assert loaded.needs_camera and loaded.camera is not None and loaded.camera.range == 0.8
+    assert loaded.tile_rules == ("right", "left", "straight-right")
+    # it drives as the spec does, and the camera's reading moves its turning neuron
+    _, original = _drive(make_controller(tiles_spec), [0, 1, 1])
+    _, again = _drive(loaded, [0, 1, 1])
+    np.testing.assert_array_equal(original, again)
+    _, one = _drive(loaded, [1, 1, 1])
+    _, two = _drive(loaded, [2, 2, 2])
+    _, three = _drive(loaded, [3, 3, 3])
+    assert np.all(one[-1, 1] > three[-1, 1]) and np.all(two[-1, 1] < three[-1, 1])
+    # a follower's file has neither field: it reads and writes as before
+    plain = controller_to_dict(CTRNNControllerSpec(tiles_spec.net.replace(WE=np.eye(4, 3))))
+    assert "tile_rules" not in plain and "camera" not in plain
+
+
+TILES_CASES = [
+    (_set("tile_rules", _DELETE), r"tile_rules and camera go together"),
+    (_set("tile_rules", ["right", "up", "left"]), r"tile_rules: unknown rule 'up'"),
+    (_set("tile_rules", "right"), r"tile_rules: expected a list of rule names"),
+    (_set("tile_rules", ["right", "left"]), r"3 inputs I1..I3 and 2 camera inputs .* 6 columns"),
+    (_set("tile_rules", ["right"] * 4), r"one rule per tile kind \(1 to 3\), got 4"),
+    (_set("camera", "range", -1.0), r"camera: camera range must be in \(0, 5.0\] m, got -1.0"),
+]
+
+
+@pytest.mark.parametrize(("change", "message"), TILES_CASES)
+def test_bad_tile_reading_ctrnn_files(tmp_path, tiles_spec, change, message):
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(_mutated(controller_to_dict(tiles_spec), change)))
+    with pytest.raises(MbnInputError) as exc:
+        load_controller(path)
+    text = str(exc.value)
+    assert text.startswith(f"{path}: ") and "\n" not in text
+    assert re.search(message, text), text

@@ -74,8 +74,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         required=True,
         metavar="{" + ",".join(BEHAVIORS) + ",ORDER}",
         help="the rule a trial is judged by: a name, or any priority order of the exits right, "
-        "straight and left (e.g. SRL, straight>right>left); 'tiles' needs an mbn controller and "
-        "a maze with tiles",
+        "straight and left (e.g. SRL, straight>right>left); 'tiles' needs a controller that "
+        "reads the tiles (an mbn controller, or a CTRNN with tile_rules) and a maze with tiles",
     )
     ev.add_argument(
         "--initial",
@@ -152,16 +152,17 @@ def _behavior(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _program_for(args: argparse.Namespace, kind: str) -> str | None:
-    """The program to run for this kind of file and these flags (or a one-line error)."""
+def _program_for(args: argparse.Namespace, kind: str, reads_tiles: bool = False) -> str | None:
+    """The program to run for this kind of file and these flags (or a one-line error);
+    ``reads_tiles``: a CTRNN file with tile rules (a monolithic controller)."""
     from mbn.controllers import KIND_CTRNN, KIND_INTERPRETER
 
     path = args.controller
     if kind == KIND_CTRNN:
-        if args.behavior == "tiles":
+        if args.behavior == "tiles" and not reads_tiles:
             raise MbnInputError(
-                f"--behavior tiles needs an mbn controller (program module + interpreter); "
-                f"{path} is a plain CTRNN controller ({kind})"
+                f"--behavior tiles needs a controller that reads the tiles (an mbn controller, "
+                f"or a CTRNN with tile_rules); {path} is a plain CTRNN controller ({kind})"
             )
         if args.program is not None:
             raise MbnInputError(
@@ -212,12 +213,14 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     maze = as_grid_maze(load_maze(args.maze))  # TOML and Stage mazes on a lattice of corridors
     controller_spec = read_controller_spec(args.controller)
     # the rule each tile kind puts in force: the mbn file's (the paper's: right, left)
-    tile_rules = getattr(controller_spec, "tile_rules", ("right", "left"))
+    tile_rules = getattr(controller_spec, "tile_rules", None) or ("right", "left")
     TrialSpec(behavior=args.behavior, tile_rules=tile_rules).check_maze(maze)
     noise = parse_noise(args.noise) if args.noise is not None else NoiseConfig()
     loaded = make_controller(
         controller_spec,
-        _program_for(args, controller_spec.kind),
+        _program_for(
+            args, controller_spec.kind, getattr(controller_spec, "tile_rules", None) is not None
+        ),
         where=str(args.controller),
         check_stability=not args.allow_unstable,
         noise=noise,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +29,9 @@ EXPERIMENTS = {
     "ablations": "the MBN with parts of its program path changed: wrong or frozen program, exact "
     "products, the multipliers' time constant and size (docs/ablations.md)",
     "programs-vs-dynamics": "new rules learned by program search on the fixed interpreter, by "
-    "a new CTRNN and by RF re-evolved, same DE and budget: evaluations to success "
-    "(docs/contest.md; over seeds with mbn sweep)",
+    "a new CTRNN and by RF re-evolved, and the three-behaviour task by the MBN and by a "
+    "monolithic CTRNN, same DE and budget: evaluations to success (docs/contest.md; over seeds "
+    "with mbn sweep)",
 }
 
 _EPILOG = """\
@@ -72,7 +74,16 @@ def experiment(name: str) -> Any:
 
 def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     """Add ``run`` to the ``mbn`` sub-parsers."""
-    listing = "\n".join(f"  {k:<16}{v}" for k, v in EXPERIMENTS.items())
+    width = max(map(len, EXPERIMENTS)) + 4
+    listing = "\n".join(
+        textwrap.fill(
+            f"  {k:<{width - 2}}{v}",
+            width=96,
+            subsequent_indent=" " * width,
+            break_on_hyphens=False,
+        )
+        for k, v in EXPERIMENTS.items()
+    )
     cmd = sub.add_parser(
         "run",
         help="a registered experiment beyond the paper's (new-behaviours, noise, ablations, "

@@ -229,9 +229,27 @@ def with_neuron_noise(y: Array, obs: Any, noise: NoiseConfig | None, channel: in
     return y + noise.neuron_std * e
 
 
+def tile_inputs(camera: Array, kinds: int, dtype: Any) -> Array:
+    """The camera's reading as one input per tile kind: ``[camera == 1, camera == 2, ...]``
+    (``kinds`` of them, ``dtype``), as a program module or a monolithic controller reads it."""
+    return jnp.stack([camera == t for t in range(1, kinds + 1)], axis=-1).astype(dtype)
+
+
+def with_tiles(kinds: int) -> Callable[[Any], Array]:
+    """An ``inputs`` function for :func:`ctrnn_controller`: I1..I3 followed by the camera's
+    :func:`tile_inputs` (a CTRNN that reads the tiles itself, ``docs/contest.md``)."""
+
+    def read(obs: Any) -> Array:
+        return jnp.concatenate(
+            [obs.inputs, tile_inputs(obs.camera, kinds, obs.inputs.dtype)], axis=-1
+        )
+
+    return read
+
+
 def initial_state(net: CTRNN) -> CTRNNState:
     """Potentials at rest (0) for a network (batched or not)."""
     return CTRNNState(net, jnp.zeros(net.tau.shape, net.tau.dtype))
 
 
-__all__ += ["initial_state", "with_neuron_noise"]
+__all__ += ["initial_state", "tile_inputs", "with_neuron_noise", "with_tiles"]

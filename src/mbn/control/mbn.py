@@ -15,6 +15,7 @@ from mbn.control.ctrnn import (
     MotorMap,
     ProgrammedState,
     interpreter_controller,
+    tile_inputs,
     with_neuron_noise,
 )
 from mbn.errors import MbnInputError
@@ -75,8 +76,7 @@ def make_mbn_controller(
         dtype = state.pm_y.dtype
         pm = cast(CTRNN, state.pm)  # the rollout hands a controller plain networks
         kinds = pm.WE.shape[-1]
-        camera = jnp.stack([obs.camera == t for t in range(1, kinds + 1)], axis=-1)
-        y = euler_steps(pm, state.pm_y, camera.astype(dtype), h, pm_substeps)
+        y = euler_steps(pm, state.pm_y, tile_inputs(obs.camera, kinds, dtype), h, pm_substeps)
         y = with_neuron_noise(y, obs, noise, 2)
         program = firing_rate(pm, y)[..., index]
         if R is not None:

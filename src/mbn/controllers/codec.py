@@ -103,6 +103,25 @@ def _interpreter_body(spec: InterpreterControllerSpec) -> dict[str, Any]:
     }
 
 
+def _camera_to_dict(camera: CameraConfig) -> dict[str, float]:
+    return {"fov_deg": camera.fov_deg, "range": camera.range}
+
+
+def _camera_from_dict(value: Any, here: str) -> CameraConfig:
+    """A camera's settings; ``here`` names the field in errors."""
+    cam = expect_object(value, here)
+    check_fields(cam, here, ["fov_deg", "range"])
+    fov = expect_number(cam["fov_deg"], f"{here}.fov_deg")
+    rng = expect_number(cam["range"], f"{here}.range")
+    return _build(here, lambda: CameraConfig(fov_deg=fov, range=rng))
+
+
+def _rule_list(value: Any, where: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(r, str) for r in value):
+        raise MbnInputError(f"{where}: expected a list of rule names")
+    return tuple(value)
+
+
 def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
     """The self-describing JSON form of a controller spec (see ``docs/controllers.md``)."""
     if isinstance(spec, CTRNNControllerSpec):
@@ -115,6 +134,16 @@ def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
             "dt": spec.dt,
             "substeps": spec.substeps,
             "method": spec.method,
+            # written only for a controller that reads the camera, so that followers' files
+            # read and write unchanged
+            **(
+                {
+                    "tile_rules": list(spec.tile_rules),
+                    "camera": _camera_to_dict(spec.camera),
+                }
+                if spec.tile_rules is not None
+                else {}
+            ),
             "metadata": dict(spec.metadata),
         }
     if isinstance(spec, InterpreterControllerSpec):
@@ -128,7 +157,7 @@ def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
             "network": spec.program_module.to_dict(),
             "program_neurons": list(spec.program_neurons),
             "substeps": spec.pm_substeps,
-            "camera": {"fov_deg": spec.camera.fov_deg, "range": spec.camera.range},
+            "camera": _camera_to_dict(spec.camera),
         }
         # written only when not the paper's, so that older files read and write unchanged
         if spec.tile_rules != ("right", "left"):
@@ -313,7 +342,22 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
     optional = ["mbn_version", "metadata"]
     common = ["sensors", "motor", "dt", "substeps", "method"]
     if kind == KIND_CTRNN:
-        check_fields(data, where, [*header, "network", *common], [*optional, "behavior"])
+        check_fields(
+            data,
+            where,
+            [*header, "network", *common],
+            [*optional, "behavior", "tile_rules", "camera"],
+        )
+        if ("tile_rules" in data) != ("camera" in data):
+            raise MbnInputError(f"{where}: tile_rules and camera go together (the camera it reads)")
+        tiles = (
+            _rule_list(data["tile_rules"], f"{where}: tile_rules") if "tile_rules" in data else None
+        )
+        camera = (
+            _camera_from_dict(data["camera"], f"{where}: camera")
+            if "camera" in data
+            else CameraConfig()
+        )
         net = _network_from_dict(data["network"], f"{where}: network")
         sensors = _sensors_from_dict(data["sensors"], where)
         motor = _motor_from_dict(data["motor"], where)
@@ -328,6 +372,8 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
                 motor=motor,
                 behavior=behavior,
                 metadata=metadata,
+                tile_rules=tiles,
+                camera=camera,
                 **settings,
             ),
         )
@@ -370,19 +416,14 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
     pm = _network_from_dict(pm_data["network"], f"{here}.network")
     neurons_t = tuple(expect_int_list(pm_data["program_neurons"], f"{here}.program_neurons"))
     pm_substeps = expect_int(pm_data["substeps"], f"{here}.substeps")
-    camera = CameraConfig()
-    if "camera" in pm_data:
-        cam = expect_object(pm_data["camera"], f"{here}.camera")
-        check_fields(cam, f"{here}.camera", ["fov_deg", "range"])
-        fov = expect_number(cam["fov_deg"], f"{here}.camera.fov_deg")
-        rng = expect_number(cam["range"], f"{here}.camera.range")
-        camera = _build(f"{here}.camera", lambda: CameraConfig(fov_deg=fov, range=rng))
+    camera = (
+        _camera_from_dict(pm_data["camera"], f"{here}.camera")
+        if "camera" in pm_data
+        else CameraConfig()
+    )
     tile_rules: tuple[str, ...] = ("right", "left")
     if "tile_rules" in pm_data:
-        rules = pm_data["tile_rules"]
-        if not isinstance(rules, list) or not all(isinstance(r, str) for r in rules):
-            raise MbnInputError(f"{where}: {here}.tile_rules: expected a list of rule names")
-        tile_rules = tuple(rules)
+        tile_rules = _rule_list(pm_data["tile_rules"], f"{here}.tile_rules")
     readout = None
     if "readout" in pm_data:
         rows = pm_data["readout"]

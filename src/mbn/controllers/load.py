@@ -14,7 +14,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from mbn.control.ctrnn import CTRNNState, ProgrammedState, ctrnn_controller, interpreter_controller
+from mbn.control.ctrnn import (
+    CTRNNState,
+    ProgrammedState,
+    ctrnn_controller,
+    interpreter_controller,
+    with_tiles,
+)
 from mbn.control.mbn import MBNControllerState, make_mbn_controller
 from mbn.controllers.codec import read_controller_spec
 from mbn.controllers.spec import (
@@ -50,15 +56,17 @@ class LoadedController:
             does).
         sensors: the sonars to cast and their normalisation.
         dt: the robot step (s).
-        needs_camera: whether the controller reads the camera (the whole MBN).
+        needs_camera: whether the controller reads the camera (the whole MBN, a CTRNN with
+            tile rules).
         camera: the camera settings it reads (None when it reads none).
         programs: the file's named programs (empty for a plain CTRNN).
         program: the program in use (None for a plain CTRNN or the whole MBN).
         behavior: the behaviour a plain CTRNN file declares (else None).
         initial_rule: for the whole MBN, the rule it follows before its first tile (its file's
             ``initial``; None for a file without one: it starts at rest with no rule).
-        tile_rules: for the whole MBN, the rule a tile of 1, 2, ... colours puts in force (its
-            file's; the paper's right, left); None for the others.
+        tile_rules: for the whole MBN and a CTRNN that reads the tiles, the rule a tile of 1,
+            2, ... colours puts in force (its file's; the paper's right, left); None for the
+            others.
         spec: the parsed file.
         noise: the noise it runs under (all zero: none).
     """
@@ -101,7 +109,12 @@ def _ctrnn_runner(
 ) -> tuple[Controller, Callable[[int], Any]]:
     net = spec.net
     control = ctrnn_controller(
-        dt=spec.dt, substeps=spec.substeps, motor=spec.motor, method=spec.method, noise=noise
+        dt=spec.dt,
+        substeps=spec.substeps,
+        motor=spec.motor,
+        method=spec.method,
+        noise=noise,
+        inputs=None if spec.tile_rules is None else with_tiles(len(spec.tile_rules)),
     )
 
     def initial(n: int) -> CTRNNState:
@@ -230,6 +243,8 @@ def make_controller(
             )
         kind, run_spec = KIND_CTRNN, spec
         control, initial = _ctrnn_runner(spec, noise)
+        if spec.tile_rules is not None:  # a monolithic controller reads the tiles itself
+            camera = spec.camera
     else:
         im_spec = spec if isinstance(spec, InterpreterControllerSpec) else spec.interpreter_spec
         kind, run_spec = spec.kind, im_spec
@@ -254,7 +269,9 @@ def make_controller(
         behavior=spec.behavior if isinstance(spec, CTRNNControllerSpec) else None,
         initial_rule=initial_rule,
         spec=spec,
-        tile_rules=spec.tile_rules if isinstance(spec, MBNControllerSpec) else None,
+        tile_rules=(
+            spec.tile_rules if isinstance(spec, (MBNControllerSpec, CTRNNControllerSpec)) else None
+        ),
         noise=noise if noise is not None else NoiseConfig(),
     )
 

@@ -3,7 +3,8 @@
 Three kinds (``docs/controllers.md``):
 
 * :class:`CTRNNControllerSpec` (``"mbn.controller.ctrnn"``): a CTRNN fed the paper's inputs
-  I1..I3; optional ``behavior``.
+  I1..I3; optional ``behavior``; with ``tile_rules``, also one camera input per tile kind (a
+  monolithic controller of several behaviours, ``docs/contest.md``).
 * :class:`InterpreterControllerSpec` (``"mbn.controller.interpreter"``): the fixed-weight
   interpreter of :mod:`mbn.networks.programmable` and named ``programs``.
 * :class:`MBNControllerSpec` (``"mbn.controller.mbn"``): the Multiple Behavior Network: an
@@ -130,7 +131,7 @@ class CTRNNControllerSpec:
     """A plain CTRNN controller: the network reads I1..I3, its motor neurons drive the robot.
 
     Attributes:
-        net: the network (unbatched, 3 inputs).
+        net: the network (unbatched, 3 inputs; 3 + ``len(tile_rules)`` with tile rules).
         sensors: the sonars cast and their normalisation (must include the paper's 10).
         motor: which neurons set ``v`` and ``w``.
         dt: robot step (s).
@@ -138,6 +139,11 @@ class CTRNNControllerSpec:
         method: "euler" or "rk4".
         behavior: what it was made for, "right" or "left" (or None).
         metadata: free JSON-serialisable information (how it was made, scores, ...).
+        tile_rules: None (the paper's followers: I1..I3 only), or the rule a tile of 1, 2, ...
+            colours puts in force: the network then also reads the camera, ``[camera == 1,
+            camera == 2, ...]`` after I1..I3, and must keep the rule of the last tile itself
+            (a monolithic controller of several behaviours, the usual alternative to an MBN).
+        camera: the blob-finding camera it reads (with ``tile_rules`` only).
         kind: the file kind (class constant).
     """
 
@@ -150,13 +156,23 @@ class CTRNNControllerSpec:
     method: str = "euler"
     behavior: str | None = None
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    tile_rules: tuple[str, ...] | None = None
+    camera: CameraConfig = field(default_factory=CameraConfig)
 
     def __post_init__(self) -> None:
         _check_single(self.net, "network")
-        if self.net.num_inputs != NUM_INPUTS:
+        if self.tile_rules is not None:
+            object.__setattr__(self, "tile_rules", _tile_rules(self.tile_rules, "tile_rules"))
+            if not isinstance(self.camera, CameraConfig):
+                raise MbnInputError(
+                    f"camera must be a CameraConfig, got {type(self.camera).__name__}"
+                )
+        if self.net.num_inputs != self.num_inputs:
+            tiles = len(self.tile_rules or ())
             raise MbnInputError(
-                f"network: a controller reads the paper's {NUM_INPUTS} inputs I1..I3, but WE has "
-                f"{self.net.num_inputs} columns"
+                f"network: a controller reads the paper's {NUM_INPUTS} inputs I1..I3"
+                + (f" and {tiles} camera inputs (one per tile kind)" if tiles else "")
+                + f", but WE has {self.net.num_inputs} columns"
             )
         _check_sensors(self.sensors)
         _check_motor(self.motor, self.net.num_neurons, "the network")
@@ -168,6 +184,24 @@ class CTRNNControllerSpec:
                 raise MbnInputError(f"behavior: {exc}") from None
         _check_metadata(self.metadata)
         object.__setattr__(self, "metadata", dict(self.metadata))
+
+    @property
+    def num_inputs(self) -> int:
+        """The network's inputs: I1..I3, then one camera input per tile kind."""
+        return NUM_INPUTS + len(self.tile_rules or ())
+
+
+def _tile_rules(rules: Sequence[str], where: str) -> tuple[str, ...]:
+    """Rule names, one per tile kind (1 to the kinds the camera sees), parsed."""
+    try:
+        names = tuple(parse_rule(r).name for r in rules)
+    except MbnInputError as exc:
+        raise MbnInputError(f"{where}: {exc}") from None
+    if not 1 <= len(names) <= len(TILE_COLORS):
+        raise MbnInputError(
+            f"{where}: one rule per tile kind (1 to {len(TILE_COLORS)}), got {len(names)}"
+        )
+    return names
 
 
 def _check_interpreter(interp: Interpreter) -> None:
@@ -382,15 +416,7 @@ class MBNControllerSpec:
     tile_rules: tuple[str, ...] = ("right", "left")
 
     def __post_init__(self) -> None:
-        try:
-            rules = tuple(parse_rule(r).name for r in self.tile_rules)
-        except MbnInputError as exc:
-            raise MbnInputError(f"program_module.tile_rules: {exc}") from None
-        if not 1 <= len(rules) <= len(TILE_COLORS):
-            raise MbnInputError(
-                f"program_module.tile_rules: one rule per tile kind (1 to {len(TILE_COLORS)}), "
-                f"got {len(rules)}"
-            )
+        rules = _tile_rules(self.tile_rules, "program_module.tile_rules")
         object.__setattr__(self, "tile_rules", rules)
         if not isinstance(self.camera, CameraConfig):
             raise MbnInputError(f"camera must be a CameraConfig, got {type(self.camera).__name__}")

@@ -319,8 +319,9 @@ def camera_inputs(
 
 def prime(pm: CTRNN, inputs: list[np.ndarray], dt: float = 0.1, substeps: int = 4) -> Array:
     """Program-module states after each camera input sequence, from rest: ``(P, S, n)`` for a
-    batch of ``P`` networks and ``S`` sequences (``inputs[s]``: ``(steps, 2)``, one row per robot
-    step of ``dt`` seconds, integrated in ``substeps`` Euler steps as the MBN controller does)."""
+    batch of ``P`` networks and ``S`` sequences (``inputs[s]``: ``(steps, m)`` for ``m`` inputs,
+    one row per robot step of ``dt`` seconds, integrated in ``substeps`` Euler steps as the MBN
+    controller does)."""
     p, n = pm.W.shape[0], pm.W.shape[-1]
     dtype = pm.W.dtype
     h = dt / substeps

@@ -208,11 +208,15 @@ def test_mbn_run_programs_vs_dynamics_quick_end_to_end_and_over_runs(tmp_path):
     proc = subprocess.run([*cmd, "--out", str(out)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     results = json.loads((out / "results.json").read_text())
-    assert set(results["contest"]) == {"straight-right", "straight-left"}
+    tasks = {"straight-right", "straight-left", "three-behaviours"}
+    assert set(results["contest"]) == tasks
     for rule in results["contest"]:
-        for who in CONTENDERS:
+        for who in results["contest"][rule]:
             assert (out / "figures" / f"contest_{rule}_{who}.png").stat().st_size > 0
+    assert set(results["contest"]["three-behaviours"]) == {"programs", "monolithic"}
     html = (out / "report.html").read_text()
     assert "Donnarumma et al. 2016" in html and "data:image/png;base64" in html
+    assert "The three-behaviour task" in html
     stats, secs, images = contest_over_runs(out, {0: results})
-    assert set(stats["rules"]) == {"straight-right", "straight-left"} and secs and images
+    assert set(stats["rules"]) == tasks and secs and images
+    assert set(stats["rules"]["three-behaviours"]["versus"]) == {"monolithic"}

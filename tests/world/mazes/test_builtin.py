@@ -152,10 +152,11 @@ def test_crossroad_options():
     assert (tile.x, tile.y, tile.colors, tile.width) == pytest.approx((8.25, 2.25, 2, 1.5))
     assert tile.heading == pytest.approx(math.pi / 2)
     assert crossroad("L", tile=1).tiles[0].colors == 1
+    assert crossroad("LSR", tile=3).tiles[0].colors == 3  # the three-behaviour task's
     for bad, message in [
         (dict(kind="X"), "unknown crossroad kind 'X'"),
         (dict(kind="RL"), "unknown crossroad kind 'RL'"),
-        (dict(kind="L", tile=3), "tile must be 1, 2 or None"),
+        (dict(kind="L", tile=4), r"tile must be one of 1, 2, 3 or None, got 4"),
         (dict(kind="L", arm_cells=0), "arm_cells must be an integer >= 1"),
         (dict(kind="L", arm_cells=1, tile=1), "a tile needs arm_cells >= 2"),
         (dict(kind="L", cell=-1.0), "cell must be a finite number > 0"),

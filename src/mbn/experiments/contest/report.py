@@ -22,7 +22,7 @@ def _evals(d: dict[str, Any]) -> str:
 def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One run cannot judge a claim about runs: the 2016 claim is stated with what this run
     measured and judged only over runs (``mbn sweep --experiment programs-vs-dynamics``)."""
-    runs = stages["contest"]["runs"]
+    runs = {**stages["contest"]["runs"], **stages.get("contest3", {}).get("runs", {})}
     parts = []
     for rule, by in runs.items():
         parts.append(f"{rule}: " + ", ".join(f"{who} {_evals(d)}" for who, d in by.items()))
@@ -36,6 +36,17 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     ]
 
 
+def _pm_text(three: dict[str, Any]) -> str:
+    """What the MBN's program module cost (robot-free), where the run evolved one."""
+    d = three["runs"].get("three-behaviours", {}).get("programs")
+    if d is None:
+        return ""
+    return (
+        f"; the MBN's program module took {d['pm_evaluations']} evaluations without the robot "
+        f"(program reward {d['pm_fitness']:.4f})"
+    )
+
+
 def write_report(rundir: RunDir) -> None:
     """``report.md``, ``report.html`` and the checks figure."""
     from mbn.viz.contest import contest_checks
@@ -44,7 +55,11 @@ def write_report(rundir: RunDir) -> None:
 
     results = read_json(rundir.results)
     stages = {name: rundir.read_stage(name) for name in results["stages"]}
-    data = stages["contest"]
+    data = dict(stages["contest"])
+    three = stages.get("contest3")
+    if three is not None:  # the three-behaviour task beside the new rules
+        for part in ("runs", "tests", "details"):
+            data[part] = {**data[part], **three[part]}
     file = "figures/contest.png"
     contest_checks(data["runs"], rundir.root / file)
     maze = load_maze(data["mazes"]["test"])
@@ -98,6 +113,28 @@ def write_report(rundir: RunDir) -> None:
                 "(docs/contest.md). One run says little: the comparison is over runs "
                 "(`mbn sweep --experiment programs-vs-dynamics`).",
             ],
+        ),
+        *(
+            []
+            if three is None
+            else [
+                Section(
+                    "The three-behaviour task",
+                    [
+                        f"A controller that follows the rule of the last tile driven over "
+                        f"({', '.join(three['tile_rules'])} after a tile of 1, 2, 3 colours), "
+                        "learned by: "
+                        + "; ".join(f"**{k}**, {v}" for k, v in three["contenders"].items())
+                        + f". The same DE and budget ({three['budget']} evaluations); each "
+                        "check runs the whole controller on "
+                        f"{three['mazes']['test']}, its junctions judged from the first tile. "
+                        "Robot episodes per evaluation (with the perturbed copies): "
+                        + ", ".join(f"{k} {v}" for k, v in three["episodes_per_evaluation"].items())
+                        + _pm_text(three)
+                        + ".",
+                    ],
+                )
+            ]
         ),
         claims_section(claims(stages)),
         Section(

@@ -250,7 +250,7 @@ _CONTEST_STEMS = tuple(
     f"{prefix}{who}_{rule}"
     for rule in ("straight_right", "straight_left")
     for prefix, who in (("", "programs"), ("im_", "programs"), ("", "scratch"), ("", "neighbour"))
-)
+) + tuple(f"{who}_three_behaviours" for who in ("programs", "monolithic"))
 
 CONTEST_SPEC = SweepSpec(
     name="programs-vs-dynamics",
@@ -261,7 +261,8 @@ CONTEST_SPEC = SweepSpec(
     groups=_by_trials("Start marks (each contender's final best)", _CONTEST_STEMS),
     targets_text="No test has a per-run target: the contenders are compared over runs "
     "(below). `im_programs_*` is program search's final program through the interpreter itself; "
-    "the others are the networks.",
+    "the others are the networks; `*_three_behaviours`: the three-behaviour task's final "
+    "controllers, the MBN (`programs`) and the monolithic CTRNN, judged by the last tile's rule.",
     de_stages={"rf": "RF (12 genes)"},
     curve=stage_history,
     load=_load_contest,

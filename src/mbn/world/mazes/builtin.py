@@ -25,7 +25,7 @@ import numpy as np
 
 from mbn.errors import MbnInputError
 from mbn.world.mazes.grid_text import parse_maze_text
-from mbn.world.mazes.model import DEFAULT_CELL, Maze
+from mbn.world.mazes.model import DEFAULT_CELL, TILE_COLORS, Maze
 from mbn.world.mazes.validate import validate_maze
 
 __all__ = [
@@ -129,8 +129,10 @@ def crossroad_text(
         raise MbnInputError("a tile needs the approach from the south")
     if isinstance(arm_cells, bool) or not isinstance(arm_cells, int) or arm_cells < 1:
         raise MbnInputError(f"arm_cells must be an integer >= 1, got {arm_cells!r}")
-    if tile is not None and tile not in (1, 2):
-        raise MbnInputError(f"tile must be 1, 2 or None, got {tile!r}")
+    if tile is not None and tile not in TILE_COLORS:
+        raise MbnInputError(
+            f"tile must be one of {', '.join(map(str, TILE_COLORS))} or None, got {tile!r}"
+        )
     if tile is not None and arm_cells < 2:
         raise MbnInputError("a tile needs arm_cells >= 2 (it lies one cell north of the start)")
     a = arm_cells
@@ -181,7 +183,8 @@ def crossroad(
             exits, left (west), straight (north), right (east).
         arm_cells: length of each arm in cells.
         cell: the cell side (metres).
-        tile: 1 or 2 puts a one- or two-colour tile in the south arm one cell north of the start.
+        tile: 1, 2 or 3 puts a one-, two- or three-colour tile in the south arm one cell north of
+            the start.
         approach: ``"south"`` (the paper's: the start is in the south arm, facing the junction),
             ``"west"`` or ``"east"``: the south arm's end cell opens onto a corridor of ``a``
             cells along the south edge, and the start is at that corridor's far end facing the

@@ -38,10 +38,11 @@ from mbn.experiments.program_module import (
     tile_sequences,
 )
 from mbn.experiments.reproduce.stages.common import MADE_BY
+from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule
 
-__all__ = ["MBN3Settings", "MBN3Stage"]
+__all__ = ["CodePM", "MBN3Settings", "MBN3Stage", "code_mbn", "evolve_code_pm"]
 
 
 @dataclass(frozen=True)
@@ -86,6 +87,92 @@ class MBN3Settings(Settings):
             raise MbnInputError("mbn3.tile_rules: a rule is listed twice")
 
 
+@dataclass(frozen=True)
+class CodePM:
+    """A program module evolved to latch one code per tile kind (:func:`evolve_code_pm`): its
+    network (float64), DE's result, and the code it latches after each tile kind's rule."""
+
+    network: CTRNN
+    run: Any
+    latched: dict[str, list[float] | None]
+
+
+def evolve_code_pm(
+    ctx: StageContext,
+    name: str,
+    rules: tuple[str, ...],
+    generations: int,
+    bound: float,
+    switch_seconds: float,
+    key: jax.Array | None = None,
+) -> CodePM:
+    """DE (the run's ``[de]``, checkpoint ``name``) of a program module with one camera input
+    and one code neuron per tile kind of ``rules``, on the program reward without the robot
+    (:func:`~mbn.experiments.program_module.code_fitness`): after a tile of kind k, code
+    ``e_k``. Genes in ``[-bound, bound]``; ``key`` defaults to the stage's."""
+    kinds = len(rules)
+    genome = PMGenome(programs=kinds, inputs=kinds)
+    codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
+    reward = MemoryReward()
+    fitness = code_fitness(genome, tile_sequences(kinds, reward), codes, switch=switch_seconds)
+    de = ctx.section("de")
+    config = DEConfig(
+        num_dims=genome.size,
+        popsize=de.popsize,
+        F=de.F,
+        CR=de.CR,
+        maximize=True,
+        lower=-bound,
+        upper=bound,
+        init_low=-bound,
+        init_high=bound,
+    )
+    run = ctx.evolve(
+        name,
+        config,
+        fitness,
+        ctx.key if key is None else key,
+        generations,
+        f"{kinds}-behaviour PM: DE",
+    )
+    pm = genome.network(jnp.asarray(run.data["best_genome"]))
+    pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), pm)
+    latched = {}
+    for t in range(kinds):
+        got = latch_after_tile(pm, t + 1, range(kinds), see=reward.see)
+        latched[rules[t]] = None if got is None else np.asarray(got.program).tolist()
+    return CodePM(pm, run, latched)
+
+
+def code_mbn(
+    im_spec: InterpreterControllerSpec,
+    pm: CTRNN,
+    rules: tuple[str, ...],
+    programs: list[Any],
+    camera: CameraConfig,
+    metadata: dict[str, Any],
+) -> MBNControllerSpec:
+    """The MBN of a code program module (:func:`evolve_code_pm`): its readout's columns are
+    ``programs`` (one per tile kind of ``rules``), and it starts in the state the PM latches
+    after a one-colour tile (the first rule), where the PM latches one."""
+    kinds = len(rules)
+    readout = np.stack([np.asarray(p, np.float64) for p in programs], axis=1)
+    latch = latch_after_tile(pm, 1, range(kinds), see=MemoryReward().see)
+    initial = (
+        PMInitial(rule=rules[0], potentials=tuple(latch.potentials)) if latch is not None else None
+    )
+    return MBNControllerSpec(
+        interpreter_spec=im_spec,
+        program_module=pm,
+        program_neurons=tuple(range(kinds)),
+        camera=camera,
+        initial=initial,
+        readout=readout.tolist(),
+        tile_rules=rules,
+        metadata=metadata,
+    )
+
+
 class MBN3Stage(Stage):
     name = "mbn3"
     key_id = 10
@@ -108,51 +195,17 @@ class MBN3Stage(Stage):
                 f"mbn3.tile_rules: {path} has no program for {', '.join(missing)} (it has "
                 f"{', '.join(im_spec.programs)})"
             )
-        kinds = len(rules)
-        genome = PMGenome(programs=kinds, inputs=kinds)
-        codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
-        reward = MemoryReward()
-        fitness = code_fitness(
-            genome, tile_sequences(kinds, reward), codes, switch=s.switch_seconds
+        pm = evolve_code_pm(ctx, "mbn3_pm", rules, s.generations, s.bound, s.switch_seconds)
+        programs = [im_spec.programs[r] for r in rules]
+        spec = code_mbn(
+            im_spec,
+            pm.network,
+            rules,
+            programs,
+            CameraConfig(range=s.camera_range),
+            {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest},
         )
-        de = ctx.section("de")
-        config = DEConfig(
-            num_dims=genome.size,
-            popsize=de.popsize,
-            F=de.F,
-            CR=de.CR,
-            maximize=True,
-            lower=-s.bound,
-            upper=s.bound,
-            init_low=-s.bound,
-            init_high=s.bound,
-        )
-        run = ctx.evolve(
-            "mbn3_pm", config, fitness, ctx.key, s.generations, "three-behaviour PM: DE"
-        )
-        pm = genome.network(jnp.asarray(run.data["best_genome"]))
-        pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), pm)
-        readout = np.stack([np.asarray(im_spec.programs[r], np.float64) for r in rules], axis=1)
-        latch = latch_after_tile(pm, 1, range(kinds), see=reward.see)
-        initial = (
-            PMInitial(rule=rules[0], potentials=tuple(latch.potentials))
-            if latch is not None
-            else None
-        )
-        latched = {}
-        for t in range(kinds):
-            got = latch_after_tile(pm, t + 1, range(kinds), see=reward.see)
-            latched[rules[t]] = None if got is None else np.asarray(got.program).tolist()
-        spec = MBNControllerSpec(
-            interpreter_spec=im_spec,
-            program_module=pm,
-            program_neurons=tuple(range(kinds)),
-            camera=CameraConfig(range=s.camera_range),
-            initial=initial,
-            readout=readout.tolist(),
-            tile_rules=rules,
-            metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest},
-        )
+        run = pm.run
         save_controller(ctx.rundir.controller_file("mbn3"), spec)
         again = read_controller_spec(ctx.rundir.controller_file("mbn3"))
         assert isinstance(again, MBNControllerSpec)
@@ -163,8 +216,8 @@ class MBN3Stage(Stage):
             "generations": s.generations,
             "history": run.data["history"],
             "tile_rules": list(rules),
-            "latched_codes": latched,
-            "initial": None if initial is None else initial.rule,
+            "latched_codes": pm.latched,
+            "initial": None if spec.initial is None else spec.initial.rule,
             "sha256": digest,
             "sha256_checked": True,
         }

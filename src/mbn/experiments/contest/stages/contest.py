@@ -30,6 +30,7 @@ through the interpreter itself too, multipliers and all (with its agreement).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -79,8 +80,12 @@ from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
     "CONTENDERS",
+    "Contender",
     "ContestSettings",
     "ContestStage",
+    "check",
+    "contend",
+    "final_tests",
     "neighbour_population",
     "program_controller",
 ]
@@ -183,7 +188,7 @@ class ContestSettings(Settings):
 
 
 @dataclass(frozen=True)
-class _Contender:
+class Contender:
     """One DE of the contest: its config, fitness, first population, genes -> network, and
     genes -> the controller its checks run."""
 
@@ -209,7 +214,7 @@ def _contender(
     spec: InterpreterControllerSpec,
     rf: CTRNN,
     variants: int,
-) -> _Contender:
+) -> Contender:
     s: ContestSettings = ctx.settings
     de = ctx.section("de")
     bound = ctx.section("followers").weight_bound
@@ -239,7 +244,7 @@ def _contender(
             init_low=0.0,
             init_high=1.0,
         )
-        return _Contender(
+        return Contender(
             config,
             program_fitness(ctx, interp, rf, rule, variants),
             None,
@@ -265,7 +270,7 @@ def _contender(
             bound,
         )
     network = lambda genes: genome.network(jnp.asarray(genes))  # noqa: E731
-    return _Contender(
+    return Contender(
         de_config(ctx, genome.size, bound), fitness, population, network, as_network(network)
     )
 
@@ -280,7 +285,7 @@ def neighbour_population(
     return np.clip(genes[None] + sigma * noise, -bound, bound)
 
 
-def _check(ctx: StageContext, maze: Any, specs: dict[str, Any], loaded: Any) -> dict[str, Any]:
+def check(ctx: StageContext, maze: Any, specs: dict[str, Any], loaded: Any) -> dict[str, Any]:
     """The best so far tested (``loaded``: a network, or the interpreter with a program): the
     start marks, and the jittered starts only where every mark passed (a check that fails a
     mark fails; its jittered count is not run)."""
@@ -301,12 +306,106 @@ def _check(ctx: StageContext, maze: Any, specs: dict[str, Any], loaded: Any) -> 
     if marks["successes"] < marks["trials"]:
         return {"marks": [marks["successes"], marks["trials"]], "jitter": None, "success": False}
     jitter = trials(specs["_jitter"])
-    ok = jitter["success_rate"] >= ctx.settings.jitter_target
+    ok = jitter["success_rate"] >= ctx.section("contest").jitter_target
     return {
         "marks": [marks["successes"], marks["trials"]],
         "jitter": [jitter["successes"], jitter["trials"]],
         "success": bool(ok),
     }
+
+
+def final_tests(
+    loaded: Any, maze: Any, heldout: Any, specs: dict[str, Any]
+) -> tuple[dict[str, Any], Any, dict[str, Any]]:
+    """A final best's tests (``loaded``: its controller): the start marks (its trajectories
+    recorded for the report's pictures, every second step), the jittered starts and the
+    held-out maze. Returns the verdicts by test suffix, the marks' trajectory and their
+    per-trial details."""
+    verdicts: dict[str, Any] = {}
+    trajectory, details = None, {}
+    for suffix in SUFFIXES:
+        if suffix == "":
+            got, ran, _ = run_trials(
+                maze,
+                specs[suffix],
+                loaded.controller,
+                loaded.initial_state,
+                dt=loaded.dt,
+                sensors=loaded.sensors,
+                camera=loaded.camera,
+                record_every=2,
+            )
+            trajectory = ran.trajectory
+            details = {
+                "success": got["success"].astype(int).tolist(),
+                "correct": got["correct"].astype(int).tolist(),
+                "judged": got["judged"].astype(int).tolist(),
+                "stall": np.round(got["stall"].astype(float), 5).tolist(),
+            }
+        else:
+            m = heldout if suffix == "_heldout" else maze
+            got, _, _ = run_loaded_trials(m, specs[suffix], loaded)
+        verdicts[suffix] = got
+    return verdicts, trajectory, details
+
+
+def contend(
+    ctx: StageContext,
+    name: str,
+    description: str,
+    c: Contender,
+    key: jax.Array,
+    check: Callable[[Any], dict[str, Any]],
+) -> tuple[list[dict[str, Any]], Any]:
+    """One contender's DE (checkpoint ``name``) with its best so far checked (``check`` of the
+    controller ``c.checked`` makes of it) at generation 0 and every ``[contest] check_every``
+    generations, each check logged atomically (``checkpoints/NAME.checks.json``) so that a run
+    resumes to the same data; it stops at the first successful check where ``[contest]
+    stop_when_solved``. Returns the checks and DE's final result."""
+    s: ContestSettings = ctx.section("contest")
+    popsize = c.config.popsize
+    marks = sorted({0, *range(0, s.generations + 1, s.check_every), s.generations})
+    log = ctx.rundir.checkpoint_file(name).with_suffix(".checks.json")
+    checks: list[dict[str, Any]] = read_json(log) if log.exists() else []
+    done = {int(x["generation"]) for x in checks}
+    solved_at = next((int(x["generation"]) for x in checks if x["success"]), None)
+    result = None
+    for g in marks:
+        if s.stop_when_solved and solved_at is not None:
+            break
+        if g in done:
+            continue
+        result = ctx.evolve(name, c.config, c.fitness, key, g, description, c.population)
+        best = [float(x) for x in np.asarray(result.data["best_genome"])]
+        last = checks[-1] if checks else None
+        if last is not None and last["best_genome"] == best:
+            verdict = {k: last[k] for k in ("marks", "jitter", "success")}
+        else:
+            verdict = check(c.checked(best))
+        checks.append(
+            {
+                "generation": g,
+                "evaluations": popsize * (g + 1),
+                "best_fitness": float(result.data["best_fitness"]),
+                "best_genome": best,
+                **verdict,
+            }
+        )
+        write_json_atomic(log, checks)
+        if verdict["success"] and solved_at is None:
+            solved_at = g
+    if result is None:  # every check was done before: the final state
+        stop = solved_at if s.stop_when_solved and solved_at is not None else None
+        result = ctx.evolve(
+            name,
+            c.config,
+            c.fitness,
+            key,
+            s.generations if stop is None else stop,
+            description,
+            c.population,
+        )
+    return checks, result
 
 
 class ContestStage(Stage):
@@ -328,7 +427,6 @@ class ContestStage(Stage):
         maze, heldout = load_maze(tests3.maze), load_maze(tests3.heldout_maze)
         popsize = ctx.section("de").popsize
         budget = popsize * (s.generations + 1)
-        marks = sorted({0, *range(0, s.generations + 1, s.check_every), s.generations})
         runs: dict[str, dict[str, Any]] = {}
         tests: dict[str, Any] = {}
         agree: dict[str, Any] = {}
@@ -344,48 +442,9 @@ class ContestStage(Stage):
                 c = _contender(ctx, who, rule, spec, rf, s.variants)
                 name = f"contest_{rule}_{who}"
                 key = jax.random.fold_in(jax.random.fold_in(ctx.key, r), c_index)
-                log = ctx.rundir.checkpoint_file(name).with_suffix(".checks.json")
-                checks: list[dict[str, Any]] = read_json(log) if log.exists() else []
-                done = {int(x["generation"]) for x in checks}
-                solved_at = next((int(x["generation"]) for x in checks if x["success"]), None)
-                result = None
-                for g in marks:
-                    if s.stop_when_solved and solved_at is not None:
-                        break
-                    if g in done:
-                        continue
-                    result = ctx.evolve(
-                        name, c.config, c.fitness, key, g, f"{rule}: {who}", c.population
-                    )
-                    best = [float(x) for x in np.asarray(result.data["best_genome"])]
-                    last = checks[-1] if checks else None
-                    if last is not None and last["best_genome"] == best:
-                        verdict = {k: last[k] for k in ("marks", "jitter", "success")}
-                    else:
-                        verdict = _check(ctx, maze, specs, c.checked(best))
-                    checks.append(
-                        {
-                            "generation": g,
-                            "evaluations": popsize * (g + 1),
-                            "best_fitness": float(result.data["best_fitness"]),
-                            "best_genome": best,
-                            **verdict,
-                        }
-                    )
-                    write_json_atomic(log, checks)
-                    if verdict["success"] and solved_at is None:
-                        solved_at = g
-                if result is None:  # every check was done before: the final state
-                    stop = solved_at if s.stop_when_solved and solved_at is not None else None
-                    result = ctx.evolve(
-                        name,
-                        c.config,
-                        c.fitness,
-                        key,
-                        s.generations if stop is None else stop,
-                        f"{rule}: {who}",
-                        c.population,
-                    )
+                checks, result = contend(
+                    ctx, name, f"{rule}: {who}", c, key, functools.partial(check, ctx, maze, specs)
+                )
                 hit = next((x for x in checks if x["success"]), None)
                 net = c.network(result.data["best_genome"])
                 save_controller(
@@ -400,30 +459,10 @@ class ContestStage(Stage):
                     CTRNNControllerSpec(net=net, behavior=rule), None, where=name
                 )
                 short = f"{who}_{rule.replace('-', '_')}"
-                verdicts = {}
-                for suffix in SUFFIXES:
-                    if suffix == "":  # the start marks, recorded for the report's pictures
-                        got, ran, _ = run_trials(
-                            maze,
-                            specs[suffix],
-                            plain.controller,
-                            plain.initial_state,
-                            dt=plain.dt,
-                            sensors=plain.sensors,
-                            camera=plain.camera,
-                            record_every=2,
-                        )
-                        trajectories[who] = ran.trajectory
-                        details[short] = {
-                            "success": got["success"].astype(int).tolist(),
-                            "correct": got["correct"].astype(int).tolist(),
-                            "judged": got["judged"].astype(int).tolist(),
-                            "stall": np.round(got["stall"].astype(float), 5).tolist(),
-                        }
-                    else:
-                        m = heldout if suffix == "_heldout" else maze
-                        got, _, _ = run_loaded_trials(m, specs[suffix], plain)
-                    verdicts[suffix] = got
+                verdicts, trajectories[who], details[short] = final_tests(
+                    plain, maze, heldout, specs
+                )
+                for suffix, got in verdicts.items():
                     tests[f"{short}{suffix}"] = summary(got)
                 record: dict[str, Any] = {
                     "solved": hit is not None,

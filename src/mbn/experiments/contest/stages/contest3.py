@@ -1,0 +1,344 @@
+"""Stage ``contest3``: the three-behaviour task, an MBN against a monolithic CTRNN.
+
+The task: a controller that follows the rule of the last tile it drove over, right after a
+one-colour tile, left after a two-colour one, straight-right after a three-colour one
+(``[contest3] tile_rules``). Two contenders, with the same DE (``[de]``), the same budget of
+evaluations (``[contest] generations``) and the same checks as the ``contest`` stage's:
+
+* ``programs``, the MBN's route (incremental): the interpreter of ``im_full`` stays fixed (its
+  sha256 checked before and after), RF's and LF's programs are kept, and DE searches only the
+  program of the new rule, on the crossroads with that rule's branch fitness (as the contest's
+  program search); the MBN is that interpreter with a program module that latches one code per
+  tile kind, evolved once without the robot (``[contest3] pm_generations``; its evaluations,
+  robot-free, are reported apart) and whose readout's columns are the three programs;
+* ``monolithic``: one CTRNN of ``[contest3] neurons`` neurons reading I1..I3 and the three tile
+  kinds (:mod:`mbn.experiments.contest.monolithic`), evolved for the three rules at once.
+
+Every ``[contest] check_every`` generations the best so far is run on the three-tile test maze
+as the whole controller it stands for — the MBN with the candidate program; the monolithic
+network — judged by the rule of the last tile driven over, the junctions counted from the first
+tile for both (neither is asked what it does before one); a check succeeds with every start
+mark and ``[contest] jitter_target`` of the jittered starts. Evaluations to success, stopping
+and the final tests are the contest's (``docs/contest.md``). An evaluation of the monolithic
+contender runs every rule's episodes, one of the program search its one rule's: the stage
+records the robot episodes an evaluation costs each.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mbn.config import Settings, setting
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    InterpreterControllerSpec,
+    MBNControllerSpec,
+    make_controller,
+    read_controller_spec,
+    save_controller,
+)
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig
+from mbn.experiments.behaviours.stages.mbn3 import code_mbn, evolve_code_pm
+from mbn.experiments.behaviours.stages.programs import (
+    check_digest,
+    program_fitness,
+    program_network,
+)
+from mbn.experiments.behaviours.stages.tests3 import trial_specs
+from mbn.experiments.contest.monolithic import MonolithicGenome, monolithic_fitness
+from mbn.experiments.contest.stages.contest import (
+    TRAJECTORY_FIELDS,
+    Contender,
+    ContestSettings,
+    check,
+    contend,
+    final_tests,
+)
+from mbn.experiments.evolve import robust_fitness
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.program_module import MemoryReward
+from mbn.experiments.reproduce.stages.common import (
+    MADE_BY,
+    de_config,
+    read_network,
+    stage_perturbations,
+    task,
+)
+from mbn.experiments.trials import summary
+from mbn.world.engine import CameraConfig
+from mbn.world.mazes.builtin import CROSSROAD_KINDS
+from mbn.world.mazes.load import load_maze
+from mbn.world.rules import parse_rule
+
+__all__ = ["CONTENDERS3", "TASK", "Contest3Settings", "Contest3Stage"]
+
+#: The name of the three-behaviour task among the contest's rules (results, files, reports).
+TASK = "three-behaviours"
+
+#: The contenders of the three-behaviour task, with a line each.
+CONTENDERS3: dict[str, str] = {
+    "programs": "the MBN's route: program search for the new rule's program on the fixed "
+    "interpreter, RF's and LF's programs kept, a code program module evolved without the robot",
+    "monolithic": "one CTRNN reading the sonars and the three tile kinds, evolved for the three "
+    "rules at once",
+}
+
+
+@dataclass(frozen=True)
+class Contest3Settings(Settings):
+    """The three-behaviour task: an MBN learning one program against a monolithic CTRNN."""
+
+    section = "contest3"
+    tile_rules: tuple[str, ...] = setting(
+        ("right", "left", "straight-right"),
+        doc="the rule a tile of 1, 2, 3 colours puts in force; the first two are RF's and LF's "
+        "(im_full's programs right and left), the third the rule learned",
+        source="docs/contest.md (the three-behaviour MBN of mbn run new-behaviours)",
+    )
+    contenders: tuple[str, ...] = setting(
+        tuple(CONTENDERS3), doc="the contenders: programs, monolithic", source="docs/contest.md"
+    )
+    neurons: int = setting(
+        5,
+        doc="neurons of the monolithic CTRNN (the followers' 3 and two to hold the rule)",
+        low=3,
+        high=20,
+        source="docs/contest.md",
+    )
+    switches: bool = setting(
+        True,
+        doc="the monolithic fitness also scores each crossroad after another tile kind was "
+        "shown (a rule it must give up), not only from rest",
+        source="docs/contest.md (as the program module's reward)",
+    )
+    pm_generations: int = setting(
+        1500,
+        doc="DE generations of the MBN's code program module (robot-free)",
+        low=0,
+        high=100_000,
+        source="as [mbn3] generations",
+    )
+    pm_bound: float = setting(
+        10.0, doc="the program module's genes are kept in [-bound, bound]", low=0.0, high=1e4
+    )
+    switch_seconds: float = setting(
+        0.3,
+        doc="how soon after a tile comes into view the PM's code must have switched",
+        unit="s",
+        low=0.0,
+        high=10.0,
+        source="as [mbn3] switch_seconds",
+    )
+    camera_range: float = setting(
+        0.8,
+        doc="the camera's range, for both contenders",
+        unit="m",
+        low=0.1,
+        high=10.0,
+        source="as [mbn3]",
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        try:
+            names = [parse_rule(r).name for r in self.tile_rules]
+        except MbnInputError as exc:
+            raise MbnInputError(f"contest3.tile_rules: {exc}") from None
+        if len(names) != 3 or len(set(names)) != 3:
+            raise MbnInputError(
+                f"contest3.tile_rules: three different rules, one per tile kind, got {names}"
+            )
+        if names[:2] != ["right", "left"]:
+            raise MbnInputError(
+                "contest3.tile_rules: the first two are RF's and LF's rules, right and left "
+                f"(the programs the MBN keeps), got {names[:2]}"
+            )
+        if not self.contenders or len(set(self.contenders)) != len(self.contenders):
+            raise MbnInputError("contest3.contenders: at least one, none listed twice")
+        for c in self.contenders:
+            if c not in CONTENDERS3:
+                raise MbnInputError(
+                    f"contest3.contenders: {c!r} is not one of {', '.join(CONTENDERS3)}"
+                )
+
+
+class Contest3Stage(Stage):
+    name = "contest3"
+    key_id = 15
+    needs = ("rf", "im_full")
+    settings = Contest3Settings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        s: Contest3Settings = ctx.settings
+        contest: ContestSettings = ctx.section("contest")
+        path = ctx.rundir.controller_file("im_full")
+        spec = read_controller_spec(path)
+        if not isinstance(spec, InterpreterControllerSpec):
+            raise MbnInputError(f"{path}: not an interpreter")
+        interp = spec.interpreter
+        digest = ctx.read("im_full")["sha256"]
+        check_digest(interp, digest, "contest3")
+        rf = read_network(ctx, "rf")
+        rules = tuple(parse_rule(r).name for r in s.tile_rules)
+        new_rule = rules[2]
+        tests3 = ctx.section("tests3")
+        maze, heldout = load_maze(tests3.maze), load_maze(tests3.heldout_maze)
+        popsize = ctx.section("de").popsize
+        budget = popsize * (contest.generations + 1)
+        camera = CameraConfig(range=s.camera_range)
+        specs = trial_specs("tiles", ctx.section("tests"), ctx, "none", rules)
+        copies = 1 + int(stage_perturbations(ctx, 1).shape[0])
+        meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed}
+        pm = None
+        if "programs" in s.contenders:
+            pm = evolve_code_pm(
+                ctx,
+                "contest3_pm",
+                rules,
+                s.pm_generations,
+                s.pm_bound,
+                s.switch_seconds,
+                jax.random.fold_in(ctx.key, len(CONTENDERS3)),
+            )
+        kept = [spec.programs[r] for r in rules[:2]]
+
+        def mbn_of(genes: Any) -> MBNControllerSpec:
+            assert pm is not None
+            program = np.clip(np.asarray(genes, float), 0.0, 1.0).tolist()
+            return code_mbn(
+                spec, pm.network, rules, [*kept, program], camera, {**meta, "sha256": digest}
+            )
+
+        genome = MonolithicGenome(neurons=s.neurons, kinds=len(rules))
+
+        def monolithic_of(genes: Any) -> CTRNNControllerSpec:
+            return CTRNNControllerSpec(
+                net=genome.network(jnp.asarray(genes)),
+                tile_rules=rules,
+                camera=camera,
+                metadata=meta,
+            )
+
+        runs: dict[str, Any] = {}
+        tests: dict[str, Any] = {}
+        details: dict[str, Any] = {}
+        trajectories: dict[str, Any] = {}
+        episodes: dict[str, int] = {}
+        for c_index, who in enumerate(CONTENDERS3):
+            if who not in s.contenders:
+                continue
+            if who == "programs":
+                c = Contender(
+                    DEConfig(
+                        num_dims=interp.num_programs,
+                        popsize=popsize,
+                        F=ctx.section("de").F,
+                        CR=ctx.section("de").CR,
+                        maximize=True,
+                        lower=0.0,
+                        upper=1.0,
+                        init_low=0.0,
+                        init_high=1.0,
+                    ),
+                    program_fitness(ctx, interp, rf, new_rule, contest.variants),
+                    None,
+                    lambda genes: program_network(interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)),
+                    lambda genes: make_controller(mbn_of(genes), None, where="contest3 mbn"),
+                )
+                episodes[who] = len(CROSSROAD_KINDS) * contest.variants * copies
+            else:
+                tasks = [
+                    dataclasses.replace(task(ctx, r, contest.variants), tile=k + 1)
+                    for k, r in enumerate(rules)
+                ]
+                bound = ctx.section("followers").weight_bound
+                c = Contender(
+                    de_config(ctx, genome.size, bound),
+                    robust_fitness(
+                        monolithic_fitness(
+                            genome,
+                            tasks,
+                            camera,
+                            see=MemoryReward().see,
+                            hold=MemoryReward().hold,
+                            switches=s.switches,
+                        ),
+                        stage_perturbations(ctx, genome.size),
+                    ),
+                    None,
+                    lambda genes: genome.network(jnp.asarray(genes)),
+                    lambda genes: make_controller(
+                        monolithic_of(genes), None, where="contest3", check_stability=False
+                    ),
+                )
+                marks = len(CROSSROAD_KINDS)
+                per_rule = marks * contest.variants + (marks * (len(rules) - 1) * s.switches)
+                episodes[who] = len(rules) * per_rule * copies
+            name = f"contest_{TASK}_{who}"
+            key = jax.random.fold_in(ctx.key, c_index)
+            checks, result = contend(
+                ctx, name, f"{TASK}: {who}", c, key, functools.partial(check, ctx, maze, specs)
+            )
+            hit = next((x for x in checks if x["success"]), None)
+            best = np.asarray(result.data["best_genome"])
+            final = mbn_of(best) if who == "programs" else monolithic_of(best)
+            save_controller(ctx.rundir.controller_file(name), final)
+            loaded = make_controller(final, None, where=name, check_stability=False)
+            short = f"{who}_{TASK.replace('-', '_')}"
+            verdicts, trajectories[who], details[short] = final_tests(loaded, maze, heldout, specs)
+            for suffix, got in verdicts.items():
+                tests[f"{short}{suffix}"] = summary(got)
+            record: dict[str, Any] = {
+                "solved": hit is not None,
+                "evaluations": None if hit is None else hit["evaluations"],
+                "generation": None if hit is None else hit["generation"],
+                "budget": budget,
+                "best_fitness": float(result.data["best_fitness"]),
+                "history": result.data["history"],
+                "checks": [{k: v for k, v in x.items() if k != "best_genome"} for x in checks],
+                "network": c.network(best).to_dict(),
+                "genes": int(best.size),
+                "episodes_per_evaluation": episodes[who],
+                "final_success": bool(
+                    tests[short]["successes"] == tests[short]["trials"]
+                    and tests[f"{short}_jitter"]["success_rate"] >= contest.jitter_target
+                ),
+            }
+            if who == "programs":
+                assert pm is not None
+                record["program"] = np.clip(best.astype(float), 0.0, 1.0).tolist()
+                record["pm_evaluations"] = popsize * (s.pm_generations + 1)
+                record["pm_fitness"] = float(pm.run.data["best_fitness"])
+            runs[who] = record
+        ctx.rundir.save_trajectories(f"contest_{TASK}", trajectories, TRAJECTORY_FIELDS)
+        check_digest(interp, digest, "contest3 (after)")
+        return {
+            "runs": {TASK: runs},
+            "tests": tests,
+            "details": details,
+            "budget": budget,
+            "popsize": popsize,
+            "check_every": contest.check_every,
+            "tile_rules": list(rules),
+            "new_rule": new_rule,
+            "neurons": s.neurons,
+            "episodes_per_evaluation": episodes,
+            "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
+            "sha256": digest,
+            "contenders": {k: CONTENDERS3[k] for k in CONTENDERS3 if k in s.contenders},
+        }
+
+    def summary(self, data: dict[str, Any]) -> str:
+        parts = []
+        for who, d in data["runs"][TASK].items():
+            e = d["evaluations"]
+            parts.append(f"{who}: " + (f"{e} evaluations" if e else "unsolved"))
+        return f"{TASK}: " + "; ".join(parts)

@@ -1,0 +1,102 @@
+"""The ``contest3`` stage of ``mbn run programs-vs-dynamics`` on the quick ``im_full`` run: the
+three-behaviour task, the MBN's route (one new program, RF's and LF's kept, the interpreter
+untouched) against a monolithic CTRNN, with the same budget and checks."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    MBNControllerSpec,
+    load_controller,
+    read_controller_spec,
+)
+from mbn.errors import MbnInputError
+from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
+from mbn.experiments.contest.stages.contest3 import CONTENDERS3, TASK, Contest3Settings
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import run_stage
+from mbn.world.mazes.builtin import CROSSROAD_KINDS
+
+
+@pytest.fixture(scope="module")
+def contest3_run(im_full_run, tmp_path_factory):
+    rundir, _, _ = im_full_run
+    folder = tmp_path_factory.mktemp("contest3") / "run"
+    shutil.copytree(rundir.root, folder)
+    copy = RunDir(folder)
+    config = PROGRAMS_VS_DYNAMICS.config(quick=True)
+    return copy, config, run_stage(PROGRAMS_VS_DYNAMICS, copy, "contest3", seed=3, config=config)
+
+
+def test_both_contenders_get_the_same_budget_and_checks(contest3_run):
+    _, config, data = contest3_run
+    s, c = config["contest3"], config["contest"]
+    popsize = config["de"].popsize
+    assert data["budget"] == popsize * (c.generations + 1)
+    by = data["runs"][TASK]
+    assert list(by) == list(CONTENDERS3)
+    generations = [0, *range(c.check_every, c.generations + 1, c.check_every)]
+    for who, d in by.items():
+        n = len(d["checks"])
+        assert [x["generation"] for x in d["checks"]] == generations[:n], who
+        assert d["solved"] or n == len(generations), who
+        first = next((x for x in d["checks"] if x["success"]), None)
+        assert d["evaluations"] == (None if first is None else first["evaluations"])
+        for suffix in ("", "_jitter", "_heldout"):
+            assert f"{who}_three_behaviours{suffix}" in data["tests"]
+    # what an evaluation costs each: one rule's crossroads against every rule's (and the
+    # switch episodes), times the genome and its perturbed copies
+    copies = 1 + config["followers"].perturbation_copies
+    kinds = len(CROSSROAD_KINDS)
+    assert by["programs"]["episodes_per_evaluation"] == kinds * c.variants * copies
+    assert by["monolithic"]["episodes_per_evaluation"] == 3 * (kinds * c.variants + 2 * kinds) * (
+        copies
+    )
+    assert by["monolithic"]["genes"] == s.neurons**2 + 3 + 3 * s.neurons + s.neurons
+    assert by["programs"]["pm_evaluations"] == popsize * (s.pm_generations + 1)
+
+
+def test_the_mbn_keeps_rf_lf_and_the_interpreter_and_adds_one_program(contest3_run):
+    rundir, _, data = contest3_run
+    im = read_controller_spec(rundir.controller_file("im_full"))
+    mbn = read_controller_spec(rundir.controller_file(f"contest_{TASK}_programs"))
+    assert isinstance(mbn, MBNControllerSpec)
+    assert mbn.tile_rules == ("right", "left", "straight-right")
+    assert mbn.interpreter_spec.interpreter.digest() == data["sha256"]
+    readout = np.asarray(mbn.readout)
+    np.testing.assert_allclose(readout[:, 0], im.programs["right"], atol=1e-12)
+    np.testing.assert_allclose(readout[:, 1], im.programs["left"], atol=1e-12)
+    np.testing.assert_allclose(readout[:, 2], data["runs"][TASK]["programs"]["program"])
+    assert np.all((readout >= 0) & (readout <= 1))
+
+
+def test_the_monolithic_file_reads_the_tiles_itself(contest3_run):
+    rundir, config, data = contest3_run
+    path = rundir.controller_file(f"contest_{TASK}_monolithic")
+    spec = read_controller_spec(path)
+    assert isinstance(spec, CTRNNControllerSpec)
+    n = config["contest3"].neurons
+    assert spec.tile_rules == ("right", "left", "straight-right")
+    assert np.asarray(spec.net.WE).shape == (n, 6)
+    loaded = load_controller(path, check_stability=False)
+    assert loaded.needs_camera and loaded.tile_rules == spec.tile_rules
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"tile_rules": ("right", "left")}, "three different rules"),
+        ({"tile_rules": ("left", "right", "straight-left")}, "the first two are RF's and LF's"),
+        ({"tile_rules": ("right", "left", "up")}, "unknown rule 'up'"),
+        ({"contenders": ("programs", "mbn")}, "'mbn' is not one of programs, monolithic"),
+        ({"neurons": 2}, "neurons"),
+    ],
+)
+def test_settings_refuse_what_the_task_cannot_run(changes, message):
+    with pytest.raises(MbnInputError, match=message):
+        Contest3Settings(**changes)
