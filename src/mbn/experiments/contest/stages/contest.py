@@ -355,9 +355,9 @@ def contend(
     description: str,
     c: Contender,
     key: jax.Array,
-    check: Callable[[Any], dict[str, Any]],
+    test: Callable[[Any], dict[str, Any]],
 ) -> tuple[list[dict[str, Any]], Any]:
-    """One contender's DE (checkpoint ``name``) with its best so far checked (``check`` of the
+    """One contender's DE (checkpoint ``name``) with its best so far checked (``test`` of the
     controller ``c.checked`` makes of it) at generation 0 and every ``[contest] check_every``
     generations, each check logged atomically (``checkpoints/NAME.checks.json``) so that a run
     resumes to the same data; it stops at the first successful check where ``[contest]
@@ -381,7 +381,7 @@ def contend(
         if last is not None and last["best_genome"] == best:
             verdict = {k: last[k] for k in ("marks", "jitter", "success")}
         else:
-            verdict = check(c.checked(best))
+            verdict = test(c.checked(best))
         checks.append(
             {
                 "generation": g,
