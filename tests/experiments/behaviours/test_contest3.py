@@ -54,7 +54,10 @@ def test_both_contenders_get_the_same_budget_and_checks(contest3_run):
     copies = 1 + config["followers"].perturbation_copies
     kinds = len(CROSSROAD_KINDS)
     assert by["programs"]["episodes_per_evaluation"] == kinds * c.variants * copies
-    assert by["monolithic"]["episodes_per_evaluation"] == 3 * (kinds * c.variants + 2 * kinds) * (
+    # every rule's tile crossroads, from rest and after each other tile, and the crossroads
+    # without a tile (scored by right, the rule before any tile)
+    per_rule = kinds * c.variants + 2 * kinds
+    assert by["monolithic"]["episodes_per_evaluation"] == (3 * per_rule + kinds * c.variants) * (
         copies
     )
     assert by["monolithic"]["genes"] == s.neurons**2 + 3 + 3 * s.neurons + s.neurons
@@ -76,7 +79,7 @@ def test_the_mbn_keeps_rf_lf_and_the_interpreter_and_adds_one_program(contest3_r
 
 
 def test_the_monolithic_file_reads_the_tiles_itself(contest3_run):
-    rundir, config, data = contest3_run
+    rundir, config, _ = contest3_run
     path = rundir.controller_file(f"contest_{TASK}_monolithic")
     spec = read_controller_spec(path)
     assert isinstance(spec, CTRNNControllerSpec)

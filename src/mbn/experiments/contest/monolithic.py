@@ -13,8 +13,10 @@ kind's rule on the crossroads with a tile of that kind in the south arm (the pro
 training crossroads, :class:`~mbn.experiments.crossroads.CrossroadTask` ``tile``): from rest
 (``variants`` starts per crossroad), and, from each crossroad's start mark, after the network was
 shown each other tile kind (``see`` seconds in view, then ``hold`` seconds without: a rule it
-must give up for the new one). While it is shown a tile before an episode, its sonar inputs are
-0 (open space), as the program module's priming shows it the camera alone.
+must give up for the new one); and, given a ``rest`` task, the crossroads without a tile from
+rest, scored by the rule in force before any tile (the first tile kind's, as an MBN starts as
+RF). While it is shown a tile before an episode, its sonar inputs are 0 (open space), as the
+program module's priming shows it the camera alone.
 """
 
 from __future__ import annotations
@@ -142,17 +144,21 @@ def monolithic_fitness(
     see: float = 1.5,
     hold: float = 30.0,
     switches: bool = True,
+    rest: CrossroadTask | None = None,
     substeps: int = NETWORK_SUBSTEPS,
 ) -> Callable[[Array], Array]:
     """A jitted map from a population ``(P, genome.size)`` to fitness ``(P,)``: the summed
     branch fitness over ``tasks`` (one per tile kind, in kind order: ``tasks[k].tile == k +
     1``, each scored by its rule), from rest and, with ``switches``, from each crossroad's start
-    mark after each other kind was shown (module docstring)."""
+    mark after each other kind was shown; plus, with a ``rest`` task (no tile), its episodes
+    from rest (module docstring)."""
     if len(tasks) != genome.kinds:
         raise MbnInputError(f"{len(tasks)} tasks for a genome of {genome.kinds} tile kinds")
     for k, t in enumerate(tasks):
         if t.tile != k + 1:
             raise MbnInputError(f"task {k} has tile {t.tile}, expected {k + 1}")
+    if rest is not None and rest.tile is not None:
+        raise MbnInputError(f"the rest task has a tile ({rest.tile}); it must have none")
     dt = tasks[0].dt
     controller = ctrnn_controller(
         dt=dt, substeps=substeps, inputs=with_tiles(genome.kinds), noise=tasks[0].noise
@@ -165,6 +171,9 @@ def monolithic_fitness(
         arrays = _with_switches(base, len(others), marks)
         seqs = [priming_inputs(genome.kinds, j, see, hold, dt) for j in others]
         plans.append((t, arrays, base.episodes, marks, seqs, tile_fitness(arrays)))
+    if rest is not None:
+        arrays = rest.arrays()
+        plans.append((rest, arrays, arrays.episodes, 0, [], tile_fitness(arrays)))
 
     @jax.jit
     def fitness(population: Array) -> Array:

@@ -16,9 +16,10 @@ evaluations (``[contest] generations``) and the same checks as the ``contest`` s
 
 Every ``[contest] check_every`` generations the best so far is run on the three-tile test maze
 as the whole controller it stands for — the MBN with the candidate program; the monolithic
-network — judged by the rule of the last tile driven over, the junctions counted from the first
-tile for both (neither is asked what it does before one); a check succeeds with every start
-mark and ``[contest] jitter_target`` of the jittered starts. Evaluations to success, stopping
+network — judged as ``tests3`` judges the three-behaviour MBN: by the rule of the last tile
+driven over, and before the first tile by the first kind's rule, right (an MBN starts as RF; the
+monolithic fitness scores the crossroads without a tile by it); a check succeeds with every
+start mark and ``[contest] jitter_target`` of the jittered starts. Evaluations to success, stopping
 and the final tests are the contest's (``docs/contest.md``). An evaluation of the monolithic
 contender runs every rule's episodes, one of the program search its one rule's: the stage
 records the robot episodes an evaluation costs each.
@@ -194,7 +195,9 @@ class Contest3Stage(Stage):
         popsize = ctx.section("de").popsize
         budget = popsize * (contest.generations + 1)
         camera = CameraConfig(range=s.camera_range)
-        specs = trial_specs("tiles", ctx.section("tests"), ctx, "none", rules)
+        # judged as tests3 judges the three-behaviour MBN: before the first tile, the first
+        # tile kind's rule (an MBN starts as RF)
+        specs = trial_specs("tiles", ctx.section("tests"), ctx, rules[0], rules)
         copies = 1 + int(stage_perturbations(ctx, 1).shape[0])
         meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed}
         pm = None
@@ -270,6 +273,7 @@ class Contest3Stage(Stage):
                             see=MemoryReward().see,
                             hold=MemoryReward().hold,
                             switches=s.switches,
+                            rest=task(ctx, rules[0], contest.variants),
                         ),
                         stage_perturbations(ctx, genome.size),
                     ),
@@ -281,7 +285,7 @@ class Contest3Stage(Stage):
                 )
                 marks = len(CROSSROAD_KINDS)
                 per_rule = marks * contest.variants + (marks * (len(rules) - 1) * s.switches)
-                episodes[who] = len(rules) * per_rule * copies
+                episodes[who] = (len(rules) * per_rule + marks * contest.variants) * copies
             name = f"contest_{TASK}_{who}"
             key = jax.random.fold_in(ctx.key, c_index)
             checks, result = contend(
