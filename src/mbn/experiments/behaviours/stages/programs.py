@@ -51,6 +51,7 @@ __all__ = [
     "ProgramsSettings",
     "ProgramsStage",
     "check_digest",
+    "program_de_config",
     "program_fitness",
     "program_network",
 ]
@@ -126,6 +127,23 @@ def program_network(interp: Interpreter, base: CTRNN, program: Any) -> CTRNN:
     """The network a program encodes: ``base`` with each programmable weight decoded."""
     genome = Genome.around(base, interp.connections)
     return genome.network(jnp.asarray(interp.decode(jnp.asarray(program, base.W.dtype))))
+
+
+def program_de_config(ctx: StageContext, interp: Interpreter) -> DEConfig:
+    """DE/best/1/bin with the run's ``[de]`` settings over the programs of ``interp``: one gene
+    per programmable connection, in [0, 1], the first generation uniform there."""
+    de = ctx.section("de")
+    return DEConfig(
+        num_dims=interp.num_programs,
+        popsize=de.popsize,
+        F=de.F,
+        CR=de.CR,
+        maximize=True,
+        lower=0.0,
+        upper=1.0,
+        init_low=0.0,
+        init_high=1.0,
+    )
 
 
 def program_fitness(
@@ -259,19 +277,7 @@ class ProgramsStage(Stage):
         digest = ctx.read("im_full")["sha256"]
         check_digest(interp, digest, "programs")
         base = read_network(ctx, "rf")
-        k = interp.num_programs
-        de = ctx.section("de")
-        config = DEConfig(
-            num_dims=k,
-            popsize=de.popsize,
-            F=de.F,
-            CR=de.CR,
-            maximize=True,
-            lower=0.0,
-            upper=1.0,
-            init_low=0.0,
-            init_high=1.0,
-        )
+        config = program_de_config(ctx, interp)
         attempts = ctx.section("validation").attempts
         found: dict[str, Any] = {}
         programs = dict(spec.programs)

@@ -51,6 +51,7 @@ from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
 from mbn.experiments.behaviours.stages.programs import (
     check_digest,
+    program_de_config,
     program_fitness,
     program_network,
 )
@@ -233,19 +234,8 @@ def _contender(
             interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)
         )
 
-        config = DEConfig(
-            num_dims=interp.num_programs,
-            popsize=de.popsize,
-            F=de.F,
-            CR=de.CR,
-            maximize=True,
-            lower=0.0,
-            upper=1.0,
-            init_low=0.0,
-            init_high=1.0,
-        )
         return Contender(
-            config,
+            program_de_config(ctx, interp),
             program_fitness(ctx, interp, rf, rule, variants),
             None,
             decoded,

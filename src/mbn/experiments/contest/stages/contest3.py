@@ -46,10 +46,10 @@ from mbn.controllers import (
     save_controller,
 )
 from mbn.errors import MbnInputError
-from mbn.evolution.de import DEConfig
 from mbn.experiments.behaviours.stages.mbn3 import code_mbn, evolve_code_pm
 from mbn.experiments.behaviours.stages.programs import (
     check_digest,
+    program_de_config,
     program_fitness,
     program_network,
 )
@@ -240,17 +240,7 @@ class Contest3Stage(Stage):
                 continue
             if who == "programs":
                 c = Contender(
-                    DEConfig(
-                        num_dims=interp.num_programs,
-                        popsize=popsize,
-                        F=ctx.section("de").F,
-                        CR=ctx.section("de").CR,
-                        maximize=True,
-                        lower=0.0,
-                        upper=1.0,
-                        init_low=0.0,
-                        init_high=1.0,
-                    ),
+                    program_de_config(ctx, interp),
                     program_fitness(ctx, interp, rf, new_rule, contest.variants),
                     None,
                     lambda genes: program_network(interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)),
