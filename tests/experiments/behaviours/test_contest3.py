@@ -19,7 +19,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
 from mbn.experiments.contest.stages.contest3 import CONTENDERS3, TASK, Contest3Settings
 from mbn.experiments.pipeline import RunDir
-from mbn.experiments.pipeline.runner import run_stage
+from mbn.experiments.pipeline.runner import replace_section, run_stage
 from mbn.world.mazes.builtin import CROSSROAD_KINDS
 
 
@@ -30,6 +30,9 @@ def contest3_run(im_full_run, tmp_path_factory):
     shutil.copytree(rundir.root, folder)
     copy = RunDir(folder)
     config = PROGRAMS_VS_DYNAMICS.config(quick=True)
+    # two checks (generations 0 and 2) are enough to test the loop; the contest's own tests
+    # run more (this fixture lies on the test suite's critical path)
+    config = replace_section(config, config["contest"].replace(generations=2))
     return copy, config, run_stage(PROGRAMS_VS_DYNAMICS, copy, "contest3", seed=3, config=config)
 
 
