@@ -27,7 +27,6 @@ from mbn.controllers import (
     save_controller,
 )
 from mbn.errors import MbnInputError
-from mbn.evolution.de import DEConfig
 from mbn.experiments.behaviours.stages.programs import check_digest
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.program_module import (
@@ -37,7 +36,7 @@ from mbn.experiments.program_module import (
     latch_after_tile,
     tile_sequences,
 )
-from mbn.experiments.reproduce.stages.common import MADE_BY
+from mbn.experiments.reproduce.stages.common import MADE_BY, de_config
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule
@@ -115,21 +114,9 @@ def evolve_code_pm(
     codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
     reward = MemoryReward()
     fitness = code_fitness(genome, tile_sequences(kinds, reward), codes, switch=switch_seconds)
-    de = ctx.section("de")
-    config = DEConfig(
-        num_dims=genome.size,
-        popsize=de.popsize,
-        F=de.F,
-        CR=de.CR,
-        maximize=True,
-        lower=-bound,
-        upper=bound,
-        init_low=-bound,
-        init_high=bound,
-    )
     run = ctx.evolve(
         name,
-        config,
+        de_config(ctx, genome.size, bound),
         fitness,
         ctx.key if key is None else key,
         generations,

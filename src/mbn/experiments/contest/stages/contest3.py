@@ -198,7 +198,7 @@ class Contest3Stage(Stage):
         # judged as tests3 judges the three-behaviour MBN: before the first tile, the first
         # tile kind's rule (an MBN starts as RF)
         specs = trial_specs("tiles", ctx.section("tests"), ctx, rules[0], rules)
-        copies = 1 + int(stage_perturbations(ctx, 1).shape[0])
+        copies = 1 + ctx.section("followers").perturbation_copies  # a genome and its copies
         meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed}
         pm = None
         if "programs" in s.contenders:
