@@ -228,5 +228,10 @@ def test_a_contest_sweep_folder_is_summarized_into_its_report(tmp_path):
     md = (tmp_path / "sweep.md").read_text()
     assert "The 2016 claim over runs" in md and "preliminary, 5 runs" in md
     assert "not judged per run (5 runs)" in md
+    # the seeds table has no "meets every target" column: these runs have no per-run target
+    seeds_table = md.split("## Seeds", 1)[1].split("##", 1)[0]
+    assert "| seed | run | error | time |" in seeds_table
+    assert "meets every target" not in seeds_table and "| yes |" not in seeds_table
+    assert seeds_table.count("| done | – |") == 5
     for figure in ("sweep_rates.png", "sweep_de.png", "contest_solved.png"):
         assert (tmp_path / "figures" / figure).stat().st_size > 0

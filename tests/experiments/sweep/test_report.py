@@ -102,3 +102,20 @@ def test_a_sweep_recorded_before_a_setting_existed_is_summarized_as_recorded(
         fake_run(out, s, old, {}, {}, {"claim A": True}, [0.0, 1.0])
     data = summarize_folder(out)
     assert data["summary"]["meet_every_target"] == 2
+
+
+@pytest.mark.parametrize("analysis", [False, True])
+def test_a_sweep_without_per_run_targets_counts_finished_runs_not_targets_met(analysis):
+    """The ablations (no analysis over runs) and the noise levels or the contest (with one) have
+    no per-run target: their line counts finished runs, never "meet every target"."""
+    summ = {
+        "seeds": [0, 1, 2],
+        "finished": 2,
+        "failed": [],
+        "meet_every_target": 2,
+        "per_seed": {"0": {"state": "done"}, "1": {"state": "done"}, "2": {"state": "missing"}},
+        "targets": {},
+        **({"analysis": {}} if analysis else {}),
+    }
+    line = summary_line({"summary": summ, "runs": {}})
+    assert line == "sweep: 2/3 seeds finished (no per-run targets), 1 not run"

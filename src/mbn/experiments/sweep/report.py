@@ -64,11 +64,18 @@ def _clock(seconds: float | None) -> str:
     return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
 
 
+def has_run_targets(summ: dict[str, Any]) -> bool:
+    """Whether the sweep's experiment judges each run by targets (the reproduction, the new
+    behaviours) or only measures the runs (programs against dynamics, the ablations, the noise
+    levels: no per-run target)."""
+    return bool(summ.get("targets"))
+
+
 def summary_line(data: dict[str, Any]) -> str:
     """The sweep in one line: seeds meeting every target, failures named, wall time."""
     summ = data["summary"]
     n = len(summ["seeds"])
-    if summ.get("targets") or "analysis" not in summ:
+    if has_run_targets(summ):
         line = f"sweep: {summ['meet_every_target']}/{n} seeds meet every target"
     else:  # an experiment without per-run targets (compared over runs)
         line = f"sweep: {summ['finished']}/{n} seeds finished (no per-run targets)"
@@ -168,40 +175,7 @@ def _sections(
             status=status,
         )
     )
-    rows, status = [], []
-    for s in seeds:
-        v = summ["per_seed"][str(s)]
-        run = data["runs"].get(str(s), {})
-        if v["state"] == "done":
-            rows.append(
-                [
-                    str(s),
-                    "done",
-                    ", ".join(v["missed"]) or "none",
-                    _clock(run.get("seconds")),
-                    "yes" if v["meets_all"] else "no",
-                ]
-            )
-            status.append(v["meets_all"])
-        else:
-            rows.append(
-                [str(s), v["state"], v.get("error") or "–", _clock(run.get("seconds")), "no"]
-            )
-            status.append(False)
-    secs.append(
-        Section(
-            "Seeds",
-            [
-                "Each seed's run folder is `seed-K/` (its own `report.html`). Targets missed are "
-                "named; a run that crashed shows its error."
-            ],
-            table=(
-                ["seed", "run", "targets missed (or error)", "time", "meets every target"],
-                rows,
-            ),
-            status=status,
-        )
-    )
+    secs.append(_seeds_section(data, seeds))
     claims = summ["claims"]
     secs.append(
         Section(
@@ -292,3 +266,43 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     write_sweep(out, data)
     write_document(out, "sweep", spec.title, _sections(out, data, images, spec, extra))
     return data
+
+
+def _seeds_section(data: dict[str, Any], seeds: list[int]) -> Section:
+    """One row per seed: its state, the targets it missed (or its error) and its time; an
+    experiment without per-run targets has no "meets every target" column (a finished run is
+    only finished: its figures are compared over the runs)."""
+    summ = data["summary"]
+    judged = has_run_targets(summ)
+    rows: list[list[str]] = []
+    status: list[bool | None] = []
+    for s in seeds:
+        v = summ["per_seed"][str(s)]
+        run = data["runs"].get(str(s), {})
+        clock = _clock(run.get("seconds"))
+        if v["state"] == "done":
+            if judged:
+                missed = ", ".join(v["missed"]) or "none"
+                rows.append([str(s), "done", missed, clock, "yes" if v["meets_all"] else "no"])
+                status.append(v["meets_all"])
+            else:
+                rows.append([str(s), "done", "–", clock])
+                status.append(None)
+        else:
+            rows.append([str(s), v["state"], v.get("error") or "–", clock, *(["no"] * judged)])
+            status.append(False if judged or v["state"] == "failed" else None)
+    if judged:
+        header = ["seed", "run", "targets missed (or error)", "time", "meets every target"]
+        text = "Targets missed are named; a run that crashed shows its error."
+    else:
+        header = ["seed", "run", "error", "time"]
+        text = (
+            "The runs have no per-run targets (a finished run is compared over the runs, "
+            "above); a run that crashed shows its error, one not run yet is 'missing'."
+        )
+    return Section(
+        "Seeds",
+        ["Each seed's run folder is `seed-K/` (its own `report.html`). " + text],
+        table=(header, rows),
+        status=status,
+    )
