@@ -17,9 +17,12 @@ from mbn.experiments.stats import censored_quantiles, mann_whitney, median_ratio
     ("a", "b", "u", "p"),
     [
         ([1, 2, 3], [4, 5, 6], 0.0, 0.0808555983700522),
-        # censored runs (None, at the budget 10) tie with each other and with a run at 10
+        # censored runs (None) tie with each other, above every solved run
         ([1, 2, None, None], [3, None, None, None], 5.0, 0.4083519693259383),
         ([5, 1, 7, 3, 3, None], [2, 2, 8, None, None], 12.0, 0.64351499991621),
+        # a run solved at the budget (10) needed fewer evaluations than one never solved
+        # (SciPy on [1, 10, inf, 5] against [10, inf, inf])
+        ([1, 10, None, 5], [10, None, None], 2.5, 0.2663799233424825),
     ],
 )
 def test_mann_whitney_matches_the_normal_approximation_with_ties(a, b, u, p):
@@ -49,6 +52,17 @@ def test_censored_quantiles_are_lower_bounds_where_they_fall_on_an_unsolved_run(
     assert q["q1"] is None
     with pytest.raises(ValueError, match="outside"):
         censored_quantiles([1200], budget=1000)
+
+
+def test_a_run_solved_at_the_budget_sorts_before_an_unsolved_one():
+    """Solved at the last check (at the budget) is a number of evaluations; never solved is
+    not: the median of 918, 1278, 5418 and one unsolved run is (1278 + 5418) / 2, whichever
+    order the runs come in, and so is the bootstrap's point ratio."""
+    for times in ([1278, None, 5418, 918], [5418, 1278, None, 918], [None, 918, 1278, 5418]):
+        q = censored_quantiles(times, budget=5418)
+        assert (q["q1"], q["median"], q["q3"]) == (1188.0, 3348.0, None)
+        r = median_ratio(times, [3348, 3348], budget=5418, resamples=10)
+        assert r["ratio"] == pytest.approx(1.0, abs=1e-15)
 
 
 def test_solved_curve_counts_the_runs_solved_within_each_budget():

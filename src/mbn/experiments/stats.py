@@ -65,6 +65,12 @@ def _finite_or_censored(times: Sequence[float | None], budget: float) -> np.ndar
     return out
 
 
+def _censored_order(t: np.ndarray, solved: np.ndarray) -> np.ndarray:
+    """The order of runs by evaluations to success, a censored run after a run solved with as
+    many (one solved at the last check, at the budget, needed fewer than one never solved)."""
+    return np.lexsort((~solved, t))
+
+
 def censored_quantiles(
     times: Sequence[float | None], budget: float
 ) -> dict[str, float | bool | None]:
@@ -77,7 +83,7 @@ def censored_quantiles(
         return {"median": None, "q1": None, "q3": None, "median_censored": False}
     solved = np.asarray([x is not None for x in times])
     out: dict[str, float | bool | None] = {}
-    order = np.argsort(t, kind="stable")
+    order = _censored_order(t, solved)
     ts, ok = t[order], solved[order]
     for name, q in (("q1", 0.25), ("median", 0.5), ("q3", 0.75)):
         # type-7 quantile; it is a number of evaluations only if both order statistics it
@@ -107,7 +113,7 @@ def solved_curve(
 
 def _median_or_inf(t: np.ndarray, solved: np.ndarray) -> float:
     """Median of censored times: ``inf`` when it falls on a censored run."""
-    order = np.argsort(t, kind="stable")
+    order = _censored_order(t, solved)
     ts, ok = t[order], solved[order]
     h = (t.size - 1) * 0.5
     lo, hi = math.floor(h), math.ceil(h)
@@ -184,12 +190,16 @@ def mann_whitney(
     a: Sequence[float | None], b: Sequence[float | None], budget: float
 ) -> dict[str, float | None]:
     """The Mann–Whitney U test of evaluations to success, ``a`` against ``b`` (unsuccessful runs
-    tied at ``budget``, ranks averaged over ties): ``U`` of ``a``, the two-sided p-value of the
-    normal approximation with the tie correction (and a continuity correction of 0.5), and the
-    Vargha–Delaney effect size ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a``
-    needs more evaluations than one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
+    tied with each other above every solved run, a run solved at ``budget`` included; ranks
+    averaged over ties): ``U`` of ``a``, the two-sided p-value of the normal approximation with
+    the tie correction (and a continuity correction of 0.5), and the Vargha–Delaney effect size
+    ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a`` needs more evaluations than
+    one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
     """
-    ta, tb = _finite_or_censored(a, budget), _finite_or_censored(b, budget)
+    _finite_or_censored(a, budget), _finite_or_censored(b, budget)  # the times' range checked
+    # an unsolved run needs more than the budget: ranked above a run solved at the budget
+    ta = np.asarray([math.inf if x is None else float(x) for x in a], dtype=float)
+    tb = np.asarray([math.inf if x is None else float(x) for x in b], dtype=float)
     m, n = ta.size, tb.size
     if m == 0 or n == 0:
         return {"U": None, "p": None, "A12": None, "z": None}

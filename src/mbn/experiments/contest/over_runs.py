@@ -110,8 +110,10 @@ def _num(x: float | None) -> str:
 
 def _median_run(times: Mapping[int, float | None], budget: float) -> int:
     """The seed of the median run: runs sorted by evaluations to success (censored at the
-    budget, then by seed), the lower middle one."""
-    order = sorted(times, key=lambda s: (budget if times[s] is None else times[s], s))
+    budget and after a run solved at the budget, then by seed), the lower middle one."""
+    order = sorted(
+        times, key=lambda s: (budget if times[s] is None else times[s], times[s] is None, s)
+    )
     return order[(len(order) - 1) // 2]
 
 
@@ -310,8 +312,9 @@ def contest_over_runs(
                     [
                         "Ratio of median evaluations to success (below 1: program search needs "
                         "fewer) with a bootstrap 95 % interval (10 000 resamples of the runs); "
-                        "the Mann–Whitney U test of the evaluations (unsolved runs tied at the "
-                        "budget; two-sided, normal approximation with tie correction) and the "
+                        "the Mann–Whitney U test of the evaluations (unsolved runs tied with each "
+                        "other, above every solved run; two-sided, normal approximation with "
+                        "tie correction) and the "
                         "Vargha–Delaney A12 = P(program search needs more) (0.5: no "
                         "difference; below 0.5, program search is faster).",
                     ],
