@@ -196,7 +196,8 @@ def mann_whitney(
     ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a`` needs more evaluations than
     one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
     """
-    _finite_or_censored(a, budget), _finite_or_censored(b, budget)  # the times' range checked
+    for times in (a, b):
+        _finite_or_censored(times, budget)  # raises on a time outside [0, budget]
     # an unsolved run needs more than the budget: ranked above a run solved at the budget
     ta = np.asarray([math.inf if x is None else float(x) for x in a], dtype=float)
     tb = np.asarray([math.inf if x is None else float(x) for x in b], dtype=float)
