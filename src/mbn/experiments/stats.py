@@ -65,6 +65,12 @@ def _finite_or_censored(times: Sequence[float | None], budget: float) -> np.ndar
     return out
 
 
+def _times_or_inf(times: Sequence[float | None]) -> np.ndarray:
+    """Hitting times with the unsuccessful runs (``None``) at infinity: they need more
+    evaluations than any run solved, one solved at the budget included."""
+    return np.asarray([math.inf if t is None else float(t) for t in times], dtype=float)
+
+
 def _censored_order(t: np.ndarray, solved: np.ndarray) -> np.ndarray:
     """The order of runs by evaluations to success, a censored run after a run solved with as
     many (one solved at the last check, at the budget, needed fewer than one never solved)."""
@@ -105,7 +111,7 @@ def solved_curve(
     (``points`` values): one minus a survival curve (no run leaves before the budget, so the
     empirical fraction is exact)."""
     grid = np.linspace(0.0, float(budget), points)
-    hit = np.asarray([math.inf if t is None else float(t) for t in times], dtype=float)
+    hit = _times_or_inf(times)
     if hit.size == 0:
         return grid, np.full_like(grid, math.nan)
     return grid, (hit[None, :] <= grid[:, None]).mean(axis=1)
@@ -198,9 +204,7 @@ def mann_whitney(
     """
     for times in (a, b):
         _finite_or_censored(times, budget)  # raises on a time outside [0, budget]
-    # an unsolved run needs more than the budget: ranked above a run solved at the budget
-    ta = np.asarray([math.inf if x is None else float(x) for x in a], dtype=float)
-    tb = np.asarray([math.inf if x is None else float(x) for x in b], dtype=float)
+    ta, tb = _times_or_inf(a), _times_or_inf(b)
     m, n = ta.size, tb.size
     if m == 0 or n == 0:
         return {"U": None, "p": None, "A12": None, "z": None}

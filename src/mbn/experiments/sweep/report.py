@@ -115,7 +115,7 @@ def _sections(
                 f"`seed-K/`; {summ['finished']} finished, {len(summ['failed'])} failed. "
                 + (
                     f"**{summ['meet_every_target']} of {n} seeds meet every target.**"
-                    if spec.targets
+                    if has_run_targets(summ)
                     else "The runs have no per-run targets: they are compared over runs."
                 )
                 + quick,
