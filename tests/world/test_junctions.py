@@ -10,11 +10,14 @@ from mbn.world.junctions import (
     EXIT_CODES,
     HEADINGS,
     JunctionPass,
+    RoutePass,
     cell_of,
     decision_cells,
     junction_sequence,
     junction_tables,
+    route_passes,
     rule_exit,
+    rule_route,
 )
 from mbn.world.mazes.builtin import crossroad, stage_arena
 from mbn.world.mazes.grid_text import parse_maze_text
@@ -160,3 +163,41 @@ def test_cross_s_has_no_decision_cell_and_passes_nothing():
     maze = crossroad("S")
     assert not decision_cells(maze).any()
     assert junction_sequence(maze, straight((4.2, 0.6), (4.2, 7.8))) == []
+
+
+def test_route_passes_name_the_rule_in_force_where_it_came_from_and_the_exits_open():
+    """Two crossings in a row: a three-colour tile before the first puts straight-right in force
+    (source 3) and the walk goes straight on; before the second a one-colour tile puts right in
+    force (source 1). Without tiles followed, the rule the walk starts with (source 0) holds."""
+    maze = parse_maze_text(
+        "name = two\ncell = 1.2\n"
+        "#######\n"
+        "#.....#\n"
+        "###.###\n"
+        "###1###\n"
+        "#.....#\n"
+        "###.###\n"
+        "###3###\n"
+        "###^###\n"
+        "#######\n"
+    )
+    tiles = ("right", "left", "straight-right")
+    start = tuple(maze.starts[0])
+    assert route_passes(maze, start, "left", 2, follow_tiles=True, tile_rules=tiles) == [
+        RoutePass("straight-right", 3, frozenset({"right", "straight", "left", "back"})),
+        RoutePass("right", 1, frozenset({"right", "left", "back"})),
+    ]
+    assert route_passes(maze, start, "left", 1) == [
+        RoutePass("left", 0, frozenset({"right", "straight", "left", "back"}))
+    ]
+    # the route it walks is rule_route's
+    length = rule_route(maze, start, "left", 2, follow_tiles=True, tile_rules=tiles)
+    assert length == pytest.approx(1.2 * 6.5)  # six cells, then half of the last
+    # then right into the dead end of the east arm, back, and through the T again (from the east)
+    third = route_passes(maze, start, "left", 3, follow_tiles=True, tile_rules=tiles)
+    assert third is not None and third[2] == RoutePass(
+        "right", 1, frozenset({"straight", "left", "back"})
+    )
+    # a walk round a loop that never drives over a tile counts no junction from a tile: None
+    ring = parse_maze_text("name = ring\ncell = 1.2\n#####\n#.>.#\n#.#.#\n#...#\n#####\n")
+    assert route_passes(ring, tuple(ring.starts[0]), "right", 1, count_from_tile=True) is None

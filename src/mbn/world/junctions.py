@@ -43,11 +43,13 @@ __all__ = [
     "EXIT_CODES",
     "HEADINGS",
     "JunctionPass",
+    "RoutePass",
     "cell_of",
     "decision_cells",
     "free_neighbours",
     "junction_sequence",
     "junction_tables",
+    "route_passes",
     "rule_exit",
     "rule_route",
 ]
@@ -288,6 +290,18 @@ def _compass(theta: float) -> int:
     return (1 - round(theta / (math.pi / 2))) % 4
 
 
+@dataclass(frozen=True)
+class RoutePass:
+    """One decision cell of a route walked by :func:`route_passes`: the rule in force when the
+    robot enters it, where that rule came from (``source``: 0 the rule the walk started with,
+    k the last tile driven over, of k colours), and the exits open there (relative to the entry
+    heading)."""
+
+    rule: str
+    source: int
+    open_exits: frozenset[str]
+
+
 def rule_route(
     maze: Maze,
     start: tuple[float, float, float],
@@ -313,12 +327,46 @@ def rule_route(
     Returns None when the walk never gets there (it comes back to a cell with the same heading,
     rule and count: a loop without enough decision cells, or without a tile).
     """
+    walk = _walk(maze, start, rule, junctions, follow_tiles, count_from_tile, tile_rules)
+    return None if walk is None else walk[0]
+
+
+def route_passes(
+    maze: Maze,
+    start: tuple[float, float, float],
+    rule: str | Rule,
+    junctions: int,
+    *,
+    follow_tiles: bool = False,
+    count_from_tile: bool = False,
+    tile_rules: tuple[str, ...] = ("right", "left"),
+) -> list[RoutePass] | None:
+    """The ``junctions`` decision cells counted on the route of :func:`rule_route` (same
+    arguments), in order, each with the rule in force, where it came from and the exits open:
+    what a test judging those junctions asks of the robot. A controller that follows another
+    rule ``r`` wherever the rule in force came from a tile of k colours (a wrong program for
+    that tile) drives the same route until the first pass of source k where ``r`` takes another
+    exit, and fails the test there. None when the walk never gets there."""
+    walk = _walk(maze, start, rule, junctions, follow_tiles, count_from_tile, tile_rules)
+    return None if walk is None else walk[1]
+
+
+def _walk(
+    maze: Maze,
+    start: tuple[float, float, float],
+    rule: str | Rule,
+    junctions: int,
+    follow_tiles: bool,
+    count_from_tile: bool,
+    tile_rules: tuple[str, ...],
+) -> tuple[float, list[RoutePass]] | None:
+    """:func:`rule_route`'s walk: its length and the decision cells it counts."""
     if junctions < 1:
         raise MbnInputError(f"junctions must be >= 1, got {junctions!r}")
     grid, cell = _grid(maze)
     nb = free_neighbours(maze)
     decision = decision_cells(maze)
-    tile_rule: dict[tuple[int, int], str] = {}
+    tile_rule: dict[tuple[int, int], tuple[str, int]] = {}
     for t in maze.tiles:
         if follow_tiles and t.colors > len(tile_rules):
             raise MbnInputError(
@@ -326,26 +374,30 @@ def rule_route(
                 f"tiles of up to {len(tile_rules)} colours"
             )
         if t.colors <= len(tile_rules):
-            tile_rule[cell_of(maze, t.x, t.y)] = parse_rule(tile_rules[t.colors - 1]).name
+            tile_rule[cell_of(maze, t.x, t.y)] = (
+                parse_rule(tile_rules[t.colors - 1]).name,
+                t.colors,
+            )
     r, c = cell_of(maze, float(start[0]), float(start[1]))
     if grid[r, c] == "#":
         raise MbnInputError(f"maze {maze.name!r}: start {tuple(start)} is in a wall")
     h = _compass(float(start[2]))
     current: str = parse_rule(rule).name
+    source = 0
     seen_tile = not count_from_tile
-    count = 0
+    passes: list[RoutePass] = []
     length = 0.0
-    visited: set[tuple[int, int, int, str, int, bool]] = set()
+    visited: set[tuple[int, int, int, str, int, int, bool]] = set()
     while True:
-        key = (r, c, h, current, count, seen_tile)
+        key = (r, c, h, current, source, len(passes), seen_tile)
         if key in visited:
             return None
         visited.add(key)
-        if length > 0 and decision[r, c] and seen_tile:
-            count += 1
-            if count == junctions:
-                return length + cell / 2
         open_dirs = nb[r, c]
+        if length > 0 and decision[r, c] and seen_tile:
+            passes.append(RoutePass(current, source, frozenset(_open_exits(open_dirs, h))))
+            if len(passes) == junctions:
+                return length + cell / 2, passes
         if length == 0 and open_dirs[h]:
             exit_name = "straight"  # the start faces along its corridor
         else:
@@ -356,5 +408,5 @@ def rule_route(
         r, c = r + _STEP[h][0], c + _STEP[h][1]
         length += cell
         if follow_tiles and (r, c) in tile_rule:
-            current = tile_rule[(r, c)]
+            current, source = tile_rule[(r, c)]
             seen_tile = True
