@@ -38,6 +38,9 @@ def test_draw_maze_draws_walls_tiles_decision_cells_and_starts(tee):
     assert union[:, 0].min() == pytest.approx(corners[:, 0].min())
     assert union[:, 1].max() == pytest.approx(corners[:, 1].max())
     assert len(patches(ax, "start")) == 2
+    # numbered from 1, as `mbn evaluate` and the episode panels' titles ("start 1: ok") count
+    labels = [t.get_text() for t in ax.texts if t.get_gid() == "start_label"]
+    assert labels == ["1", "2"]
     assert len(patches(ax, "frame")) == 4  # outside is wall
     assert ax.get_aspect() == 1.0
     assert ax.get_title() == "tee"

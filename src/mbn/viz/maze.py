@@ -9,7 +9,8 @@ Figures are made and saved by :mod:`mbn.viz.style`. Coordinates are the world's:
 y north, equal aspect. Colours: walls dark grey, free space white, decision cells of grid mazes
 pale blue, one-colour tiles orange, two-colour tiles blue (blob 0, the half to the right of the
 tile's heading) and magenta (blob 1), three-colour tiles green, yellow and teal (blobs 0, 1, 2),
-start poses green arrows numbered by their index in ``maze.starts``.
+start poses green arrows numbered 1, 2, ... in the order of ``maze.starts`` (as ``mbn evaluate``
+and the episode panels' titles count them).
 """
 
 from __future__ import annotations
@@ -173,7 +174,8 @@ def draw_maze(
     tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1),
     three-colour tiles as three thirds (gid ``"tile3"``: green, yellow, teal).
     Decision cells of grid mazes (:func:`mbn.world.junctions.decision_cells`) are shaded pale blue
-    (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled with their index.
+    (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled 1, 2, ... in
+    the order of ``maze.starts``.
 
     Args:
         maze: the maze.
@@ -285,7 +287,7 @@ def draw_maze(
             ax.text(
                 label[0],
                 label[1],
-                str(k),
+                str(k + 1),
                 color=START_COLOR,
                 fontsize=8,
                 fontweight="bold",
