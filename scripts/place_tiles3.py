@@ -38,8 +38,8 @@ MARKS = {(-1, 0): "^", (1, 0): "v", (0, 1): ">", (0, -1): "<"}
 
 def caught_counts(maze: Maze, first: str, junctions: int = 3) -> dict[tuple[int, str], int]:
     """For each tile kind k and each other tile rule w: from how many marks a controller that
-    follows w after a k-colour tile takes a wrong exit among the junctions judged (None-free
-    routes assumed)."""
+    follows w after a k-colour tile takes a wrong exit among the junctions judged; -1 for
+    every pair when a mark's route never gets through them."""
     counts = {(k, w): 0 for k in (1, 2, 3) for w in TILE_RULES if w != TILE_RULES[k - 1]}
     for start in maze.starts:
         passes = route_passes(
