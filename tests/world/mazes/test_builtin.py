@@ -295,10 +295,10 @@ def test_the_three_tile_mazes(name: str):
     then through three junctions (rule_route walks the grid cell by cell). And the test judges
     the programs: with either first rule, a controller that follows another tile's rule after a
     tile of one kind (one program swapped for another) takes a wrong exit among the three
-    junctions judged from at least four of the marks (route_passes), so that it fails more than
-    a third of the trials. The first tiles3 failed this: straight-right and right took the same
-    exit at every junction judged after a three-colour tile, and an MBN with the right-hand
-    rule's program for three colours passed every trial."""
+    junctions judged from at least four of the marks (route_passes): more than a third of them,
+    each with its jittered starts. The first tiles3 failed this: straight-right and right took
+    the same exit at every junction judged after a three-colour tile, and an MBN with the
+    right-hand rule's program for three colours passed every trial."""
     from mbn.world.junctions import route_passes, rule_route
 
     maze = load_maze(name)
