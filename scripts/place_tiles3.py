@@ -13,7 +13,8 @@ meeting what ``tests/world/mazes/test_builtin.py::test_the_three_tile_mazes`` as
   straight-right in force, drives over a tile and then through three junctions;
 * the test judges the programs: for either first rule, a controller that follows another
   tile's rule after a tile of one kind (a program swapped) takes a wrong exit within the three
-  junctions judged from at least ``--caught`` marks, for every kind and every other rule.
+  junctions judged from at least ``--caught`` marks, for every kind and every other rule
+  (:func:`mbn.world.junctions.program_swaps_caught`).
 
 Usage: python scripts/place_tiles3.py tiles3 --seed 0
 """
@@ -25,36 +26,19 @@ import sys
 
 import numpy as np
 
-from mbn.world.junctions import decision_cells, free_neighbours, route_passes, rule_route
+from mbn.world.junctions import (
+    decision_cells,
+    free_neighbours,
+    program_swaps_caught,
+    rule_route,
+)
 from mbn.world.mazes.grid_text import parse_maze_text
 from mbn.world.mazes.load import load_maze
 from mbn.world.mazes.model import Maze
-from mbn.world.rules import parse_rule
 
 TILE_RULES = ("right", "left", "straight-right")
 FIRST_RULES = ("right", "left")
 MARKS = {(-1, 0): "^", (1, 0): "v", (0, 1): ">", (0, -1): "<"}
-
-
-def caught_counts(maze: Maze, first: str, junctions: int = 3) -> dict[tuple[int, str], int]:
-    """For each tile kind k and each other tile rule w: from how many marks a controller that
-    follows w after a k-colour tile takes a wrong exit among the junctions judged; -1 for
-    every pair when a mark's route never gets through them."""
-    counts = {(k, w): 0 for k in (1, 2, 3) for w in TILE_RULES if w != TILE_RULES[k - 1]}
-    for start in maze.starts:
-        passes = route_passes(
-            maze, tuple(start), first, junctions, follow_tiles=True, tile_rules=TILE_RULES
-        )
-        if passes is None:
-            return {key: -1 for key in counts}
-        for k, w in counts:
-            wrong = parse_rule(w)
-            if any(
-                p.source == k and wrong.exit(p.open_exits) != parse_rule(p.rule).exit(p.open_exits)
-                for p in passes
-            ):
-                counts[(k, w)] += 1
-    return counts
 
 
 def score(maze: Maze, caught: int) -> int:
@@ -77,7 +61,9 @@ def score(maze: Maze, caught: int) -> int:
             if route is None:
                 return -1
     return sum(
-        min(count, caught) for first in FIRST_RULES for count in caught_counts(maze, first).values()
+        min(count, caught)
+        for first in FIRST_RULES
+        for count in program_swaps_caught(maze, first, 3, TILE_RULES).values()
     )
 
 
@@ -152,7 +138,8 @@ def main(argv: list[str] | None = None) -> int:
             maze = build()
             print(f"# seed {args.seed}: placement after {step - 1} moves", file=sys.stderr)
             for first in FIRST_RULES:
-                print(f"# first rule {first}: {caught_counts(maze, first)}", file=sys.stderr)
+                counts = program_swaps_caught(maze, first, 3, TILE_RULES)
+                print(f"# first rule {first}: {counts}", file=sys.stderr)
             print("\n".join("".join(row) for row in np.asarray(maze.grid)))
             return 0
         i = int(rng.integers(n_tiles + args.marks))

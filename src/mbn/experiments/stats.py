@@ -65,10 +65,15 @@ def _finite_or_censored(times: Sequence[float | None], budget: float) -> np.ndar
     return out
 
 
-def _times_or_inf(times: Sequence[float | None]) -> np.ndarray:
+def _times_or_inf(times: Sequence[float | None], budget: float | None = None) -> np.ndarray:
     """Hitting times with the unsuccessful runs (``None``) at infinity: they need more
-    evaluations than any run solved, one solved at the budget included."""
-    return np.asarray([math.inf if t is None else float(t) for t in times], dtype=float)
+    evaluations than any run solved, one solved at the budget included. With ``budget``, a
+    time outside [0, budget] raises."""
+    out = np.asarray([math.inf if t is None else float(t) for t in times], dtype=float)
+    solved = out[np.isfinite(out)]
+    if budget is not None and (np.any(solved < 0) or np.any(solved > budget)):
+        raise ValueError(f"a hitting time outside [0, {budget}]")
+    return out
 
 
 def _censored_order(t: np.ndarray, solved: np.ndarray) -> np.ndarray:
@@ -202,9 +207,7 @@ def mann_whitney(
     ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a`` needs more evaluations than
     one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
     """
-    for times in (a, b):
-        _finite_or_censored(times, budget)  # raises on a time outside [0, budget]
-    ta, tb = _times_or_inf(a), _times_or_inf(b)
+    ta, tb = _times_or_inf(a, budget), _times_or_inf(b, budget)
     m, n = ta.size, tb.size
     if m == 0 or n == 0:
         return {"U": None, "p": None, "A12": None, "z": None}

@@ -49,6 +49,7 @@ __all__ = [
     "free_neighbours",
     "junction_sequence",
     "junction_tables",
+    "program_swaps_caught",
     "route_passes",
     "rule_exit",
     "rule_route",
@@ -349,6 +350,32 @@ def route_passes(
     exit, and fails the test there. None when the walk never gets there."""
     walk = _walk(maze, start, rule, junctions, follow_tiles, count_from_tile, tile_rules)
     return None if walk is None else walk[1]
+
+
+def program_swaps_caught(
+    maze: Maze,
+    first: str | Rule,
+    junctions: int,
+    tile_rules: tuple[str, ...],
+) -> dict[tuple[int, str], int]:
+    """How well a test judges the programs of an MBN: for each tile kind k (``tile_rules[k -
+    1]``) and each other rule ``w`` of ``tile_rules``, from how many of the maze's starts a
+    controller that starts as ``first``, follows the tiles, and follows ``w`` after a k-colour
+    tile (one program swapped for another) takes a wrong exit within the ``junctions`` judged
+    (:func:`route_passes`). A start whose route never gets through them catches nothing."""
+    rules = [parse_rule(r) for r in tile_rules]
+    caught = {(k, w.name): 0 for k, r in enumerate(rules, 1) for w in rules if w != r}
+    for start in maze.starts:
+        passes = route_passes(
+            maze, tuple(start), first, junctions, follow_tiles=True, tile_rules=tile_rules
+        )
+        for k, w in caught:
+            wrong = parse_rule(w)
+            caught[(k, w)] += any(
+                p.source == k and wrong.exit(p.open_exits) != parse_rule(p.rule).exit(p.open_exits)
+                for p in passes or ()
+            )
+    return caught
 
 
 def _walk(

@@ -22,7 +22,6 @@ from mbn.world.mazes.builtin import (
 )
 from mbn.world.mazes.load import load_maze
 from mbn.world.mazes.model import Maze
-from mbn.world.rules import parse_rule
 
 collides = jax.jit(eager_collides)
 
@@ -295,11 +294,11 @@ def test_the_three_tile_mazes(name: str):
     then through three junctions (rule_route walks the grid cell by cell). And the test judges
     the programs: with either first rule, a controller that follows another tile's rule after a
     tile of one kind (one program swapped for another) takes a wrong exit among the three
-    junctions judged from at least four of the marks (route_passes): more than a third of them,
-    each with its jittered starts. The first tiles3 failed this: straight-right and right took
-    the same exit at every junction judged after a three-colour tile, and an MBN with the
-    right-hand rule's program for three colours passed every trial."""
-    from mbn.world.junctions import route_passes, rule_route
+    junctions judged from at least four of the marks (program_swaps_caught): more than a third
+    of them, each with its jittered starts. The first tiles3 failed this: straight-right and
+    right took the same exit at every junction judged after a three-colour tile, and an MBN with
+    the right-hand rule's program for three colours passed every trial."""
+    from mbn.world.junctions import program_swaps_caught, rule_route
 
     maze = load_maze(name)
     assert maze.name == name and maze.grid is not None and maze.cell == 1.2
@@ -333,25 +332,10 @@ def test_the_three_tile_mazes(name: str):
     with pytest.raises(MbnInputError, match="3-colour tile"):
         rule_route(maze, tuple(maze.starts[0]), "right", 3, follow_tiles=True)
     for first in ("right", "left"):
-        walks = [
-            route_passes(maze, tuple(s), first, 3, follow_tiles=True, tile_rules=rules)
-            for s in maze.starts
-        ]
-        for kind, rule in enumerate(rules, start=1):
-            for other in rules:
-                if other == rule:
-                    continue
-                caught = sum(
-                    any(
-                        p.source == kind
-                        and parse_rule(other).exit(p.open_exits)
-                        != parse_rule(rule).exit(p.open_exits)
-                        for p in passes
-                    )
-                    for passes in walks
-                    if passes is not None
-                )
-                assert caught >= 4, (name, first, kind, other, caught)
+        counts = program_swaps_caught(maze, first, 3, rules)
+        assert len(counts) == 6
+        for (kind, other), caught in counts.items():
+            assert caught >= 4, (name, first, kind, other, caught)
 
 
 def test_the_three_tile_mazes_differ_from_each_other_and_the_others():

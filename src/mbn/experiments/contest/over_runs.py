@@ -12,6 +12,7 @@ count) is named, with its controller file.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -108,12 +109,10 @@ def _num(x: float | None) -> str:
     return "> budget" if x is None else f"{x:.0f}"
 
 
-def _median_run(times: Mapping[int, float | None], budget: float) -> int:
-    """The seed of the median run: runs sorted by evaluations to success (censored at the
-    budget and after a run solved at the budget, then by seed), the lower middle one."""
-    order = sorted(
-        times, key=lambda s: (budget if times[s] is None else times[s], times[s] is None, s)
-    )
+def _median_run(times: Mapping[int, float | None]) -> int:
+    """The seed of the median run: runs sorted by evaluations to success (an unsolved run after
+    every solved one, one solved at the budget included; then by seed), the lower middle one."""
+    order = sorted(times, key=lambda s: (math.inf if times[s] is None else times[s], s))
     return order[(len(order) - 1) // 2]
 
 
@@ -167,7 +166,7 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
             solved = sum(x is not None for x in t)
             final = sum(bool(runs[s]["contest"][rule][who]["final_success"]) for s in by_seed)
             e, frac = solved_curve(t, budget)
-            median_seed = _median_run(by_seed, budget)
+            median_seed = _median_run(by_seed)
             through = [_through_interpreter(runs[s], rule) for s in by_seed]
             interp: dict[str, Any] = {}
             if who == REFERENCE and through and all(x is not None for x in through):
