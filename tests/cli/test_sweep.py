@@ -191,3 +191,29 @@ def _tiny_sweep(tmp_path, seeds: list[int]) -> None:
 def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
     """CI: 2 quick seeds side by side on a local Ray, end to end, then the same command."""
     _tiny_sweep(tmp_path, [0, 1])
+
+
+def test_a_reuse_folder_that_is_no_sweep_is_one_line_before_any_work(capsys, tmp_path):
+    code, err = _run(
+        capsys, "--seeds", "0", "--out", str(tmp_path / "s"), "--reuse", str(tmp_path / "no")
+    )
+    assert code == 2 and err == f"mbn: error: --reuse {tmp_path / 'no'}: no such folder"
+    (tmp_path / "run").mkdir()
+    code, err = _run(
+        capsys, "--seeds", "0", "--out", str(tmp_path / "s"), "--reuse", str(tmp_path / "run")
+    )
+    assert code == 2
+    assert err == f"mbn: error: --reuse {tmp_path / 'run'}: not a sweep folder (no sweep.json)"
+    assert not (tmp_path / "s").exists()
+    code, err = _run(capsys, "--summarize", "--out", str(tmp_path / "s"), "--reuse", "x")
+    assert code == 2 and "--summarize reads the settings" in err
+
+
+def test_run_with_a_reuse_folder_that_holds_no_run_is_one_line(capsys, tmp_path):
+    (tmp_path / "empty").mkdir()
+    argv = ["run", "new-behaviours", "--quick", "--out", str(tmp_path / "r")]
+    code = main([*argv, "--reuse", str(tmp_path / "empty")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert err == f"mbn: error: --reuse {tmp_path / 'empty'}: no run there (no run.json)"
+    assert not (tmp_path / "r").exists()

@@ -5,8 +5,26 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
-__all__ = ["int_in", "number_in", "numbers", "positive_float", "positive_int", "seed"]
+__all__ = [
+    "REUSE_HELP",
+    "int_in",
+    "number_in",
+    "numbers",
+    "positive_float",
+    "positive_int",
+    "reuse_source",
+    "seed",
+]
+
+#: ``--reuse DIR`` of ``mbn reproduce`` and ``mbn run``.
+REUSE_HELP = (
+    "take the stages this experiment shares with the run in DIR (same seed, same settings, "
+    "same mbn version) instead of running them again, e.g. RF and LF from another experiment's "
+    "run (docs/reproduce.md)"
+)
 
 
 def positive_int(text: str) -> int:
@@ -94,3 +112,13 @@ def available_cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
         return max(1, os.cpu_count() or 1)
+
+
+def reuse_source(path: Path | None) -> Any:
+    """``--reuse DIR`` read (:func:`mbn.experiments.pipeline.reuse.read_source`), or None."""
+    if path is None:
+        return None
+    from mbn.experiments.pipeline.reuse import read_source
+    from mbn.experiments.sweep.specs import experiment_of_kind
+
+    return read_source(path, experiment_of_kind)

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import available_cores, int_in, seed
+from mbn.cli.args import REUSE_HELP, available_cores, int_in, reuse_source, seed
 from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "add_commands", "effective_config"]
@@ -89,6 +89,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "--resume", action="store_true", help="continue the run in --out where it stopped"
     )
     rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
+    rep.add_argument("--reuse", type=Path, default=None, metavar="DIR", help=REUSE_HELP)
     rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
     rep.add_argument(
         "--threads",
@@ -142,6 +143,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
         progress=not args.quiet and sys.stderr.isatty(),
         log=(lambda _m: None) if args.quiet else print,
         workers=args.threads,
+        reuse=reuse_source(args.reuse),
     )
     if not args.quiet:
         held = sum(c["pass"] for c in results["claims"])

@@ -8,7 +8,7 @@ import textwrap
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import available_cores, int_in, seed
+from mbn.cli.args import REUSE_HELP, available_cores, int_in, reuse_source, seed
 from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "EXPERIMENTS", "add_commands", "experiment"]
@@ -45,6 +45,7 @@ examples:
   mbn run new-behaviours --out runs/nb                 a full run
   mbn run new-behaviours --quick --out /tmp/nb         smoke run
   mbn run new-behaviours --out runs/nb --resume        continue it
+  mbn run new-behaviours --out runs/nb --reuse runs/pvd   RF, LF and IM taken from that run
   mbn run noise --out runs/noise                       the noise levels
   mbn run ablations --out runs/ablations               the ablations
   mbn run programs-vs-dynamics --out runs/pvd          programs against dynamics, one seed
@@ -112,6 +113,13 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "--resume", action="store_true", help="continue the run in --out where it stopped"
     )
     cmd.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
+    cmd.add_argument(
+        "--reuse",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help=REUSE_HELP,
+    )
     cmd.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
     cmd.add_argument(
         "--threads",
@@ -144,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet and sys.stderr.isatty(),
         log=(lambda _m: None) if args.quiet else print,
         workers=args.threads,
+        reuse=reuse_source(args.reuse),
     )
     if not args.quiet:
         print(f"results: {out / 'results.json'}")

@@ -35,6 +35,10 @@ Run the same command again to continue: finished seeds are skipped, interrupted 
 their checkpoints; a seed that crashed is reported (sweep.json) and the others finish. An --out
 holding a sweep with other --seeds, --quick, --config or --experiment is refused.
 
+Every experiment starts with the reproduction's stages (RF, the LF search, LF, ...): --reuse
+DIR, another sweep's folder, lets seed K take those it shares with DIR/seed-K instead of
+running them again (docs/reproduce.md).
+
 outputs in DIR: seed-K/ (one per seed), sweep.json (settings, each seed's state, the statistics),
 sweep.md, sweep.html (self-contained), figures/
 
@@ -43,6 +47,7 @@ examples:
   mbn sweep --seeds 0,2,5-7 --quick --out runs/q
   mbn sweep --seeds 0-4 --experiment new-behaviours --out runs/nb-sweep
   mbn sweep --seeds 0-19 --experiment programs-vs-dynamics --out runs/pvd
+  mbn sweep --seeds 0-7 --experiment new-behaviours --out runs/nb --reuse runs/pvd
   mbn sweep --seeds 0-99 --out /shared/sweep --address head-node:6379
   mbn sweep --summarize --out runs/sweep
 """
@@ -108,6 +113,14 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="CPUs (and XLA/BLAS threads) per run (default 1)",
     )
     sw.add_argument(
+        "--reuse",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="another sweep's folder: seed K takes the stages its experiment shares with "
+        "DIR/seed-K (same seed, settings and mbn version) instead of running them again",
+    )
+    sw.add_argument(
         "--summarize",
         action="store_true",
         help="only rebuild sweep.json's statistics and the report from the folder (runs nothing)",
@@ -125,6 +138,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
             or args.config is not None
             or args.quick
             or args.experiment is not None
+            or args.reuse is not None
         ):
             raise MbnInputError(
                 "--summarize reads the settings from DIR/sweep.json: pass --out alone"
@@ -159,6 +173,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         lambda: RayExecutor(args.address, args.cpus_per_run),
         monitor=monitor,
         finish=summarize_folder,
+        reuse=args.reuse,
     )
     if data.get("skipped"):
         print(f"{len(data['skipped'])} of {len(settings.seeds)} seeds were finished before: kept")

@@ -171,3 +171,30 @@ def test_auth_hint_only_where_token_authentication_can_be_why():
     assert auth_hint(None, {}) == ""  # a local Ray started by the sweep itself
     assert auth_hint("auto", {}) == ""  # `auto` finds the local cluster and its token
     assert auth_hint("head:6379", {"RAY_AUTH_MODE": "token"}) == ""  # already set
+
+
+def test_a_sweep_reusing_another_takes_each_seeds_stages_and_ends_the_same(tmp_path):
+    _sweep(tmp_path / "a", [0, 1])
+    CALLS.clear()
+    settings = SweepSettings((0, 1, 2), TOY.config())
+    data = run_sweep(
+        tmp_path / "b",
+        settings,
+        lambda: InlineExecutor(run_seed),
+        experiment=TOY,
+        reuse=tmp_path / "a",
+    )
+    assert CALLS == [("draw", 2), ("total", 2)]  # seed 2 has no run in a: it runs
+    assert data["runs"]["0"]["notices"] == [f"stages draw, total: taken from {tmp_path}/a/seed-0"]
+    for s in (0, 1):
+        a, b = seed_dir(tmp_path / "a", s), seed_dir(tmp_path / "b", s)
+        assert (
+            json.loads((b / "results.json").read_text())["stages"]
+            == json.loads((a / "results.json").read_text())["stages"]
+        )
+    with pytest.raises(MbnInputError, match=r"--reuse .*: not a sweep folder \(no sweep\.json\)$"):
+        run_sweep(
+            tmp_path / "c", settings, lambda: InlineExecutor(run_seed), reuse=tmp_path / "a/seed-0"
+        )
+    with pytest.raises(MbnInputError, match=r"--reuse .*b: the sweep's own folder$"):
+        run_sweep(tmp_path / "b", settings, lambda: InlineExecutor(run_seed), reuse=tmp_path / "b")

@@ -28,6 +28,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.context import StageContext
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
+from mbn.experiments.pipeline.reuse import ReuseSource, take_stages
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import check_writable, write_json_atomic
@@ -340,13 +341,23 @@ def run_experiment(
     log: Callable[[str], None] = print,
     stages: Sequence[str] | None = None,
     workers: int = 1,
+    reuse: ReuseSource | None = None,
 ) -> dict[str, Any]:
     """Every stage not yet done (all, or those named in ``stages`` and what they need), then
     ``results.json`` and the report; returns the results (or, for a partial run, the data of
     the stages run). ``workers``: populations are evaluated in that many parts at once (threads;
-    the results do not depend on it)."""
+    the results do not depend on it). ``reuse``: another run of the same seed whose stages this
+    run takes where it can (:mod:`~mbn.experiments.pipeline.reuse`)."""
     rundir = RunDir(Path(out))
+    if reuse is not None and reuse.root.resolve() == rundir.root.resolve():
+        raise MbnInputError(f"--reuse {reuse.root}: the run's own folder (use --resume)")
     prepare(experiment, rundir, seed, config, resume=resume, force=force)
+    if reuse is not None:
+        taken = take_stages(experiment, rundir, seed, config, reuse)
+        if taken:
+            log(f"stages {', '.join(taken)}: taken from {reuse.root}")
+        else:
+            log(f"notice: no stage to take from {reuse.root}")
     timings = rundir.read_timings()
     wanted = list(experiment.registry.names if stages is None else stages)
     for name in wanted:

@@ -218,6 +218,24 @@ def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
     return "resume" if (folder / "run.json").exists() else "new"
 
 
+def check_reuse_dir(reuse: Path, out: Path) -> None:
+    """Refuse a ``--reuse`` that is not another sweep's folder (one line)."""
+    if not reuse.is_dir():
+        raise MbnInputError(f"--reuse {reuse}: no such folder")
+    if not (reuse / SWEEP_FILE).exists():
+        raise MbnInputError(f"--reuse {reuse}: not a sweep folder (no {SWEEP_FILE})")
+    if out.exists() and reuse.resolve() == out.resolve():
+        raise MbnInputError(f"--reuse {reuse}: the sweep's own folder")
+
+
+def _reuse_seed(reuse: Path | None, seed: int) -> str | None:
+    """The run of ``seed`` in the sweep folder ``reuse``, where there is one."""
+    if reuse is None:
+        return None
+    folder = seed_dir(reuse, seed)
+    return str(folder) if (folder / "run.json").exists() else None
+
+
 def one_line(exc: BaseException) -> str:
     """An exception as one line (its type unless it is an input error, its message's first
     line, at most 300 characters)."""
@@ -236,11 +254,13 @@ def run_seed(
     config: RunConfig,
     resume: bool,
     experiment: Experiment | str | None = None,
+    reuse: str | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) the run of ``seed`` into ``out/seed-K``, as ``mbn reproduce --seed K
     --out out/seed-K [--resume]`` does (or ``mbn run NAME``: ``experiment``, by name or itself;
-    default the reproduction); never raises: a crash is returned as ``{"state": "failed",
-    "error": one line}``."""
+    default the reproduction), taking the stages it can from the run in ``reuse`` (``mbn run
+    --reuse``); never raises: a crash is returned as ``{"state": "failed", "error": one
+    line}``."""
     t0 = time.perf_counter()
     worker = {
         "host": socket.gethostname(),
@@ -260,6 +280,15 @@ def run_seed(
             from mbn.experiments.sweep.specs import sweep_spec
 
             experiment = sweep_spec(experiment).load()
+        source = None
+        if reuse is not None:
+            from mbn.experiments.pipeline.reuse import read_source
+            from mbn.experiments.sweep.specs import experiment_of_kind
+
+            mine = experiment
+            source = read_source(
+                Path(reuse), lambda kind: mine if kind == mine.kind else experiment_of_kind(kind)
+            )
         with scope(ROBOT):  # as the command line runs `mbn reproduce`
             run_experiment(
                 experiment,
@@ -269,7 +298,8 @@ def run_seed(
                 resume=resume,
                 workers=max(1, int(os.environ.get(WORKERS_VARIABLE, "1"))),
                 progress=False,
-                log=lambda m: notices.append(m) if m.startswith("notice") else None,
+                log=lambda m: notices.append(m) if m.startswith(("notice", "stages")) else None,
+                reuse=source,
             )
         state, error = "done", None
     except Exception as exc:  # a crash of one seed is reported, the others go on
@@ -475,8 +505,12 @@ def run_sweep(
     experiment: Experiment | None = None,
     poll_s: float = 1.0,
     finish: Callable[[Path], Any] | None = None,
+    reuse: Path | None = None,
 ) -> dict[str, Any]:
     """Run every seed of ``settings`` not yet done into ``out``; returns ``sweep.json``.
+
+    ``reuse``: another sweep folder; the run of seed K takes the stages it can from
+    ``reuse/seed-K`` where that holds a run (:mod:`~mbn.experiments.pipeline.reuse`).
 
     ``executor`` makes the executor (called only when some seed is left to run, after the folder
     was checked: Ray is neither needed nor started for a finished sweep); ``finish`` (the
@@ -485,6 +519,8 @@ def run_sweep(
     out = Path(out)
     t0 = time.perf_counter()
     check_sweep_dir(out, settings)
+    if reuse is not None:
+        check_reuse_dir(Path(reuse), out)
     states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
     todo = [s for s in settings.seeds if states[s] != "done"]
     ex = executor() if todo else None
@@ -529,8 +565,13 @@ def run_sweep(
                     None if settings.experiment == "reproduce" else settings.experiment
                 )
                 for s in todo:
-                    args = (str(out), s, settings.config, states[s] == "resume")
-                    handles.append(ex.submit(s, (*args, chosen) if chosen else args))
+                    args: tuple[Any, ...] = (str(out), s, settings.config, states[s] == "resume")
+                    source = _reuse_seed(reuse, s)
+                    if source is not None:
+                        args = (*args, chosen, source)
+                    elif chosen:
+                        args = (*args, chosen)
+                    handles.append(ex.submit(s, args))
                     mon.mark(s, "queued")
             while handles:
                 done = ex.wait(handles, poll_s) if ex is not None else []

@@ -35,6 +35,7 @@ __all__ = [
     "NOISE_SPEC",
     "SWEEP_EXPERIMENTS",
     "SweepSpec",
+    "experiment_of_kind",
     "sweep_spec",
 ]
 
@@ -376,3 +377,13 @@ def sweep_spec(name: str | None) -> SweepSpec:
         raise MbnInputError(
             f"--experiment {key}: not an experiment a sweep runs ({known})"
         ) from None
+
+
+def experiment_of_kind(kind: str) -> Experiment | None:
+    """The experiment whose runs record ``kind`` in their ``run.json`` (``mbn.reproduce``), or
+    None (how ``--reuse`` finds a source run's stages)."""
+    for spec in SWEEP_EXPERIMENTS.values():
+        experiment = spec.load()
+        if experiment.kind == kind:
+            return experiment
+    return None

@@ -1,0 +1,179 @@
+"""Stages a run takes from another run of the same seed (``--reuse DIR``).
+
+Every experiment starts with the reproduction's first stages: the multiplier, RF, the LF search
+and LF (the noise and ablation experiments the IM and the PM too; new behaviours and programs
+against dynamics the fully programmable IM). A stage's result depends only on the run's seed,
+the stage's key number and the settings it reads, so where another run of the same seed ran the
+same stage under the same settings, its files are the files this run would write: copying them
+saves that stage's time (RF, the LF search and LF take 6-28 min a seed on two cores).
+
+A stage is taken from the source run when:
+
+- the source's experiment has the same stage (the same class and key number), and the source
+  finished it (its ``stages/NAME.json`` and every output file it declares are there);
+- every stage it needs is taken too, or was already done here;
+- it has not run here.
+
+The two runs must have the same seed and agree on every section of the config both have (a
+stage shared by two experiments can read only sections both have); otherwise nothing is taken
+and the run is refused in one line naming the first difference. The files taken are the
+stage's file, its declared outputs and its checkpoints (``checkpoints/NAME.npz`` and
+``NAME_*``, for the DE curves of reports), each copied atomically, the stage's file last: a
+copy interrupted leaves the stage not done. ``run.json`` records what was taken and from where
+(``reused``). The source must have been made by the same version of ``mbn``: that is checked
+against the version its ``run.json`` records, and a stage whose code changed between two
+commits of one version is the user's to know.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from mbn import __version__
+from mbn.errors import MbnInputError
+from mbn.experiments.pipeline.rundir import RunDir
+from mbn.io import write_json_atomic
+
+if TYPE_CHECKING:
+    from mbn.experiments.pipeline.runconfig import RunConfig
+    from mbn.experiments.pipeline.runner import Experiment
+
+__all__ = ["ReuseSource", "read_source", "take_stages"]
+
+
+@dataclass(frozen=True)
+class ReuseSource:
+    """A finished or part-finished run to take stages from: its folder, its experiment, its
+    seed and its config (as its experiment reads it)."""
+
+    root: Path
+    experiment: Experiment
+    seed: int
+    config: dict[str, Any]
+
+
+def read_source(path: Path, find: Callable[[str], Experiment | None]) -> ReuseSource:
+    """The run in ``path`` (``run.json``), its experiment found by kind with ``find``; one line
+    when there is no run, its kind is unknown or it was made by another version of ``mbn``."""
+    rundir = RunDir(Path(path))
+    if not rundir.root.is_dir():
+        raise MbnInputError(f"--reuse {path}: no such folder")
+    if not rundir.manifest.exists():
+        raise MbnInputError(f"--reuse {path}: no run there (no run.json)")
+    data = rundir.read_manifest()
+    kind = data.get("kind")
+    experiment = find(kind) if isinstance(kind, str) else None
+    if experiment is None:
+        raise MbnInputError(f"{rundir.manifest}: kind {kind!r} is not an experiment mbn runs")
+    version = data.get("mbn_version")
+    if version != __version__:
+        raise MbnInputError(
+            f"{rundir.manifest}: made by mbn {version}, this is {__version__}; stages are taken "
+            "only from runs of the same version"
+        )
+    seed = data.get("seed")
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        raise MbnInputError(f"{rundir.manifest}: seed: expected an integer, got {seed!r}")
+    config = experiment.config_from_dict(data.get("config"), str(rundir.manifest)).to_dict()
+    return ReuseSource(rundir.root, experiment, seed, config)
+
+
+def _check_agreement(source: ReuseSource, seed: int, config: RunConfig) -> None:
+    from mbn.experiments.pipeline.runner import first_difference
+
+    where = RunDir(source.root).manifest
+    if source.seed != seed:
+        raise MbnInputError(f"--reuse {source.root}: a run of seed {source.seed}, not {seed}")
+    mine = config.to_dict()
+    common = [name for name in mine if name in source.config]
+    theirs = {name: source.config[name] for name in common}
+    ours = {name: mine[name] for name in common}
+    if theirs != ours:
+        diff = first_difference(theirs, ours)
+        raise MbnInputError(
+            f"{where}: the run there was made with other settings ({diff}); nothing is taken "
+            "from it"
+        )
+
+
+def takeable(experiment: Experiment, rundir: RunDir, source: ReuseSource) -> list[str]:
+    """The stages of ``experiment`` that :func:`take_stages` would copy into ``rundir``, in
+    order (the seed and settings aside, which it checks first)."""
+    src = RunDir(source.root)
+    theirs = {stage.name: stage for stage in source.experiment.registry}
+    taken: list[str] = []
+    for stage in experiment.registry:
+        if rundir.stage_done(stage.name):
+            continue
+        other = theirs.get(stage.name)
+        if other is None or type(other) is not type(stage) or other.key_id != stage.key_id:
+            continue
+        if not src.stage_done(stage.name):
+            continue
+        if any(not (src.root / f).is_file() for f in stage.outputs):
+            continue
+        if any(n not in taken and not rundir.stage_done(n) for n in stage.needs):
+            continue
+        taken.append(stage.name)
+    return taken
+
+
+def _copy_atomic(src: Path, dst: Path) -> None:
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent)
+    os.close(fd)
+    try:
+        shutil.copyfile(src, tmp)
+        os.replace(tmp, dst)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _checkpoints(src: RunDir, name: str) -> list[Path]:
+    folder = src.root / "checkpoints"
+    if not folder.is_dir():
+        return []
+    return sorted(
+        p
+        for p in folder.iterdir()
+        if p.is_file()
+        and not p.name.startswith(".")
+        and (p.name.split(".", 1)[0] == name or p.name.startswith(f"{name}_"))
+    )
+
+
+def take_stages(
+    experiment: Experiment,
+    rundir: RunDir,
+    seed: int,
+    config: RunConfig,
+    source: ReuseSource,
+) -> list[str]:
+    """Copy into ``rundir`` (whose ``run.json`` exists) the stages it can take from ``source``
+    (module docstring); returns their names and records them in ``run.json``."""
+    _check_agreement(source, seed, config)
+    names = takeable(experiment, rundir, source)
+    src = RunDir(source.root)
+    for name in names:
+        stage = experiment.registry[name]
+        for rel in stage.outputs:
+            _copy_atomic(src.root / rel, rundir.root / rel)
+        for path in _checkpoints(src, name):
+            target = rundir.root / "checkpoints" / path.name
+            if not target.exists():
+                _copy_atomic(path, target)
+        _copy_atomic(src.stage_file(name), rundir.stage_file(name))
+    if names:
+        manifest = rundir.read_manifest()
+        before = manifest.get("reused")
+        entries = list(before) if isinstance(before, list) else []
+        entries.append({"from": str(source.root), "stages": names})
+        write_json_atomic(rundir.manifest, {**manifest, "reused": entries})
+    return names

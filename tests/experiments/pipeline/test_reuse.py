@@ -1,0 +1,207 @@
+"""``--reuse``: a run takes the stages it shares with another run of the same seed and settings,
+and ends exactly as the run that ran them itself; what it may not take, it runs; a source of
+another seed, other settings, another version or an unknown kind is refused in one line."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import numpy as np
+import pytest
+
+from mbn import __version__
+from mbn.config import Settings, read_toml, setting
+from mbn.errors import MbnInputError
+from mbn.evolution.de import DEConfig
+from mbn.experiments.pipeline import Experiment, Registry, Stage, StageContext, run_experiment
+from mbn.experiments.pipeline.reuse import read_source, takeable
+
+CALLS: dict[str, int] = {}
+
+
+@dataclass(frozen=True)
+class SphereSettings(Settings):
+    """The shared stage's settings."""
+
+    section = "sphere"
+    generations: int = setting(5, doc="DE generations", low=1)
+
+
+class SphereStage(Stage):
+    """DE on the sphere (checkpointed), its best genome written to a record."""
+
+    name = "sphere"
+    key_id = 1
+    settings = SphereSettings
+    outputs = ("records/best.npz",)
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        CALLS["sphere"] = CALLS.get("sphere", 0) + 1
+        config = DEConfig(
+            num_dims=3,
+            popsize=8,
+            maximize=False,
+            lower=-5.0,
+            upper=5.0,
+            init_low=-5.0,
+            init_high=5.0,
+        )
+        de = ctx.evolve(
+            "sphere",
+            config,
+            lambda pop: np.sum(np.asarray(pop) ** 2, axis=-1),
+            ctx.key,
+            ctx.settings.generations,
+            "sphere",
+        )
+        ctx.rundir.save_record("best", {"genome": np.asarray(de.data["best_genome"])})
+        return de.data
+
+
+class NormStage(Stage):
+    """Reads the shared stage's record (its need) and draws from its own key."""
+
+    name = "norm"
+    key_id = 2
+    needs = ("sphere",)
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        CALLS["norm"] = CALLS.get("norm", 0) + 1
+        best = ctx.rundir.load_record("best")["genome"]
+        return {"norm": float(np.linalg.norm(best)), "draw": float(jax.random.uniform(ctx.key))}
+
+
+class OtherNormStage(NormStage):
+    """A stage of the same name and key in another experiment, but another class."""
+
+
+@dataclass(frozen=True)
+class TailSettings(Settings):
+    """A section only the second experiment has."""
+
+    section = "tail"
+    scale: float = setting(2.0, doc="a factor")
+
+
+class TailStage(Stage):
+    """The second experiment's own stage."""
+
+    name = "tail"
+    key_id = 3
+    needs = ("sphere",)
+    settings = TailSettings
+
+    def run(self, ctx: StageContext) -> dict[str, Any]:
+        CALLS["tail"] = CALLS.get("tail", 0) + 1
+        return {"draw": float(jax.random.uniform(ctx.key)) * ctx.settings.scale}
+
+
+FIRST = Experiment("first", "mbn.first", Registry([SphereStage(), NormStage()]))
+SECOND = Experiment("second", "mbn.second", Registry([SphereStage(), TailStage(), NormStage()]))
+ODD = Experiment("odd", "mbn.odd", Registry([SphereStage(), OtherNormStage()]))
+KNOWN = {e.kind: e for e in (FIRST, SECOND, ODD)}
+
+
+def _source(path):
+    return read_source(path, KNOWN.get)
+
+
+def _run(experiment, folder, seed=4, document=None, **kw):
+    config = experiment.config(document=document)
+    return run_experiment(experiment, folder, seed=seed, config=config, **kw)
+
+
+@pytest.fixture(autouse=True)
+def _count():
+    CALLS.clear()
+
+
+def test_a_run_taking_shared_stages_ends_as_the_run_that_ran_them(tmp_path):
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    alone = _run(SECOND, tmp_path / "alone", log=lambda _: None)
+    CALLS.clear()
+    lines: list[str] = []
+    taken = _run(SECOND, tmp_path / "taken", reuse=_source(tmp_path / "first"), log=lines.append)
+    assert taken["stages"] == alone["stages"]
+    # the shared stages were copied, not run; the own stage ran
+    assert CALLS == {"tail": 1}
+    assert f"stages sphere, norm: taken from {tmp_path / 'first'}" in lines
+    assert (tmp_path / "taken" / "records" / "best.npz").is_file()
+    assert (tmp_path / "taken" / "checkpoints" / "sphere.npz").is_file()
+    manifest = json.loads((tmp_path / "taken" / "run.json").read_text())
+    assert manifest["reused"] == [{"from": str(tmp_path / "first"), "stages": ["sphere", "norm"]}]
+
+
+def test_a_stage_of_another_class_or_not_finished_there_is_run(tmp_path):
+    _run(ODD, tmp_path / "odd", log=lambda _: None)
+    _run(SECOND, tmp_path / "taken", reuse=_source(tmp_path / "odd"), log=lambda _: None)
+    assert CALLS == {"sphere": 1, "norm": 2, "tail": 1}  # norm: OtherNormStage in odd
+    # a source whose shared stage lost its output: it and what needs it run here
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    (tmp_path / "first" / "records" / "best.npz").unlink()
+    assert takeable(SECOND, _rundir(tmp_path / "empty"), _source(tmp_path / "first")) == []
+
+
+def _rundir(path):
+    from mbn.experiments.pipeline.rundir import RunDir
+
+    return RunDir(path)
+
+
+def test_stages_done_here_are_kept_and_a_resumed_run_takes_the_rest(tmp_path):
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    _run(SECOND, tmp_path / "run", stages=["sphere"], log=lambda _: None)
+    CALLS.clear()
+    done = _run(
+        SECOND,
+        tmp_path / "run",
+        resume=True,
+        reuse=_source(tmp_path / "first"),
+        log=lambda _: None,
+    )
+    assert CALLS == {"tail": 1}
+    manifest = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert manifest["reused"][0]["stages"] == ["norm"]
+    assert done["stages"]["norm"] == _run(FIRST, tmp_path / "again")["stages"]["norm"]
+
+
+def test_another_seed_or_other_shared_settings_are_refused(tmp_path):
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    with pytest.raises(MbnInputError, match=r"a run of seed 4, not 5$"):
+        _run(SECOND, tmp_path / "s5", seed=5, reuse=_source(tmp_path / "first"))
+    toml = tmp_path / "more.toml"
+    toml.write_text("[sphere]\ngenerations = 6\n")
+    with pytest.raises(
+        MbnInputError,
+        match=r"run\.json: the run there was made with other settings \(sphere\.generations: 5 "
+        r"then, 6 now\); nothing is taken from it",
+    ):
+        _run(SECOND, tmp_path / "g6", document=read_toml(toml), reuse=_source(tmp_path / "first"))
+    assert CALLS == {"sphere": 1, "norm": 1}
+    # a section only this experiment has may differ: the shared stages never read it
+    toml.write_text("[tail]\nscale = 3.0\n")
+    _run(SECOND, tmp_path / "t3", document=read_toml(toml), reuse=_source(tmp_path / "first"))
+    assert CALLS == {"sphere": 1, "norm": 1, "tail": 1}
+
+
+def test_a_source_that_is_no_run_is_refused_in_one_line(tmp_path):
+    with pytest.raises(MbnInputError, match=r"--reuse .*nowhere: no such folder$"):
+        _source(tmp_path / "nowhere")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(MbnInputError, match=r"--reuse .*empty: no run there \(no run\.json\)$"):
+        _source(tmp_path / "empty")
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    manifest = tmp_path / "first" / "run.json"
+    data = json.loads(manifest.read_text())
+    manifest.write_text(json.dumps({**data, "kind": "mbn.unknown"}))
+    with pytest.raises(MbnInputError, match=r"kind 'mbn\.unknown' is not an experiment mbn runs"):
+        _source(tmp_path / "first")
+    manifest.write_text(json.dumps({**data, "mbn_version": "0.0.1"}))
+    with pytest.raises(MbnInputError, match=rf"made by mbn 0\.0\.1, this is {__version__}"):
+        _source(tmp_path / "first")
+    manifest.write_text(json.dumps(data))
+    with pytest.raises(MbnInputError, match=r"the run's own folder \(use --resume\)$"):
+        _run(FIRST, tmp_path / "first", resume=True, reuse=_source(tmp_path / "first"))
