@@ -5,6 +5,9 @@ crash of one seed is reported while the others finish, a sweep with other settin
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,6 +26,8 @@ from mbn.experiments.sweep.run import (
     run_sweep,
     seed_dir,
     seed_state,
+    task_env,
+    thread_env,
 )
 
 CALLS: list[tuple[str, int]] = []
@@ -198,3 +203,29 @@ def test_a_sweep_reusing_another_takes_each_seeds_stages_and_ends_the_same(tmp_p
         )
     with pytest.raises(MbnInputError, match=r"--reuse .*b: the sweep's own folder$"):
         run_sweep(tmp_path / "b", settings, lambda: InlineExecutor(run_seed), reuse=tmp_path / "b")
+
+
+@pytest.mark.parametrize("cpus", [1, 2, 3])
+def test_a_task_environment_lets_jax_start_and_compute(cpus):
+    """XLA reads an ``XLA_FLAGS`` that does not start with ``--`` as a file name and aborts the
+    process: the ``intra_op_parallelism_threads=N`` once written for N > 1 killed every task of
+    ``--cpus-per-run 2``."""
+    env = {**os.environ, **task_env(cpus, os.environ)}
+    if "XLA_FLAGS" not in task_env(cpus, os.environ):
+        env.pop("XLA_FLAGS", None)
+    code = "import jax.numpy as jnp; print(float(jnp.arange(4.0).sum()))"
+    proc = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == "6.0"
+    assert all(flag.startswith("--") for flag in env.get("XLA_FLAGS", "").split())
+    assert env["OMP_NUM_THREADS"] == env["MBN_FITNESS_WORKERS"] == str(cpus)
+
+
+def test_thread_env_keeps_the_callers_xla_flags_in_front():
+    own = {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
+    one = "--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=false"
+    assert thread_env(1, own)["XLA_FLAGS"] == one
+    assert thread_env(2, own)["XLA_FLAGS"] == "--xla_dump_to=/tmp/x"
+    assert "XLA_FLAGS" not in thread_env(2, {})

@@ -12,8 +12,8 @@ reproduce``); any other seed starts afresh. Every seed writes its own folder onl
 finished seed.
 
 Threads: each task asks Ray for ``cpus_per_run`` CPUs and runs in a worker whose environment
-(set by Ray before the worker process starts, so before JAX is imported there) limits XLA and the
-BLAS libraries to that many threads (:func:`thread_env`).
+(set by Ray before the worker process starts, so before JAX is imported there) limits the BLAS
+libraries to that many threads, and XLA to one where that is one (:func:`thread_env`).
 """
 
 from __future__ import annotations
@@ -97,17 +97,21 @@ class SweepSettings:
 
 
 def thread_env(cpus: int, base: Mapping[str, str] | None = None) -> dict[str, str]:
-    """The environment of a task given ``cpus`` CPUs: XLA's intra-op pool of that size (and
-    Eigen's own threading off for one CPU), OpenMP/OpenBLAS/MKL at that many threads, and the
+    """The environment of a task given ``cpus`` CPUs: for one CPU, XLA's Eigen threading off
+    (``--xla_cpu_multi_thread_eigen=false``); OpenMP/OpenBLAS/MKL at that many threads; and the
     run's DE populations evaluated in that many parts at once (``WORKERS_VARIABLE``, as
-    ``mbn reproduce --threads``).
-    ``base``'s ``XLA_FLAGS`` (the caller's own flags) are kept in front."""
-    flags = f"intra_op_parallelism_threads={cpus}"
-    if cpus == 1:
-        flags = "--xla_cpu_multi_thread_eigen=false " + flags
+    ``mbn reproduce --threads``). ``base``'s ``XLA_FLAGS`` (the caller's own flags) are kept in
+    front; with none of its own and more than one CPU, ``XLA_FLAGS`` is not set.
+
+    XLA has no flag that holds its CPU thread pool to N > 1 threads (it sizes the pool from the
+    cores the process may run on); a value of ``XLA_FLAGS`` that does not start with ``--`` is
+    read as a file name and kills the process, which is what the ``intra_op_parallelism_threads=N``
+    this function once wrote did for N > 1."""
+    flags = "--xla_cpu_multi_thread_eigen=false" if cpus == 1 else ""
     own = (base or {}).get("XLA_FLAGS", "").strip()
+    xla = f"{own} {flags}".strip()
     return {
-        "XLA_FLAGS": f"{own} {flags}".strip(),
+        **({"XLA_FLAGS": xla} if xla else {}),
         "OMP_NUM_THREADS": str(cpus),
         "OPENBLAS_NUM_THREADS": str(cpus),
         "MKL_NUM_THREADS": str(cpus),
