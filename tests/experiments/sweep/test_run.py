@@ -229,3 +229,24 @@ def test_thread_env_keeps_the_callers_xla_flags_in_front():
     assert thread_env(1, own)["XLA_FLAGS"] == one
     assert thread_env(2, own)["XLA_FLAGS"] == "--xla_dump_to=/tmp/x"
     assert "XLA_FLAGS" not in thread_env(2, {})
+
+
+def test_a_reuse_sweep_with_other_shared_settings_is_refused_before_any_run(tmp_path):
+    _sweep(tmp_path / "a", [0])
+    CALLS.clear()
+    more = TOY.config().to_dict()
+    more["draw"]["draws"] = 5
+    settings = SweepSettings((0,), TOY.config_from_dict(more, "test"))
+    with pytest.raises(
+        MbnInputError,
+        match=r"sweep\.json: its runs were made with other settings \(draw\.draws: 4 then, 5 "
+        r"now\); nothing can be taken from them$",
+    ):
+        run_sweep(
+            tmp_path / "b",
+            settings,
+            lambda: InlineExecutor(run_seed),
+            experiment=TOY,
+            reuse=tmp_path / "a",
+        )
+    assert CALLS == [] and not (tmp_path / "b").exists()

@@ -18,6 +18,7 @@ libraries to that many threads, and XLA to one where that is one (:func:`thread_
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import sys
@@ -222,14 +223,34 @@ def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
     return "resume" if (folder / "run.json").exists() else "new"
 
 
-def check_reuse_dir(reuse: Path, out: Path) -> None:
-    """Refuse a ``--reuse`` that is not another sweep's folder (one line)."""
+def check_reuse_dir(reuse: Path, out: Path, settings: SweepSettings | None = None) -> None:
+    """Refuse a ``--reuse`` that is not another sweep's folder, or (with ``settings``) one whose
+    runs were made with other values of settings both sweeps have (one line naming the first).
+    Each seed checks its own run again as it takes its stages
+    (:func:`mbn.experiments.pipeline.reuse.take_stages`)."""
     if not reuse.is_dir():
         raise MbnInputError(f"--reuse {reuse}: no such folder")
     if not (reuse / SWEEP_FILE).exists():
         raise MbnInputError(f"--reuse {reuse}: not a sweep folder (no {SWEEP_FILE})")
     if out.exists() and reuse.resolve() == out.resolve():
         raise MbnInputError(f"--reuse {reuse}: the sweep's own folder")
+    if settings is None:
+        return
+    theirs = read_sweep(reuse).get("settings", {}).get("config")
+    if not isinstance(theirs, dict):
+        return
+    mine = settings.config.to_dict()
+    for section, values in mine.items():
+        other = theirs.get(section)
+        if not isinstance(other, dict):
+            continue
+        for key, value in values.items():
+            if key in other and other[key] != value:
+                raise MbnInputError(
+                    f"{reuse / SWEEP_FILE}: its runs were made with other settings "
+                    f"({section}.{key}: {json.dumps(other[key])} then, {json.dumps(value)} "
+                    "now); nothing can be taken from them"
+                )
 
 
 def _reuse_seed(reuse: Path | None, seed: int) -> str | None:
@@ -524,7 +545,7 @@ def run_sweep(
     t0 = time.perf_counter()
     check_sweep_dir(out, settings)
     if reuse is not None:
-        check_reuse_dir(Path(reuse), out)
+        check_reuse_dir(Path(reuse), out, settings)
     states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
     todo = [s for s in settings.seeds if states[s] != "done"]
     ex = executor() if todo else None
