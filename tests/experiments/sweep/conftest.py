@@ -27,7 +27,7 @@ def fake_run(
     config: dict,
     successes: dict[str, int],
     agree: dict[str, int],
-    claims: dict[str, bool],
+    claims: dict[str, bool | None],
     curve: list[float],
 ) -> Path:
     """A finished seed folder: every test passes all its trials unless ``successes`` says

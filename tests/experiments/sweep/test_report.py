@@ -36,11 +36,26 @@ def folder(tmp_path, quick_config, monkeypatch):
         },
     )
     curve = [0.0, 1.0, 2.0, 3.0]
-    fake_run(out, 0, config, {}, {}, {"claim A": True, "claim B": True}, curve)
+    # claim C: run 1 cannot judge it (verdict None: e.g. an ablation of an MBN that fails)
+    fake_run(out, 0, config, {}, {}, {"claim A": True, "claim B": True, "claim C": True}, curve)
     fake_run(
-        out, 1, config, {"lf_jitter": 150, "mbn": 9}, {}, {"claim A": True, "claim B": False}, curve
+        out,
+        1,
+        config,
+        {"lf_jitter": 150, "mbn": 9},
+        {},
+        {"claim A": True, "claim B": False, "claim C": None},
+        curve,
     )
-    fake_run(out, 2, config, {}, {"im_lf_jitter": 190}, {"claim A": True, "claim B": False}, curve)
+    fake_run(
+        out,
+        2,
+        config,
+        {},
+        {"im_lf_jitter": 190},
+        {"claim A": True, "claim B": False, "claim C": True},
+        curve,
+    )
     return out
 
 
@@ -71,6 +86,7 @@ def test_report_files_name_failures_claims_and_embed_figures(folder):
     html = (folder / "sweep.html").read_text()
     assert "| claim A | crit claim A | 3 of 3 |" in md
     assert "| claim B | crit claim B | 1 of 3 |" in md
+    assert "| claim C | crit claim C | 2 of 2 judged (1 not testable) |" in md
     assert "| 1 | done | mbn, lf_jitter |" in md
     assert "| 3 | failed | RuntimeError: stage pm exploded |" in md
     assert "| lf_jitter | >= 95% | 2/3 | 100.0% [87.5%, 100.0%] | 75.0% | 550/600 |" in md

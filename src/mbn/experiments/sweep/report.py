@@ -189,7 +189,8 @@ def _sections(
                 [[c["claim"], c["criterion"], _claim_count(c)] for c in claims],
             ),
             status=[
-                None if c.get("judged", c["runs"]) == 0 else c["hold"] == c["runs"] for c in claims
+                None if c.get("judged", c["runs"]) == 0 else c["hold"] == c.get("judged", c["runs"])
+                for c in claims
             ],
         )
     )
@@ -198,10 +199,15 @@ def _sections(
 
 
 def _claim_count(c: dict[str, Any]) -> str:
-    """'k of N' runs reproducing a claim; a claim no run judges (each run's verdict None) is
-    'not judged per run' (an experiment's analysis over runs may judge it)."""
-    if c.get("judged", c["runs"]) == 0:
+    """'k of N' runs reproducing a claim; where some runs could not judge it (their verdict
+    None: e.g. an ablation of an MBN that itself fails), 'k of J judged (N - J not testable)';
+    a claim no run judges is 'not judged per run' (an experiment's analysis over runs may judge
+    it)."""
+    judged = c.get("judged", c["runs"])
+    if judged == 0:
         return f"not judged per run ({c['runs']} runs)"
+    if judged < c["runs"]:
+        return f"{c['hold']} of {judged} judged ({c['runs'] - judged} not testable)"
     return f"{c['hold']} of {c['runs']}"
 
 
