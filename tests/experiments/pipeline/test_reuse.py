@@ -99,10 +99,22 @@ class TailStage(Stage):
         return {"draw": float(jax.random.uniform(ctx.key)) * ctx.settings.scale}
 
 
+@dataclass(frozen=True)
+class OptionalSettings(Settings):
+    """A section some experiments have and a stage reads as its defaults where there is none
+    (as ``[noise]``)."""
+
+    section = "optional"
+    level: float = setting(0.0, doc="a level, off by default")
+
+
 FIRST = Experiment("first", "mbn.first", Registry([SphereStage(), NormStage()]))
+WITH_OPTIONAL = Experiment(
+    "with", "mbn.with", Registry([SphereStage(), NormStage()]), shared=(OptionalSettings,)
+)
 SECOND = Experiment("second", "mbn.second", Registry([SphereStage(), TailStage(), NormStage()]))
 ODD = Experiment("odd", "mbn.odd", Registry([SphereStage(), OtherNormStage()]))
-KNOWN = {e.kind: e for e in (FIRST, SECOND, ODD)}
+KNOWN = {e.kind: e for e in (FIRST, SECOND, ODD, WITH_OPTIONAL)}
 
 
 def _source(path):
@@ -205,3 +217,30 @@ def test_a_source_that_is_no_run_is_refused_in_one_line(tmp_path):
     manifest.write_text(json.dumps(data))
     with pytest.raises(MbnInputError, match=r"the run's own folder \(use --resume\)$"):
         _run(FIRST, tmp_path / "first", resume=True, reuse=_source(tmp_path / "first"))
+
+
+def test_a_section_only_one_run_has_must_hold_its_defaults(tmp_path):
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    # at its defaults, the section changes nothing: the stages are taken
+    _run(WITH_OPTIONAL, tmp_path / "same", reuse=_source(tmp_path / "first"), log=lambda _: None)
+    assert CALLS == {"sphere": 1, "norm": 1}
+    toml = tmp_path / "on.toml"
+    toml.write_text("[optional]\nlevel = 1.0\n")
+    with pytest.raises(
+        MbnInputError,
+        match=r"other settings \(optional\.level: 0\.0 then, 1\.0 now; the run there has no "
+        r"\[optional\] section: it ran as with its defaults\)",
+    ):
+        _run(
+            WITH_OPTIONAL,
+            tmp_path / "on",
+            document=read_toml(toml),
+            reuse=_source(tmp_path / "first"),
+        )
+    _run(WITH_OPTIONAL, tmp_path / "with-on", document=read_toml(toml), log=lambda _: None)
+    with pytest.raises(
+        MbnInputError,
+        match=r"other settings \(optional\.level: 1\.0 then, 0\.0 now; this run has no "
+        r"\[optional\] section: it runs as with its defaults\)",
+    ):
+        _run(FIRST, tmp_path / "plain", reuse=_source(tmp_path / "with-on"))

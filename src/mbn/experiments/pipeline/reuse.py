@@ -14,9 +14,10 @@ A stage is taken from the source run when:
 - every stage it needs is taken too, or was already done here;
 - it has not run here.
 
-The two runs must have the same seed and agree on every section of the config both have (a
-stage shared by two experiments can read only sections both have); otherwise nothing is taken
-and the run is refused in one line naming the first difference. The files taken are the
+The two runs must have the same seed and agree on every section of the config both have; a
+section only one of them has must hold its defaults (a stage reads an optional section, such as
+``[noise]``, as its defaults where the experiment has none). Otherwise nothing is taken and the
+run is refused in one line naming the first difference. The files taken are the
 stage's file, its declared outputs and its checkpoints (``checkpoints/NAME.npz`` and
 ``NAME_*``, for the DE curves of reports), each copied atomically, the stage's file last: a
 copy interrupted leaves the stage not done. ``run.json`` records what was taken and from where
@@ -44,7 +45,14 @@ if TYPE_CHECKING:
     from mbn.experiments.pipeline.runconfig import RunConfig
     from mbn.experiments.pipeline.runner import Experiment
 
-__all__ = ["ReuseSource", "read_source", "take_stages"]
+__all__ = [
+    "ReuseSource",
+    "read_source",
+    "settings_disagreement",
+    "shared_defaults",
+    "take_stages",
+    "takeable",
+]
 
 
 @dataclass(frozen=True)
@@ -84,18 +92,53 @@ def read_source(path: Path, find: Callable[[str], Experiment | None]) -> ReuseSo
     return ReuseSource(rundir.root, experiment, seed, config)
 
 
-def _check_agreement(source: ReuseSource, seed: int, config: RunConfig) -> None:
+def shared_defaults(experiment: Experiment, quick: bool) -> dict[str, Any]:
+    """The default values of ``experiment``'s sections that are not a stage's own (``[run]``
+    and its shared sections), with the quick preset where ``quick``."""
+    own = {stage.settings.section for stage in experiment.registry if stage.settings is not None}
+    return {k: v for k, v in experiment.config(quick=quick).to_dict().items() if k not in own}
+
+
+def settings_disagreement(
+    ours: dict[str, Any],
+    our_defaults: dict[str, Any],
+    theirs: dict[str, Any],
+    their_defaults: dict[str, Any],
+) -> str | None:
+    """Where two runs' configs (``section -> values``) disagree for the stages they share, as
+    one line (``rf.generations: 300 then, 500 now``), or None. A section both have must be the
+    same; a shared section (not a stage's own) only one has must hold that experiment's
+    defaults (``*_defaults``: :func:`shared_defaults`), since a stage of the other runs as with
+    its defaults (``[noise]``: a stage without one runs without noise)."""
     from mbn.experiments.pipeline.runner import first_difference
 
+    for name, values in ours.items():
+        if name in theirs:
+            if theirs[name] != values:
+                return first_difference({name: theirs[name]}, {name: values})
+        elif name in our_defaults and values != our_defaults[name]:
+            diff = first_difference({name: our_defaults[name]}, {name: values})
+            return f"{diff}; the run there has no [{name}] section: it ran as with its defaults"
+    for name, values in theirs.items():
+        if name not in ours and name in their_defaults and values != their_defaults[name]:
+            diff = first_difference({name: values}, {name: their_defaults[name]})
+            return f"{diff}; this run has no [{name}] section: it runs as with its defaults"
+    return None
+
+
+def _check_agreement(
+    experiment: Experiment, source: ReuseSource, seed: int, config: RunConfig
+) -> None:
     where = RunDir(source.root).manifest
     if source.seed != seed:
         raise MbnInputError(f"--reuse {source.root}: a run of seed {source.seed}, not {seed}")
-    mine = config.to_dict()
-    common = [name for name in mine if name in source.config]
-    theirs = {name: source.config[name] for name in common}
-    ours = {name: mine[name] for name in common}
-    if theirs != ours:
-        diff = first_difference(theirs, ours)
+    diff = settings_disagreement(
+        config.to_dict(),
+        shared_defaults(experiment, config.quick),
+        source.config,
+        shared_defaults(source.experiment, config.quick),
+    )
+    if diff is not None:
         raise MbnInputError(
             f"{where}: the run there was made with other settings ({diff}); nothing is taken "
             "from it"
@@ -158,7 +201,7 @@ def take_stages(
 ) -> list[str]:
     """Copy into ``rundir`` (whose ``run.json`` exists) the stages it can take from ``source``
     (module docstring); returns their names and records them in ``run.json``."""
-    _check_agreement(source, seed, config)
+    _check_agreement(experiment, source, seed, config)
     names = takeable(experiment, rundir, source)
     src = RunDir(source.root)
     for name in names:

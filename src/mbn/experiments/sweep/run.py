@@ -18,7 +18,6 @@ libraries to that many threads, and XLA to one where that is one (:func:`thread_
 
 from __future__ import annotations
 
-import json
 import os
 import socket
 import sys
@@ -223,11 +222,17 @@ def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
     return "resume" if (folder / "run.json").exists() else "new"
 
 
-def check_reuse_dir(reuse: Path, out: Path, settings: SweepSettings | None = None) -> None:
+def check_reuse_dir(
+    reuse: Path,
+    out: Path,
+    settings: SweepSettings | None = None,
+    experiment: Experiment | None = None,
+) -> None:
     """Refuse a ``--reuse`` that is not another sweep's folder, or (with ``settings``) one whose
-    runs were made with other values of settings both sweeps have (one line naming the first).
-    Each seed checks its own run again as it takes its stages
-    (:func:`mbn.experiments.pipeline.reuse.take_stages`)."""
+    runs were made with other settings than the stages they share need
+    (:func:`~mbn.experiments.pipeline.reuse.settings_disagreement`; one line naming the first).
+    ``experiment``: the sweep's own, where the caller has it. Each seed checks its own run again
+    as it takes its stages (:func:`mbn.experiments.pipeline.reuse.take_stages`)."""
     if not reuse.is_dir():
         raise MbnInputError(f"--reuse {reuse}: no such folder")
     if not (reuse / SWEEP_FILE).exists():
@@ -236,21 +241,30 @@ def check_reuse_dir(reuse: Path, out: Path, settings: SweepSettings | None = Non
         raise MbnInputError(f"--reuse {reuse}: the sweep's own folder")
     if settings is None:
         return
-    theirs = read_sweep(reuse).get("settings", {}).get("config")
-    if not isinstance(theirs, dict):
+    from mbn.experiments.pipeline.reuse import settings_disagreement, shared_defaults
+    from mbn.experiments.sweep.specs import sweep_spec
+
+    recorded = read_sweep(reuse).get("settings", {})
+    raw = recorded.get("config") if isinstance(recorded, dict) else None
+    if not isinstance(raw, dict):
         return
-    mine = settings.config.to_dict()
-    for section, values in mine.items():
-        other = theirs.get(section)
-        if not isinstance(other, dict):
-            continue
-        for key, value in values.items():
-            if key in other and other[key] != value:
-                raise MbnInputError(
-                    f"{reuse / SWEEP_FILE}: its runs were made with other settings "
-                    f"({section}.{key}: {json.dumps(other[key])} then, {json.dumps(value)} "
-                    "now); nothing can be taken from them"
-                )
+    name = recorded.get("experiment", "reproduce")
+    mine = experiment or sweep_spec(settings.experiment).load()
+    other = mine if name == settings.experiment else sweep_spec(name).load()
+    where = str(reuse / SWEEP_FILE)
+    theirs = other.config_from_dict(raw, where).to_dict()
+    quick = settings.config.quick
+    diff = settings_disagreement(
+        settings.config.to_dict(),
+        shared_defaults(mine, quick),
+        theirs,
+        shared_defaults(other, quick),
+    )
+    if diff is not None:
+        raise MbnInputError(
+            f"{where}: its runs were made with other settings ({diff}); nothing can be taken "
+            "from them"
+        )
 
 
 def _reuse_seed(reuse: Path | None, seed: int) -> str | None:
@@ -545,7 +559,7 @@ def run_sweep(
     t0 = time.perf_counter()
     check_sweep_dir(out, settings)
     if reuse is not None:
-        check_reuse_dir(Path(reuse), out, settings)
+        check_reuse_dir(Path(reuse), out, settings, experiment)
     states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
     todo = [s for s in settings.seeds if states[s] != "done"]
     ex = executor() if todo else None
