@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 from mbn import __version__
 from mbn.errors import MbnInputError
+from mbn.experiments.pipeline.runconfig import first_difference
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import write_json_atomic
 
@@ -110,8 +111,6 @@ def settings_disagreement(
     same; a shared section (not a stage's own) only one has must hold that experiment's
     defaults (``*_defaults``: :func:`shared_defaults`), since a stage of the other runs as with
     its defaults (``[noise]``: a stage without one runs without noise)."""
-    from mbn.experiments.pipeline.runner import first_difference
-
     for name, values in ours.items():
         if name in theirs:
             if theirs[name] != values:

@@ -3,13 +3,14 @@ section every experiment has (:class:`RunSettings`: ``[run]``)."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from typing import Any
 
 from mbn.config import Settings, setting, settings_to_dict, to_toml
 from mbn.precision import PRECISIONS, ROBOT
 
-__all__ = ["RunConfig", "RunSettings"]
+__all__ = ["RunConfig", "RunSettings", "first_difference"]
 
 
 @dataclass(frozen=True)
@@ -51,3 +52,15 @@ class RunConfig:
 
     def to_toml(self, header: str = "") -> str:
         return to_toml(self.sections, header)
+
+
+def first_difference(old: Any, new: Any, root: str = "config", path: str = "") -> str:
+    """The first place where two JSON records differ, as one line: ``a.b.c: OLD then, NEW
+    now`` (``root`` when they differ as wholes)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in [*old, *(k for k in new if k not in old)]:
+            if old.get(key) != new.get(key):
+                return first_difference(
+                    old.get(key), new.get(key), root, f"{path}.{key}" if path else key
+                )
+    return f"{path or root}: {json.dumps(old)} then, {json.dumps(new)} now"

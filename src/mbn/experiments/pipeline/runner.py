@@ -11,7 +11,6 @@ when asked, then a settings file) is written whole to ``run.json`` and ``results
 from __future__ import annotations
 
 import contextlib
-import json
 import platform
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -29,7 +28,7 @@ from mbn.experiments.pipeline.context import StageContext
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
 from mbn.experiments.pipeline.reuse import ReuseSource, take_stages
-from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
+from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings, first_difference
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import check_writable, write_json_atomic
 from mbn.precision import scope
@@ -189,18 +188,6 @@ def check_out_dir(out: Path, kind: str, *, resume: bool, force: bool) -> None:
             f"--out {out} holds another run (seed {data.get('seed')}); pass --resume to continue "
             "it or --force to start anew"
         )
-
-
-def first_difference(old: Any, new: Any, root: str = "config", path: str = "") -> str:
-    """The first place where two JSON records differ, as one line: ``a.b.c: OLD then, NEW
-    now`` (``root`` when they differ as wholes)."""
-    if isinstance(old, dict) and isinstance(new, dict):
-        for key in [*old, *(k for k in new if k not in old)]:
-            if old.get(key) != new.get(key):
-                return first_difference(
-                    old.get(key), new.get(key), root, f"{path}.{key}" if path else key
-                )
-    return f"{path or root}: {json.dumps(old)} then, {json.dumps(new)} now"
 
 
 def _manifest(experiment: Experiment, seed: int, config: RunConfig) -> dict[str, Any]:
