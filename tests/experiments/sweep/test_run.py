@@ -250,3 +250,18 @@ def test_a_reuse_sweep_with_other_shared_settings_is_refused_before_any_run(tmp_
             reuse=tmp_path / "a",
         )
     assert CALLS == [] and not (tmp_path / "b").exists()
+
+
+def test_the_report_names_the_stages_each_seed_took(tmp_path):
+    from mbn.experiments.sweep.report import finished_taken
+
+    _sweep(tmp_path / "a", [0, 1])
+    settings = SweepSettings((0, 1, 2), TOY.config())
+    run_sweep(
+        tmp_path / "b",
+        settings,
+        lambda: InlineExecutor(run_seed),
+        experiment=TOY,
+        reuse=tmp_path / "a",
+    )
+    assert finished_taken(tmp_path / "b", [0, 1, 2]) == {0: ["draw", "total"], 1: ["draw", "total"]}

@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.sweep.run import (
@@ -232,6 +233,9 @@ def summarize_folder(out: Path) -> dict[str, Any]:
         if runs[s] is None and data.get("runs", {}).get(str(s), {}).get("state") == "failed"
     }
     summ = summarize(runs, errors, spec)
+    done_seeds = [s for s in seeds if runs[s] is not None]
+    for seed, names in finished_taken(out, done_seeds).items():
+        summ["per_seed"][str(seed)]["taken"] = names
     data["summary"] = summ
     finished = [s for s in seeds if runs[s] is not None]
     images: list[tuple[str, str]] = []
@@ -274,6 +278,28 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     return data
 
 
+def finished_taken(out: Path, seeds: list[int]) -> dict[int, list[str]]:
+    """Per seed, the stages its run took from another run (``--reuse``: ``run.json``'s
+    ``reused``), where it took any."""
+    taken: dict[int, list[str]] = {}
+    for seed in seeds:
+        path = seed_dir(out, seed) / "run.json"
+        try:
+            entries = read_json(path).get("reused") if path.exists() else None
+        except MbnInputError:
+            entries = None
+        names = [
+            n
+            for e in (entries if isinstance(entries, list) else [])
+            if isinstance(e, dict)
+            for n in e.get("stages", [])
+            if isinstance(n, str)
+        ]
+        if names:
+            taken[seed] = names
+    return taken
+
+
 def _seeds_section(data: dict[str, Any], seeds: list[int]) -> Section:
     """One row per seed: its state, the targets it missed (or its error) and its time; an
     experiment without per-run targets has no "meets every target" column (a finished run is
@@ -286,6 +312,8 @@ def _seeds_section(data: dict[str, Any], seeds: list[int]) -> Section:
         v = summ["per_seed"][str(s)]
         run = data["runs"].get(str(s), {})
         clock = _clock(run.get("seconds"))
+        if v.get("taken"):  # --reuse: the time is of the stages it ran
+            clock += f" (took {', '.join(v['taken'])} from another run)"
         if v["state"] == "done":
             if judged:
                 missed = ", ".join(v["missed"]) or "none"
