@@ -25,8 +25,8 @@ EPILOG = """\
 _SWEEP_EPILOG = """\
 Each seed K runs `mbn reproduce --seed K` (or, with --experiment NAME, `mbn run NAME --seed
 K`) into DIR/seed-K (a normal run folder: `mbn evaluate` loads its
-controllers) as one Ray task asking for --cpus-per-run CPUs, its XLA and BLAS threads
-pinned to that many. Without --address a local Ray is started with one CPU per core of this
+controllers) as one Ray task asking for --cpus-per-run CPUs, its BLAS threads pinned to
+that many (and XLA to one thread for one CPU). Without --address a local Ray is started with one CPU per core of this
 machine; with one, the sweep joins that cluster (`ray start --head` on one machine, `ray start
 --address HEAD:6379` on the others; DIR must be on a file system every machine sees at the same
 path).
@@ -110,7 +110,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         type=positive_int,
         default=1,
         metavar="N",
-        help="CPUs (and XLA/BLAS threads) per run (default 1)",
+        help="CPUs Ray gives each run: its BLAS threads and DE evaluation parts, and one XLA "
+        "thread for 1 (default 1; docs/sweep.md, Threads)",
     )
     sw.add_argument(
         "--reuse",
