@@ -216,3 +216,7 @@ def test_run_with_a_reuse_folder_that_holds_no_run_is_one_line(capsys, tmp_path)
     assert code == 2
     assert err == f"mbn: error: --reuse {tmp_path / 'empty'}: no run there (no run.json)"
     assert not (tmp_path / "r").exists()
+    code = main(["reproduce", "--quick", "--out", str(tmp_path / "q"), "--reuse", str(tmp_path)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err == f"mbn: error: --reuse {tmp_path}: no run there (no run.json)"
+    assert not (tmp_path / "q").exists()
