@@ -244,3 +244,13 @@ def test_a_section_only_one_run_has_must_hold_its_defaults(tmp_path):
         r"\[optional\] section: it runs as with its defaults\)",
     ):
         _run(FIRST, tmp_path / "plain", reuse=_source(tmp_path / "with-on"))
+
+
+def test_a_checkpoint_belongs_to_the_longest_stage_name_it_starts_with():
+    from mbn.experiments.pipeline.reuse import _owner
+
+    names = ["rf", "lf_search", "lf"]
+    assert _owner("lf_search_03.npz", names) == "lf_search"
+    assert _owner("lf.npz", names) == _owner("lf_attempt0_1.npz", names) == "lf"
+    assert _owner("rf_restart1.npz", names) == "rf"
+    assert _owner("rfx.npz", names) is None

@@ -178,16 +178,23 @@ def _copy_atomic(src: Path, dst: Path) -> None:
         raise
 
 
-def _checkpoints(src: RunDir, name: str) -> list[Path]:
+def _owner(filename: str, names: list[str]) -> str | None:
+    """The stage a checkpoint file belongs to: the longest stage name that is its stem or a
+    prefix of it followed by ``_`` (``lf_search_03.npz``: ``lf_search``, not ``lf``)."""
+    stem = filename.split(".", 1)[0]
+    mine = [n for n in names if stem == n or stem.startswith(f"{n}_")]
+    return max(mine, key=len) if mine else None
+
+
+def _checkpoints(src: RunDir, name: str, names: list[str]) -> list[Path]:
+    """The checkpoint files of stage ``name`` in ``src`` (``names``: the stages there)."""
     folder = src.root / "checkpoints"
     if not folder.is_dir():
         return []
     return sorted(
         p
         for p in folder.iterdir()
-        if p.is_file()
-        and not p.name.startswith(".")
-        and (p.name.split(".", 1)[0] == name or p.name.startswith(f"{name}_"))
+        if p.is_file() and not p.name.startswith(".") and _owner(p.name, names) == name
     )
 
 
@@ -203,14 +210,13 @@ def take_stages(
     _check_agreement(experiment, source, seed, config)
     names = takeable(experiment, rundir, source)
     src = RunDir(source.root)
+    stages = list(source.experiment.registry.names)
     for name in names:
         stage = experiment.registry[name]
         for rel in stage.outputs:
             _copy_atomic(src.root / rel, rundir.root / rel)
-        for path in _checkpoints(src, name):
-            target = rundir.root / "checkpoints" / path.name
-            if not target.exists():
-                _copy_atomic(path, target)
+        for path in _checkpoints(src, name, stages):  # a partial one of this run's is replaced
+            _copy_atomic(path, rundir.root / "checkpoints" / path.name)
         _copy_atomic(src.stage_file(name), rundir.stage_file(name))
     if names:
         manifest = rundir.read_manifest()
