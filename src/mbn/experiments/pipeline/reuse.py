@@ -19,8 +19,8 @@ section only one of them has must hold its defaults (a stage reads an optional s
 ``[noise]``, as its defaults where the experiment has none). Otherwise nothing is taken and the
 run is refused in one line naming the first difference. The files taken are the
 stage's file, its declared outputs and its checkpoints (``checkpoints/NAME.npz`` and
-``NAME_*``, for the DE curves of reports), each copied atomically, the stage's file last: a
-copy interrupted leaves the stage not done. ``run.json`` records what was taken and from where
+``NAME_*`` where no longer stage name claims the file; for the DE curves of reports), each
+copied atomically, the stage's file last: a copy interrupted leaves the stage not done. ``run.json`` records what was taken and from where
 (``reused``). The source must have been made by the same version of ``mbn``: that is checked
 against the version its ``run.json`` records, and a stage whose code changed between two
 commits of one version is the user's to know.
