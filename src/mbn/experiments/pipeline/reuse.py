@@ -15,15 +15,15 @@ A stage is taken from the source run when:
 - it has not run here.
 
 The two runs must have the same seed and agree on every section of the config both have; a
-section only one of them has must hold its defaults (a stage reads an optional section, such as
-``[noise]``, as its defaults where the experiment has none). Otherwise nothing is taken and the
-run is refused in one line naming the first difference. The files taken are the
-stage's file, its declared outputs and its checkpoints (``checkpoints/NAME.npz`` and
-``NAME_*`` where no longer stage name claims the file; for the DE curves of reports), each
-copied atomically, the stage's file last: a copy interrupted leaves the stage not done. ``run.json`` records what was taken and from where
-(``reused``). The source must have been made by the same version of ``mbn``: that is checked
-against the version its ``run.json`` records, and a stage whose code changed between two
-commits of one version is the user's to know.
+shared section only one of them has must hold its defaults (a stage reads an optional section,
+such as ``[noise]``, as its defaults where the experiment has none). Otherwise nothing is taken
+and the run is refused in one line naming the first difference. The files taken are the stage's
+file, its declared outputs and its checkpoints (``checkpoints/NAME.npz`` and ``NAME_*`` where no
+longer stage name claims the file; for the DE curves of reports), each copied atomically, the
+stage's file last: a copy interrupted leaves the stage not done. ``run.json`` records what was
+taken and from where (``reused``). The source must have been made by the same version of
+``mbn`` (its ``run.json`` records it); a stage whose code changed between two commits of one
+version is the user's to know.
 """
 
 from __future__ import annotations
