@@ -26,10 +26,10 @@ _SWEEP_EPILOG = """\
 Each seed K runs `mbn reproduce --seed K` (or, with --experiment NAME, `mbn run NAME --seed
 K`) into DIR/seed-K (a normal run folder: `mbn evaluate` loads its
 controllers) as one Ray task asking for --cpus-per-run CPUs, its BLAS threads pinned to
-that many (and XLA to one thread for one CPU). Without --address a local Ray is started with one CPU per core of this
-machine; with one, the sweep joins that cluster (`ray start --head` on one machine, `ray start
---address HEAD:6379` on the others; DIR must be on a file system every machine sees at the same
-path).
+that many (and XLA to one thread for one CPU). Without --address a local Ray is started with
+one CPU per core of this machine; with one, the sweep joins that cluster (`ray start --head`
+on one machine, `ray start --address HEAD:6379` on the others; DIR must be on a file system
+every machine sees at the same path).
 
 Run the same command again to continue: finished seeds are skipped, interrupted ones resume from
 their checkpoints; a seed that crashed is reported (sweep.json) and the others finish. An --out
