@@ -2,17 +2,18 @@
 context (keys, settings, checkpointed DE, progress) and a runner that does resume/force, timings
 and ``results.json`` (``docs/architecture.md``).
 
-An experiment is a :class:`~mbn.experiments.pipeline.runner.Experiment`: a kind, a
+An experiment is a :class:`~mbn.experiments.pipeline.experiment.Experiment`: a kind, a
 :class:`~mbn.experiments.pipeline.registry.Registry` of stages and the settings sections they
 share. Adding a stage is one module with a :class:`~mbn.experiments.pipeline.registry.Stage` and
 one line in its registry.
 """
 
 from mbn.experiments.pipeline.context import DERun, StageContext
+from mbn.experiments.pipeline.experiment import Experiment
 from mbn.experiments.pipeline.registry import Registry, Stage
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.experiments.pipeline.runner import Experiment, run_experiment
+from mbn.experiments.pipeline.runner import run_experiment
 
 __all__ = [
     "DERun",

@@ -43,8 +43,8 @@ from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import write_json_atomic
 
 if TYPE_CHECKING:
+    from mbn.experiments.pipeline.experiment import Experiment
     from mbn.experiments.pipeline.runconfig import RunConfig
-    from mbn.experiments.pipeline.runner import Experiment
 
 __all__ = [
     "ReuseSource",

@@ -13,8 +13,7 @@ from __future__ import annotations
 import contextlib
 import platform
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,9 +21,10 @@ import jax
 import numpy as np
 
 from mbn import __version__
-from mbn.config import Settings, TomlDocument, from_mapping
+from mbn.config import Settings
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.context import StageContext
+from mbn.experiments.pipeline.experiment import Experiment
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
 from mbn.experiments.pipeline.reuse import ReuseSource, take_stages
@@ -65,95 +65,6 @@ def versions() -> dict[str, str]:
         "matplotlib": version("matplotlib"),
         "platform": jax.default_backend(),
     }
-
-
-Results = Callable[[RunDir, dict[str, dict[str, Any]], RunConfig], dict[str, Any]]
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """An experiment: its stages and how a run of it is configured and summed up.
-
-    Attributes:
-        name: the experiment's name (``reproduce``).
-        kind: the ``kind`` of its ``run.json`` (``mbn.reproduce``).
-        registry: its stages, in order.
-        shared: settings classes shared by several stages (sections before the stages' own;
-            :class:`RunSettings` comes first in every experiment).
-        quick: the quick preset: ``section -> {setting: value}`` applied under the file's values.
-        seeds: the seeds derived from the run's seed (for NumPy edges), recorded in results.
-        results: extra entries of ``results.json`` from the stages' data (e.g. tests and claims).
-        report: writes the report from the run folder (and ``results.json``) alone.
-    """
-
-    name: str
-    kind: str
-    registry: Registry
-    shared: tuple[type[Settings], ...] = ()
-    quick: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-    seeds: Callable[[int], dict[str, int]] = lambda seed: {"seed": seed}
-    results: Results | None = None
-    report: Callable[[RunDir], None] | None = None
-
-    def section_types(self) -> tuple[type[Settings], ...]:
-        stages = tuple(s.settings for s in self.registry if s.settings is not None)
-        return (RunSettings, *self.shared, *stages)
-
-    def config(self, *, quick: bool = False, document: TomlDocument | None = None) -> RunConfig:
-        """The effective config: defaults, then the quick preset (when ``quick`` or the file's
-        ``[run] quick = true``), then the file's values. Unknown tables and keys, and bad
-        values, are refused in one line naming the file, line and key."""
-        types = {cls.section: cls for cls in self.section_types()}
-        data = dict(document.data) if document is not None else {}
-        for table in data:
-            if table not in types:
-                where = document.where(table) if document is not None else f"[{table}]"
-                raise MbnInputError(
-                    f"{where}: unknown section (the sections of {self.name}: {', '.join(types)})"
-                )
-        run_table = data.get("run", {})
-        file_quick = isinstance(run_table, dict) and run_table.get("quick") is True
-        use_quick = quick or file_quick
-        sections = []
-        for name, cls in types.items():
-            current: Settings = cls()
-            if use_quick:
-                preset = dict(self.quick.get(name, {}))
-                if name == "run":
-                    preset["quick"] = True
-                if preset:
-                    current = from_mapping(cls, preset, base=current)
-            if name in data:
-                current = from_mapping(
-                    cls, data[name], base=current, where=_locator(document, name)
-                )
-            if isinstance(current, RunSettings) and use_quick and not current.quick:
-                current = current.replace(quick=True)
-            sections.append(current)
-        return RunConfig(tuple(sections))
-
-    def config_from_dict(self, data: Any, where: str) -> RunConfig:
-        """The config recorded in a ``run.json`` (a table per section)."""
-        if not isinstance(data, dict):
-            raise MbnInputError(f"{where}: config: expected an object, got {type(data).__name__}")
-        types = {cls.section: cls for cls in self.section_types()}
-        sections = []
-        for name, cls in types.items():
-            # a section (or a key) the run was recorded without ran as it did before it existed
-            table = data.get(name, {})
-            if isinstance(table, dict):
-                table = {**cls.recorded_before, **table}
-            sections.append(
-                from_mapping(cls, table, where=lambda key, t=name: f"{where}: config.{t}.{key}")
-            )
-        return RunConfig(tuple(sections))
-
-
-def _locator(document: TomlDocument | None, table: str) -> Callable[[str], str] | None:
-    """How errors name a key of ``table`` in ``document`` (file, line and key)."""
-    if document is None:
-        return None
-    return lambda key: document.where(table, key)
 
 
 def check_out_dir(out: Path, kind: str, *, resume: bool, force: bool) -> None:

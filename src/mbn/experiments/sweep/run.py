@@ -33,8 +33,8 @@ from mbn.errors import MbnInputError
 from mbn.io import atomic_open, check_writable, json_text, read_json
 
 if TYPE_CHECKING:
+    from mbn.experiments.pipeline.experiment import Experiment
     from mbn.experiments.pipeline.runconfig import RunConfig
-    from mbn.experiments.pipeline.runner import Experiment
 
 __all__ = [
     "INSTALL_HINT",
@@ -188,7 +188,7 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
     old = read_sweep(out)
     mine = settings.to_dict()
     if old["settings"] != mine:
-        from mbn.experiments.pipeline.runner import first_difference
+        from mbn.experiments.pipeline.runconfig import first_difference
 
         diff = first_difference(old["settings"], mine, root="settings")
         raise MbnInputError(

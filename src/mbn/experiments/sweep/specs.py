@@ -25,8 +25,8 @@ from mbn.experiments.sweep.targets import TARGETS, Target
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
+    from mbn.experiments.pipeline.experiment import Experiment
     from mbn.experiments.pipeline.rundir import RunDir
-    from mbn.experiments.pipeline.runner import Experiment
 
 __all__ = [
     "ABLATIONS_SPEC",
