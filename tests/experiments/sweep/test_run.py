@@ -81,9 +81,9 @@ def _fresh():
     CRASH["total"].clear()
 
 
-def _sweep(out, seeds, config=None):
+def _sweep(out, seeds, config=None, reuse=None):
     settings = SweepSettings(tuple(seeds), config or TOY.config())
-    return run_sweep(out, settings, lambda: InlineExecutor(run_seed), experiment=TOY)
+    return run_sweep(out, settings, lambda: InlineExecutor(run_seed), experiment=TOY, reuse=reuse)
 
 
 def _files(folder):
@@ -182,13 +182,7 @@ def test_a_sweep_reusing_another_takes_each_seeds_stages_and_ends_the_same(tmp_p
     _sweep(tmp_path / "a", [0, 1])
     CALLS.clear()
     settings = SweepSettings((0, 1, 2), TOY.config())
-    data = run_sweep(
-        tmp_path / "b",
-        settings,
-        lambda: InlineExecutor(run_seed),
-        experiment=TOY,
-        reuse=tmp_path / "a",
-    )
+    data = _sweep(tmp_path / "b", [0, 1, 2], reuse=tmp_path / "a")
     assert CALLS == [("draw", 2), ("total", 2)]  # seed 2 has no run in a: it runs
     assert data["runs"]["0"]["notices"] == [f"stages draw, total: taken from {tmp_path}/a/seed-0"]
     for s in (0, 1):
@@ -236,19 +230,12 @@ def test_a_reuse_sweep_with_other_shared_settings_is_refused_before_any_run(tmp_
     CALLS.clear()
     more = TOY.config().to_dict()
     more["draw"]["draws"] = 5
-    settings = SweepSettings((0,), TOY.config_from_dict(more, "test"))
     with pytest.raises(
         MbnInputError,
         match=r"sweep\.json: its runs were made with other settings \(draw\.draws: 4 then, 5 "
         r"now\); nothing can be taken from them$",
     ):
-        run_sweep(
-            tmp_path / "b",
-            settings,
-            lambda: InlineExecutor(run_seed),
-            experiment=TOY,
-            reuse=tmp_path / "a",
-        )
+        _sweep(tmp_path / "b", [0], TOY.config_from_dict(more, "test"), reuse=tmp_path / "a")
     assert CALLS == [] and not (tmp_path / "b").exists()
 
 
@@ -256,12 +243,5 @@ def test_the_report_names_the_stages_each_seed_took(tmp_path):
     from mbn.experiments.sweep.report import finished_taken
 
     _sweep(tmp_path / "a", [0, 1])
-    settings = SweepSettings((0, 1, 2), TOY.config())
-    run_sweep(
-        tmp_path / "b",
-        settings,
-        lambda: InlineExecutor(run_seed),
-        experiment=TOY,
-        reuse=tmp_path / "a",
-    )
+    _sweep(tmp_path / "b", [0, 1, 2], reuse=tmp_path / "a")
     assert finished_taken(tmp_path / "b", [0, 1, 2]) == {0: ["draw", "total"], 1: ["draw", "total"]}

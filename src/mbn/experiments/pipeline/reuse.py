@@ -28,9 +28,7 @@ version is the user's to know.
 
 from __future__ import annotations
 
-import os
 import shutil
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +38,7 @@ from mbn import __version__
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.runconfig import first_difference
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.io import write_json_atomic
+from mbn.io import atomic_open, write_json_atomic
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.experiment import Experiment
@@ -168,14 +166,8 @@ def takeable(experiment: Experiment, rundir: RunDir, source: ReuseSource) -> lis
 
 def _copy_atomic(src: Path, dst: Path) -> None:
     dst.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent)
-    os.close(fd)
-    try:
-        shutil.copyfile(src, tmp)
-        os.replace(tmp, dst)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with src.open("rb") as source, atomic_open(dst, "wb") as target:
+        shutil.copyfileobj(source, target)
 
 
 def _owner(filename: str, names: list[str]) -> str | None:
