@@ -117,6 +117,9 @@ def rate_boxes(
         ax.set_xlim(0.4, max(len(names), 7) + 0.6)
         ax.set_ylim(-0.03, 1.03)
         ax.set_ylabel("success rate")
-        ax.set_title(title + " (black: median; red dashes: target)")
+        marked = any(n in targets for n in names)
+        ax.set_title(
+            title + (" (black: median; red dashes: target)" if marked else " (black: median)")
+        )
         ax.grid(axis="y", alpha=0.3)
     save_png(fig, path)
