@@ -310,7 +310,9 @@ def contest_over_runs(
                     f"Program search against each dynamics contender: {rule}",
                     [
                         "Ratio of median evaluations to success (below 1: program search needs "
-                        "fewer) with a bootstrap 95 % interval (10 000 resamples of the runs); "
+                        "fewer) with a bootstrap 95 % interval (10 000 resamples of the runs; "
+                        "a median that falls on an unsolved run counts as infinite, so a ratio "
+                        "or an end of its interval can be 0 or unbounded); "
                         "the Mann–Whitney U test of the evaluations (unsolved runs tied with each "
                         "other, above every solved run; two-sided, normal approximation with "
                         "tie correction) and the "
