@@ -9,7 +9,7 @@ import json
 
 import pytest
 
-from mbn.experiments.contest.over_runs import contest_over_runs, statistics
+from mbn.experiments.contest.over_runs import contest_over_runs, seed_table, statistics
 from mbn.experiments.stats import mann_whitney, median_ratio, wilson_interval
 from mbn.experiments.sweep.report import summary_line
 from mbn.experiments.sweep.specs import CONTEST_SPEC, sweep_spec
@@ -83,6 +83,7 @@ def test_the_report_sections_and_the_figure(tmp_path):
         "Programs against dynamics: straight-right",
         "Program search against each dynamics contender: straight-right",
         "The 2016 claim over runs",
+        "Evaluations to success, seed by seed",
     ]
     header, rows = secs[0].table
     assert "median run" in header
@@ -101,6 +102,27 @@ def test_the_report_sections_and_the_figure(tmp_path):
     assert [r[0] for r in secs[1].table[1]] == ["programs : scratch", "programs : neighbour"]
     ((file, _),) = images
     assert (tmp_path / file).stat().st_size > 0
+
+
+def test_the_seed_by_seed_table_gives_every_run_of_every_contender():
+    runs = {**RUNS, 7: {"contest": {}, "tests": {}}}  # a run without the contest: no row
+    runs[5] = _results({"programs": 900})  # a run with program search only
+    header, rows = seed_table(statistics(runs))
+    assert header == [
+        "seed",
+        "straight-right: programs",
+        "straight-right: scratch",
+        "straight-right: neighbour",
+    ]
+    assert rows == [
+        ["0", "180", "> budget", "900"],
+        ["1", "360", "2000", "> budget"],
+        ["2", "> budget", "> budget", "540"],
+        ["3", "540", "4000", "720"],
+        ["4", "720", "> budget", "1800"],
+        ["5", "900", "–", "–"],
+    ]
+    assert seed_table(statistics({})) is None
 
 
 def test_the_sweep_runs_it_without_per_run_targets():

@@ -26,7 +26,7 @@ from mbn.experiments.stats import (
     wilson_interval,
 )
 
-__all__ = ["checks_text", "contest_over_runs"]
+__all__ = ["checks_text", "contest_over_runs", "seed_table"]
 
 #: The contender every other is compared with.
 REFERENCE = "programs"
@@ -223,6 +223,32 @@ def _ratio_text(r: Mapping[str, Any]) -> str:
     return f"{point} [{lo}, {hi}]"
 
 
+def seed_table(stats: Mapping[str, Any]) -> tuple[list[str], list[list[str]]] | None:
+    """The evaluations to success of every run (``statistics``' ``evaluations``), one row per
+    seed and one column per rule and contender; None where there are no runs."""
+    columns = [
+        (rule, who) for rule, data in stats["rules"].items() for who in data["contenders"]
+    ]
+    seeds = sorted(
+        {
+            int(s)
+            for rule, who in columns
+            for s in stats["rules"][rule]["contenders"][who]["evaluations"]
+        }
+    )
+    if not seeds:
+        return None
+    header = ["seed", *(f"{rule}: {who}" for rule, who in columns)]
+    rows = []
+    for s in seeds:
+        row = [str(s)]
+        for rule, who in columns:
+            got = stats["rules"][rule]["contenders"][who]["evaluations"]
+            row.append(_num(got[str(s)]) if str(s) in got else "–")
+        rows.append(row)
+    return header, rows
+
+
 def contest_over_runs(
     out: Path, runs: Mapping[int, Mapping[str, Any]]
 ) -> tuple[dict[str, Any], list[Section], list[tuple[str, str]]]:
@@ -339,6 +365,19 @@ def contest_over_runs(
             status=[claim["pass"]],
         )
     )
+    per_seed = seed_table(stats)
+    if per_seed is not None:
+        secs.append(
+            Section(
+                "Evaluations to success, seed by seed",
+                [
+                    "Each run's evaluations to its first passed check, per rule and contender "
+                    "('> budget': never passed; '–': the run has no such contender). The "
+                    "statistics above are drawn from these numbers.",
+                ],
+                table=per_seed,
+            )
+        )
     for rule, data in stats["rules"].items():
         for who, c in data["contenders"].items():
             m = c["median_run"]["seed"]
