@@ -7,7 +7,7 @@ the fraction of runs solved against evaluations, and the runs whose final best p
 Per rule, program search against each dynamics contender: the ratio of median evaluations with
 a bootstrap 95 % interval, the Mann–Whitney U test and the Vargha–Delaney A12. The median run
 of each contender (by evaluations to success, the lower of the two middle runs of an even
-count) is named, with its controller file.
+count) is named, with its controller file; and every run's evaluations, seed by seed.
 """
 
 from __future__ import annotations
