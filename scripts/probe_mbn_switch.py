@@ -15,7 +15,8 @@ three ways:
   largest neuron, so that the program switches at once and exactly.
 
 The last two change the controller in memory only (the file is not written, and its readout
-would not pass the file's check: the calibrated columns leave [0, 1] by a few thousandths).
+would not pass the file's check: the calibrated columns leave [0, 1], by a few thousandths where
+the codes are near one-hot and far more where they are not).
 
 Usage: python scripts/probe_mbn_switch.py RUN_DIR [--controller FILE] [--maze tiles3_heldout]
 [--repeats 17]
@@ -33,7 +34,7 @@ import numpy as np
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("run", type=Path, help="a new-behaviours run folder")
+    parser.add_argument("run", type=Path, help="a run folder (new-behaviours by default)")
     parser.add_argument(
         "--controller", type=Path, default=None, help="default: RUN/controllers/mbn3.json"
     )
