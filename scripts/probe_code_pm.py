@@ -40,22 +40,16 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     from mbn.evolution.de import DEConfig, minimize
-    from mbn.experiments.program_module import (
-        MemoryReward,
-        PMGenome,
-        code_fitness,
-        tile_sequences,
-    )
+    from mbn.experiments.behaviours.stages.mbn3 import code_pm_fitness
+    from mbn.experiments.reproduce.settings import DESettings
 
-    kinds = 3
-    genome = PMGenome(programs=kinds, inputs=kinds)
-    codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
-    fitness = code_fitness(genome, tile_sequences(kinds, MemoryReward()), codes, switch=args.switch)
-    config = DEConfig(  # as reproduce's de_config with the default [de]
+    genome, fitness = code_pm_fitness(3, args.switch)
+    de = DESettings()  # the default [de], as the stage's de_config reads it
+    config = DEConfig(
         num_dims=genome.size,
-        popsize=18,
-        F=0.85,
-        CR=0.2,
+        popsize=de.popsize,
+        F=de.F,
+        CR=de.CR,
         maximize=True,
         lower=-args.bound,
         upper=args.bound,

@@ -102,17 +102,13 @@ def latched_codes(controller: Path) -> np.ndarray:
     import jax.numpy as jnp
 
     from mbn.controllers import read_controller_spec
-    from mbn.experiments.program_module import MemoryReward, latch_after_tile
+    from mbn.experiments.behaviours.stages.mbn3 import latched_codes as latched
 
     spec = read_controller_spec(controller)
     pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), spec.program_module)
-    kinds = len(spec.tile_rules)
-    columns = []
-    for t in range(kinds):
-        got = latch_after_tile(pm, t + 1, spec.program_neurons, see=MemoryReward().see)
-        if got is None:
-            raise SystemExit(f"{controller}: the program module does not settle after tile {t + 1}")
-        columns.append(np.asarray(got.program, float))
+    columns = latched(pm, len(spec.tile_rules))
+    if any(c is None for c in columns):
+        raise SystemExit(f"{controller}: the program module does not settle after a tile")
     return np.stack(columns, axis=1)
 
 

@@ -11,6 +11,7 @@ PM latches after one)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,7 +42,15 @@ from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule
 
-__all__ = ["CodePM", "MBN3Settings", "MBN3Stage", "code_mbn", "evolve_code_pm"]
+__all__ = [
+    "CodePM",
+    "MBN3Settings",
+    "MBN3Stage",
+    "code_mbn",
+    "code_pm_fitness",
+    "evolve_code_pm",
+    "latched_codes",
+]
 
 
 @dataclass(frozen=True)
@@ -110,10 +119,7 @@ def evolve_code_pm(
     (:func:`~mbn.experiments.program_module.code_fitness`): after a tile of kind k, code
     ``e_k``. Genes in ``[-bound, bound]``; ``key`` defaults to the stage's."""
     kinds = len(rules)
-    genome = PMGenome(programs=kinds, inputs=kinds)
-    codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
-    reward = MemoryReward()
-    fitness = code_fitness(genome, tile_sequences(kinds, reward), codes, switch=switch_seconds)
+    genome, fitness = code_pm_fitness(kinds, switch_seconds)
     run = ctx.evolve(
         name,
         de_config(ctx, genome.size, bound),
@@ -124,11 +130,31 @@ def evolve_code_pm(
     )
     pm = genome.network(jnp.asarray(run.data["best_genome"]))
     pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), pm)
-    latched = {}
-    for t in range(kinds):
-        got = latch_after_tile(pm, t + 1, range(kinds), see=reward.see)
-        latched[rules[t]] = None if got is None else np.asarray(got.program).tolist()
+    codes = latched_codes(pm, kinds)
+    latched = {r: None if c is None else c.tolist() for r, c in zip(rules, codes, strict=True)}
     return CodePM(pm, run, latched)
+
+
+def code_pm_fitness(
+    kinds: int, switch_seconds: float
+) -> tuple[PMGenome, Callable[[jax.Array], jax.Array]]:
+    """The genome of a code program module for ``kinds`` tile kinds and its program reward
+    without the robot (:func:`~mbn.experiments.program_module.code_fitness`): after a tile of
+    kind k, code ``e_k`` within ``switch_seconds``."""
+    genome = PMGenome(programs=kinds, inputs=kinds)
+    codes = {tuple(float(i == t) for i in range(kinds)): np.eye(kinds)[t] for t in range(kinds)}
+    sequences = tile_sequences(kinds, MemoryReward())
+    return genome, code_fitness(genome, sequences, codes, switch=switch_seconds)
+
+
+def latched_codes(pm: CTRNN, kinds: int) -> list[np.ndarray | None]:
+    """The code a program module latches after a tile of each kind, 1 to ``kinds`` (its first
+    ``kinds`` neurons; None where it never settles)."""
+    out: list[np.ndarray | None] = []
+    for t in range(kinds):
+        got = latch_after_tile(pm, t + 1, range(kinds), see=MemoryReward().see)
+        out.append(None if got is None else np.asarray(got.program))
+    return out
 
 
 def code_mbn(
