@@ -11,7 +11,7 @@ from mbn.controllers.codec import (
     read_controller_spec,
     save_controller,
 )
-from mbn.controllers.load import LoadedController, load_controller, make_controller
+from mbn.controllers.load import LoadedController, check_step, load_controller, make_controller
 from mbn.controllers.spec import (
     KIND_CTRNN,
     KIND_INTERPRETER,
@@ -35,6 +35,7 @@ __all__ = [
     "LoadedController",
     "MBNControllerSpec",
     "PMInitial",
+    "check_step",
     "controller_from_dict",
     "controller_to_dict",
     "load_controller",

@@ -12,7 +12,7 @@ import jax
 import numpy as np
 import pytest
 
-from mbn.controllers import read_controller_spec
+from mbn.controllers import CTRNNControllerSpec, make_controller, read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
 from mbn.experiments.contest.stages import contest as contest_module
@@ -23,6 +23,8 @@ from mbn.experiments.contest.stages.contest import (
 )
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.networks.ctrnn import CTRNN
+from mbn.paper import published_rf
 
 RULE = "straight-right"
 
@@ -97,6 +99,25 @@ def test_final_tests_and_the_programs_through_the_interpreter(contest_run):
         a = data["agreement"][f"im_programs_{short}{suffix}"]
         assert a["trials"] == data["tests"][f"im_programs_{short}{suffix}"]["trials"]
     assert data["sha256"] == rundir.read_stage("im_full")["sha256"]
+
+
+def test_a_final_network_beyond_its_step_stability_limit_is_tested_and_recorded(contest_run):
+    # The checks run every candidate at the robot's network step, stable or not; the final
+    # tests run the final best the same way (a network from scratch once left the worst-case
+    # limit, and its tests were refused) and the record says whether it is beyond the limit.
+    _, data = contest_run
+    for who, record in data["runs"][RULE].items():
+        spec = CTRNNControllerSpec(CTRNN.from_dict(record["network"]), behavior=RULE)
+        assert record["step_beyond_stability_limit"] == contest_module.step_warning(spec, who)
+    beyond = CTRNNControllerSpec(published_rf(), behavior="right")
+    message = contest_module.step_warning(beyond, "contest_right_scratch")
+    assert message is not None
+    assert message.startswith("contest_right_scratch: its network's step 5 ms")
+    assert "needs substeps >= 130" in message
+    loaded = make_controller(beyond, None, check_stability=False)
+    assert loaded.dt == pytest.approx(0.1)
+    with pytest.raises(MbnInputError, match="above the stability limit"):
+        make_controller(beyond, None)
 
 
 def test_program_search_is_checked_through_the_interpreter(contest_run):

@@ -226,9 +226,7 @@ def _ratio_text(r: Mapping[str, Any]) -> str:
 def seed_table(stats: Mapping[str, Any]) -> tuple[list[str], list[list[str]]] | None:
     """The evaluations to success of every run (``statistics``' ``evaluations``), one row per
     seed and one column per rule and contender; None where there are no runs."""
-    columns = [
-        (rule, who) for rule, data in stats["rules"].items() for who in data["contenders"]
-    ]
+    columns = [(rule, who) for rule, data in stats["rules"].items() for who in data["contenders"]]
     seeds = sorted(
         {
             int(s)
