@@ -108,7 +108,8 @@ def test_a_final_network_beyond_its_step_stability_limit_is_tested_and_recorded(
     _, data = contest_run
     for who, record in data["runs"][RULE].items():
         spec = CTRNNControllerSpec(CTRNN.from_dict(record["network"]), behavior=RULE)
-        assert record["step_beyond_stability_limit"] == contest_module.step_warning(spec, who)
+        where = f"contest_{RULE}_{who}"
+        assert record["step_beyond_stability_limit"] == contest_module.step_warning(spec, where)
     beyond = CTRNNControllerSpec(published_rf(), behavior="right")
     message = contest_module.step_warning(beyond, "contest_right_scratch")
     assert message is not None
