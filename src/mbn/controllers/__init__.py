@@ -11,7 +11,13 @@ from mbn.controllers.codec import (
     read_controller_spec,
     save_controller,
 )
-from mbn.controllers.load import LoadedController, check_step, load_controller, make_controller
+from mbn.controllers.load import (
+    LoadedController,
+    check_step,
+    load_controller,
+    make_controller,
+    step_beyond_limit,
+)
 from mbn.controllers.spec import (
     KIND_CTRNN,
     KIND_INTERPRETER,
@@ -42,4 +48,5 @@ __all__ = [
     "make_controller",
     "read_controller_spec",
     "save_controller",
+    "step_beyond_limit",
 ]

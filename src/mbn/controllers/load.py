@@ -36,7 +36,14 @@ from mbn.world.engine import CameraConfig
 from mbn.world.rollout import Shared
 from mbn.world.sensors import NoiseConfig, SensorConfig
 
-__all__ = ["Controller", "LoadedController", "check_step", "load_controller", "make_controller"]
+__all__ = [
+    "Controller",
+    "LoadedController",
+    "check_step",
+    "load_controller",
+    "make_controller",
+    "step_beyond_limit",
+]
 
 #: A controller for one robot: ``(state, observation) -> (state, (v, w))``.
 Controller = Callable[[Any, Any], tuple[Any, tuple[Array, Array]]]
@@ -184,17 +191,17 @@ def _interpreter_runner(
     return control, initial
 
 
-def check_step(spec: ControllerSpec, where: str = "controller") -> None:
-    """Refuse a plain CTRNN controller whose network step (``dt / substeps``) is beyond the
-    stability limit of its integrator (:func:`mbn.networks.ctrnn.check_dt`): the integration
-    would not follow the network's dynamics. The message says how many substeps would do.
+def step_beyond_limit(spec: ControllerSpec, where: str = "controller") -> str | None:
+    """Why a plain CTRNN controller's network step (``dt / substeps``) is beyond the stability
+    limit of its integrator (:func:`mbn.networks.ctrnn.check_dt`), with how many substeps would
+    do; None where it is within (the integration follows the network's dynamics).
 
     Interpreter and MBN files are not checked: the limit is estimated at the corners of the
     sigmoids' slopes, which for the multiplier sub-networks lies far below the step they run
     and are verified at (the interpreter's agreement with its networks, ``docs/programmable.md``).
     """
     if not isinstance(spec, CTRNNControllerSpec):
-        return
+        return None
     method: Method = "rk4" if spec.method == "rk4" else "euler"
     h = spec.dt / spec.substeps
     try:
@@ -202,11 +209,20 @@ def check_step(spec: ControllerSpec, where: str = "controller") -> None:
     except MbnInputError:
         limit = max_stable_dt(spec.net, method)
         need = math.ceil(spec.dt / limit)
-        raise MbnInputError(
+        return (
             f"{where}: its network's step {h * 1000:.3g} ms (dt {spec.dt:g} s / {spec.substeps} "
             f"substeps) is above the stability limit {limit * 1000:.3g} ms of its integrator; "
             f"it needs substeps >= {need}"
-        ) from None
+        )
+    return None
+
+
+def check_step(spec: ControllerSpec, where: str = "controller") -> None:
+    """Refuse a plain CTRNN controller whose network step is beyond its integrator's stability
+    limit (:func:`step_beyond_limit`, whose message it raises)."""
+    message = step_beyond_limit(spec, where)
+    if message is not None:
+        raise MbnInputError(message)
 
 
 def make_controller(

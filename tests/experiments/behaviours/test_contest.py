@@ -12,7 +12,12 @@ import jax
 import numpy as np
 import pytest
 
-from mbn.controllers import CTRNNControllerSpec, make_controller, read_controller_spec
+from mbn.controllers import (
+    CTRNNControllerSpec,
+    make_controller,
+    read_controller_spec,
+    step_beyond_limit,
+)
 from mbn.errors import MbnInputError
 from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
 from mbn.experiments.contest.stages import contest as contest_module
@@ -109,9 +114,9 @@ def test_a_final_network_beyond_its_step_stability_limit_is_tested_and_recorded(
     for who, record in data["runs"][RULE].items():
         spec = CTRNNControllerSpec(CTRNN.from_dict(record["network"]), behavior=RULE)
         where = f"contest_{RULE}_{who}"
-        assert record["step_beyond_stability_limit"] == contest_module.step_warning(spec, where)
+        assert record["step_beyond_stability_limit"] == step_beyond_limit(spec, where)
     beyond = CTRNNControllerSpec(published_rf(), behavior="right")
-    message = contest_module.step_warning(beyond, "contest_right_scratch")
+    message = step_beyond_limit(beyond, "contest_right_scratch")
     assert message is not None
     assert message.startswith("contest_right_scratch: its network's step 5 ms")
     assert "needs substeps >= 130" in message

@@ -43,10 +43,10 @@ from mbn.config import Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
-    check_step,
     make_controller,
     read_controller_spec,
     save_controller,
+    step_beyond_limit,
 )
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
@@ -199,18 +199,6 @@ class Contender:
     population: np.ndarray | None
     network: Callable[[Any], CTRNN]
     checked: Callable[[Any], Any]
-
-
-def step_warning(spec: CTRNNControllerSpec, where: str) -> str | None:
-    """None where the network's step is within its integrator's worst-case stability limit
-    (:func:`mbn.controllers.check_step`), else that check's message (how many substeps it would
-    need). Such a network is still the controller DE evolved and the checks judged: the limit is
-    estimated at the sigmoids' steepest slopes, which the network need not reach."""
-    try:
-        check_step(spec, where)
-    except MbnInputError as e:
-        return str(e)
-    return None
 
 
 def program_controller(spec: InterpreterControllerSpec, rule: str, genes: Any) -> Any:
@@ -450,18 +438,15 @@ class ContestStage(Stage):
                 )
                 hit = next((x for x in checks if x["success"]), None)
                 net = c.network(result.data["best_genome"])
-                save_controller(
-                    ctx.rundir.controller_file(name),
-                    CTRNNControllerSpec(
-                        net=net,
-                        behavior=rule,
-                        metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed},
-                    ),
+                final_spec = CTRNNControllerSpec(
+                    net=net,
+                    behavior=rule,
+                    metadata={"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed},
                 )
+                save_controller(ctx.rundir.controller_file(name), final_spec)
                 # Tested as DE and the checks ran it: at the robot's network step, whether or
                 # not that step is within the integrator's worst-case stability limit (a
                 # network evolved on free genes may leave it; recorded below).
-                final_spec = CTRNNControllerSpec(net=net, behavior=rule)
                 plain = make_controller(final_spec, None, where=name, check_stability=False)
                 short = f"{who}_{rule.replace('-', '_')}"
                 verdicts, trajectories[who], details[short] = final_tests(
@@ -479,7 +464,7 @@ class ContestStage(Stage):
                     "checks": [{k: v for k, v in x.items() if k != "best_genome"} for x in checks],
                     "network": net.to_dict(),
                     "genes": len(checks[-1]["best_genome"]),
-                    "step_beyond_stability_limit": step_warning(final_spec, name),
+                    "step_beyond_stability_limit": step_beyond_limit(final_spec, name),
                     "final_success": bool(
                         tests[f"{short}"]["successes"] == tests[f"{short}"]["trials"]
                         and tests[f"{short}_jitter"]["success_rate"] >= s.jitter_target
