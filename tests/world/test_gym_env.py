@@ -212,3 +212,30 @@ def test_importing_mbn_does_not_import_gymnasium():
         " assert 'gymnasium' not in sys.modules, 'gymnasium imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_gymnasium_make_works_in_a_fresh_interpreter_with_no_import_of_mbn():
+    # the installed path file registers the environment when gymnasium is imported (docs/gym.md)
+    code = (
+        "import sys, gymnasium\n"
+        "assert 'mbn' not in sys.modules and 'jax' not in sys.modules, 'imported at start-up'\n"
+        f"assert {ENV_ID!r} in gymnasium.registry, 'not registered'\n"
+        f"env = gymnasium.make({ENV_ID!r}, maze='cross_LSR', jitter=False)\n"
+        "obs, info = env.reset(seed=0)\n"
+        "assert obs.shape == (17,) and 'mbn.world.gym_env' in sys.modules\n"
+        "print('made')\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "made"
+
+
+def test_the_start_up_hook_registers_the_id_and_entry_point_of_the_environment():
+    import _mbn_gymnasium
+
+    assert _mbn_gymnasium.ENV_ID == ENV_ID
+    module, name = _mbn_gymnasium.ENTRY_POINT.split(":")
+    assert getattr(importlib.import_module(module), name) is PioneerMazeEnv
+    assert gymnasium.registry[ENV_ID].entry_point == _mbn_gymnasium.ENTRY_POINT

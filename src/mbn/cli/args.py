@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "ALLOW_OTHER_CODE_HELP",
     "REUSE_HELP",
     "int_in",
     "number_in",
@@ -22,8 +23,15 @@ __all__ = [
 #: ``--reuse DIR`` of ``mbn reproduce`` and ``mbn run``.
 REUSE_HELP = (
     "take the stages this experiment shares with the run in DIR (same seed, same settings, "
-    "same mbn version) instead of running them again, e.g. RF and LF from another experiment's "
+    "same code) instead of running them again, e.g. RF and LF from another experiment's "
     "run (docs/reproduce.md)"
+)
+
+#: ``--allow-other-code`` of ``mbn reproduce``, ``mbn run`` and ``mbn sweep``.
+ALLOW_OTHER_CODE_HELP = (
+    "resume a run, or take stages from one, that other code made (another commit, uncommitted "
+    "changes, another installed version): refused without it; run.json records that it was "
+    "given (docs/provenance.md)"
 )
 
 

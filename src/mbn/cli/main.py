@@ -17,7 +17,8 @@ import warnings
 from collections.abc import Sequence
 from typing import TextIO
 
-from mbn import __version__, compile_cache
+from mbn import compile_cache
+from mbn._version import __version__
 from mbn.cli import evaluate, networks, reproduce, run, sweep, world
 from mbn.errors import MbnInputError, MbnWarning
 from mbn.io import check_writable

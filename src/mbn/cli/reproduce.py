@@ -7,7 +7,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import REUSE_HELP, available_cores, int_in, reuse_source, seed
+from mbn.cli.args import (
+    ALLOW_OTHER_CODE_HELP,
+    REUSE_HELP,
+    available_cores,
+    int_in,
+    reuse_source,
+    seed,
+)
 from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "add_commands", "effective_config"]
@@ -90,6 +97,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
     rep.add_argument("--reuse", type=Path, default=None, metavar="DIR", help=REUSE_HELP)
+    rep.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
     rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
     rep.add_argument(
         "--threads",
@@ -144,6 +152,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
         log=(lambda _m: None) if args.quiet else print,
         workers=args.threads,
         reuse=reuse_source(args.reuse),
+        allow_other_code=args.allow_other_code,
     )
     if not args.quiet:
         held = sum(c["pass"] for c in results["claims"])

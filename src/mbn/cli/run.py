@@ -8,7 +8,14 @@ import textwrap
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import REUSE_HELP, available_cores, int_in, reuse_source, seed
+from mbn.cli.args import (
+    ALLOW_OTHER_CODE_HELP,
+    REUSE_HELP,
+    available_cores,
+    int_in,
+    reuse_source,
+    seed,
+)
 from mbn.precision import ROBOT
 
 __all__ = ["EPILOG", "EXPERIMENTS", "add_commands", "experiment"]
@@ -120,6 +127,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         metavar="DIR",
         help=REUSE_HELP,
     )
+    cmd.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
     cmd.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
     cmd.add_argument(
         "--threads",
@@ -153,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         log=(lambda _m: None) if args.quiet else print,
         workers=args.threads,
         reuse=reuse_source(args.reuse),
+        allow_other_code=args.allow_other_code,
     )
     if not args.quiet:
         print(f"results: {out / 'results.json'}")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from mbn.cli.args import positive_int
+from mbn.cli.args import ALLOW_OTHER_CODE_HELP, positive_int
 from mbn.errors import MbnInputError
 from mbn.precision import ROBOT
 
@@ -119,13 +119,14 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         default=None,
         metavar="DIR",
         help="another sweep's folder: seed K takes the stages its experiment shares with "
-        "DIR/seed-K (same seed, settings and mbn version) instead of running them again",
+        "DIR/seed-K (same seed, settings and code) instead of running them again",
     )
     sw.add_argument(
         "--summarize",
         action="store_true",
         help="only rebuild sweep.json's statistics and the report from the folder (runs nothing)",
     )
+    sw.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
     sw.add_argument("--quiet", action="store_true", help="no progress table, only the summary")
     sw.set_defaults(func=run_sweep_command, precision=ROBOT)
 
@@ -140,6 +141,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
             or args.quick
             or args.experiment is not None
             or args.reuse is not None
+            or args.allow_other_code
         ):
             raise MbnInputError(
                 "--summarize reads the settings from DIR/sweep.json: pass --out alone"
@@ -175,6 +177,7 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         monitor=monitor,
         finish=summarize_folder,
         reuse=args.reuse,
+        allow_other_code=args.allow_other_code,
     )
     if data.get("skipped"):
         print(f"{len(data['skipped'])} of {len(settings.seeds)} seeds were finished before: kept")

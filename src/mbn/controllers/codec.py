@@ -16,7 +16,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from mbn import __version__
+from mbn._version import __version__
 from mbn.control.ctrnn import MotorMap
 from mbn.controllers.spec import (
     FORMAT_VERSION,
@@ -44,6 +44,7 @@ from mbn.io import (
 )
 from mbn.networks.ctrnn import CTRNN, firing_rate
 from mbn.networks.programmable import Connection, Interpreter
+from mbn.provenance import provenance
 from mbn.world.engine import CameraConfig
 from mbn.world.sensors import SensorConfig
 
@@ -86,7 +87,14 @@ def _interpreter_to_dict(interp: Interpreter) -> dict[str, Any]:
 
 
 def _header(kind: str) -> dict[str, Any]:
-    return {"kind": kind, "format_version": FORMAT_VERSION, "mbn_version": __version__}
+    """The fields every controller file starts with, and the code and software that wrote it
+    (``provenance``: :func:`mbn.provenance.provenance`)."""
+    return {
+        "kind": kind,
+        "format_version": FORMAT_VERSION,
+        "mbn_version": __version__,
+        "provenance": provenance(),
+    }
 
 
 def _interpreter_body(spec: InterpreterControllerSpec) -> dict[str, Any]:
@@ -339,7 +347,7 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
     """
     kind = _check_header(data, where)
     header = ["kind", "format_version"]
-    optional = ["mbn_version", "metadata"]
+    optional = ["mbn_version", "provenance", "metadata"]
     common = ["sensors", "motor", "dt", "substeps", "method"]
     if kind == KIND_CTRNN:
         check_fields(

@@ -278,12 +278,14 @@ def relative_errors(
 
 def multiplier_to_dict(mul: Multiplier, metrics: dict | None = None) -> dict[str, Any]:
     """Self-describing JSON form of a multiplier (and optionally its metrics)."""
-    from mbn import __version__
+    from mbn._version import __version__
+    from mbn.provenance import provenance
 
     data: dict[str, Any] = {
         "kind": FORMAT,
         "format_version": FORMAT_VERSION,
         "mbn_version": __version__,
+        "provenance": provenance(),
         "num_neurons": mul.num_neurons,
         "inputs": ["x1", "x2"],
         "output_neuron": mul.output,
@@ -303,7 +305,8 @@ def multiplier_from_dict(data: Any, *, where: str = "multiplier") -> Multiplier:
     if not isinstance(data, dict) or data.get("kind") != FORMAT:
         kind = data.get("kind") if isinstance(data, dict) else type(data).__name__
         raise MbnInputError(f"{where}: not a multiplier file (kind {kind!r}, expected {FORMAT!r})")
-    optional = ["format_version", "mbn_version", "num_neurons", "inputs", "output_neuron"]
+    optional = ["format_version", "mbn_version", "provenance", "num_neurons", "inputs"]
+    optional += ["output_neuron"]
     optional += ["time_unit", "T_over_tau", "dt_over_tau", "method", "metrics"]
     check_fields(data, where, ["kind", "network"], optional)
     if "metrics" in data:

@@ -1,6 +1,6 @@
 """A Gymnasium environment: one Pioneer 3DX in a maze, driven by speed commands.
 
-``PioneerMazeEnv`` (registered as ``mbn/PioneerMaze-v0`` when this module is imported) runs the
+``PioneerMazeEnv`` (registered as ``mbn/PioneerMaze-v0``; ``docs/gym.md``) runs the
 same world as :mod:`mbn.world.rollout`, for one robot at a time: a stateful shell over the robot
 step that the rollout runs too (:mod:`mbn.world.step`: the engine's exact sonar rays, body-wall
 collision and blob-finding camera, the speed limits and the kinematics) under one jitted step.
@@ -35,9 +35,10 @@ collision and blob-finding camera, the speed limits and the kinematics) under on
   (:class:`mbn.viz.episodes.EpisodeView`).
 
 Gymnasium is an optional dependency (``pip install 'mbn[gym]'``); importing :mod:`mbn` or
-:mod:`mbn.world` does not import it. ``gymnasium.make("mbn/PioneerMaze-v0")`` needs this module
-imported first, or use ``gymnasium.make("mbn.world.gym_env:mbn/PioneerMaze-v0")``, which imports
-it.
+:mod:`mbn.world` does not import it. An installed ``mbn`` registers the environment as Gymnasium
+is imported (``_mbn_gymnasium``, from the path file ``mbn-gymnasium.pth``), so
+``gymnasium.make("mbn/PioneerMaze-v0")`` works with no import of ``mbn``; importing this module
+registers it too (``docs/gym.md``).
 """
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """``--reuse``: a run takes the stages it shares with another run of the same seed and settings,
 and ends exactly as the run that ran them itself; what it may not take, it runs; a source of
-another seed, other settings, another version or an unknown kind is refused in one line."""
+another seed, other settings, other code or an unknown kind is refused in one line (other code
+is taken with ``allow_other_code``, and recorded)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ import jax
 import numpy as np
 import pytest
 
-from mbn import __version__
 from mbn.config import Settings, read_toml, setting
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
@@ -144,7 +144,15 @@ def test_a_run_taking_shared_stages_ends_as_the_run_that_ran_them(tmp_path):
     assert (tmp_path / "taken" / "records" / "best.npz").is_file()
     assert (tmp_path / "taken" / "checkpoints" / "sphere.npz").is_file()
     manifest = json.loads((tmp_path / "taken" / "run.json").read_text())
-    assert manifest["reused"] == [{"from": str(tmp_path / "first"), "stages": ["sphere", "norm"]}]
+    source_code = json.loads((tmp_path / "first" / "run.json").read_text())["code"]
+    assert manifest["reused"] == [
+        {
+            "from": str(tmp_path / "first"),
+            "stages": ["sphere", "norm"],
+            "code": source_code,
+            "other_code": False,
+        }
+    ]
 
 
 def test_a_stage_of_another_class_or_not_finished_there_is_run(tmp_path):
@@ -211,12 +219,48 @@ def test_a_source_that_is_no_run_is_refused_in_one_line(tmp_path):
     manifest.write_text(json.dumps({**data, "kind": "mbn.unknown"}))
     with pytest.raises(MbnInputError, match=r"kind 'mbn\.unknown' is not an experiment mbn runs"):
         _source(tmp_path / "first")
-    manifest.write_text(json.dumps({**data, "mbn_version": "0.0.1"}))
-    with pytest.raises(MbnInputError, match=rf"made by mbn 0\.0\.1, this is {__version__}"):
-        _source(tmp_path / "first")
     manifest.write_text(json.dumps(data))
     with pytest.raises(MbnInputError, match=r"the run's own folder \(use --resume\)$"):
         _run(FIRST, tmp_path / "first", resume=True, reuse=_source(tmp_path / "first"))
+
+
+OTHER_CODE = {
+    "version": "0.1.0",
+    "package_sha256": "0" * 64,
+    "source": "git",
+    "commit": "1234567890abcdef1234567890abcdef12345678",
+    "dirty": False,
+}
+
+
+def test_a_source_made_by_other_code_is_refused_unless_allowed_and_then_recorded(tmp_path):
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    manifest = tmp_path / "first" / "run.json"
+    data = json.loads(manifest.read_text())
+    manifest.write_text(json.dumps({**data, "code": OTHER_CODE}))
+    CALLS.clear()
+    with pytest.raises(
+        MbnInputError,
+        match=r"first/run\.json: made by mbn 0\.1\.0 at commit 1234567890; this is mbn .*; "
+        r"nothing is taken from it \(pass --allow-other-code",
+    ):
+        _run(SECOND, tmp_path / "refused", reuse=_source(tmp_path / "first"))
+    assert CALLS == {}
+    # a run made before mbn recorded its code is other code too
+    manifest.write_text(json.dumps({k: v for k, v in data.items() if k != "code"}))
+    with pytest.raises(MbnInputError, match=r"it does not record the code that made it"):
+        _run(SECOND, tmp_path / "old", reuse=_source(tmp_path / "first"))
+    manifest.write_text(json.dumps({**data, "code": OTHER_CODE}))
+    _run(
+        SECOND,
+        tmp_path / "taken",
+        reuse=_source(tmp_path / "first"),
+        allow_other_code=True,
+        log=lambda _: None,
+    )
+    assert CALLS == {"tail": 1}
+    reused = json.loads((tmp_path / "taken" / "run.json").read_text())["reused"]
+    assert reused[0]["code"] == OTHER_CODE and reused[0]["other_code"] is True
 
 
 def test_a_section_only_one_run_has_must_hold_its_defaults(tmp_path):

@@ -245,3 +245,40 @@ def test_the_report_names_the_stages_each_seed_took(tmp_path):
     _sweep(tmp_path / "a", [0, 1])
     _sweep(tmp_path / "b", [0, 1, 2], reuse=tmp_path / "a")
     assert finished_taken(tmp_path / "b", [0, 1, 2]) == {0: ["draw", "total"], 1: ["draw", "total"]}
+
+
+def test_a_sweep_made_by_other_code_is_continued_only_when_allowed_and_then_recorded(tmp_path):
+    from mbn.provenance import code_identity, environment
+
+    CRASH["total"].add(1)
+    data = _sweep(tmp_path / "s", [0, 1])
+    assert data["code"] == code_identity() and data["versions"] == environment()
+    other = {"version": "0.1.0", "package_sha256": "0" * 64, "source": "package"}
+    path = tmp_path / "s" / "sweep.json"
+    path.write_text(json.dumps({**json.loads(path.read_text()), "code": other}))
+    manifest = seed_dir(tmp_path / "s", 1) / "run.json"
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "code": other}))
+    CRASH["total"].clear()
+    before = _files(tmp_path / "s")
+    with pytest.raises(
+        MbnInputError,
+        match=r"sweep\.json: made by mbn 0\.1\.0 \(package 0000000000\); this is mbn .*; pass "
+        r"--allow-other-code to continue it with this code \(sweep\.json records that you did\)$",
+    ):
+        _sweep(tmp_path / "s", [0, 1])
+    assert _files(tmp_path / "s") == before
+    settings = SweepSettings((0, 1), TOY.config())
+    again = run_sweep(
+        tmp_path / "s",
+        settings,
+        lambda: InlineExecutor(run_seed),
+        experiment=TOY,
+        allow_other_code=True,
+    )
+    assert again["runs"]["1"]["state"] == "done"
+    assert again["code"] == other  # the code it was started with
+    assert again["other_code"] == [
+        {"action": "continue", "recorded": other, "code": code_identity()}
+    ]
+    resumed = json.loads(manifest.read_text())
+    assert resumed["other_code"][0]["action"] == "resume"

@@ -21,9 +21,10 @@ and the run is refused in one line naming the first difference. The files taken 
 file, its declared outputs and its checkpoints (``checkpoints/NAME.npz`` and ``NAME_*`` where no
 longer stage name claims the file; for the DE curves of reports), each copied atomically, the
 stage's file last: a copy interrupted leaves the stage not done. ``run.json`` records what was
-taken and from where (``reused``). The source must have been made by the same version of
-``mbn`` (its ``run.json`` records it); a stage whose code changed between two commits of one
-version is the user's to know.
+taken and from where (``reused``), with the code that made the source. The source must have
+been made by the same code (:mod:`mbn.provenance`: its ``run.json`` records the package's content
+hash, version and commit); a run made by other code is refused in one line unless
+``--allow-other-code`` is given, and ``reused`` then says so (``other_code``).
 """
 
 from __future__ import annotations
@@ -34,11 +35,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mbn import __version__
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.runconfig import first_difference
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import atomic_open, write_json_atomic
+from mbn.provenance import code_difference
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.experiment import Experiment
@@ -46,6 +47,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ReuseSource",
+    "check_agreement",
     "read_source",
     "settings_disagreement",
     "shared_defaults",
@@ -57,17 +59,20 @@ __all__ = [
 @dataclass(frozen=True)
 class ReuseSource:
     """A finished or part-finished run to take stages from: its folder, its experiment, its
-    seed and its config (as its experiment reads it)."""
+    seed, its config (as its experiment reads it) and the code that made it (as recorded;
+    :mod:`mbn.provenance`)."""
 
     root: Path
     experiment: Experiment
     seed: int
     config: dict[str, Any]
+    code: Any = None
 
 
 def read_source(path: Path, find: Callable[[str], Experiment | None]) -> ReuseSource:
     """The run in ``path`` (``run.json``), its experiment found by kind with ``find``; one line
-    when there is no run, its kind is unknown or it was made by another version of ``mbn``."""
+    when there is no run or its kind is unknown (the code that made it is compared when stages
+    are taken: :func:`take_stages`)."""
     rundir = RunDir(Path(path))
     if not rundir.root.is_dir():
         raise MbnInputError(f"--reuse {path}: no such folder")
@@ -78,17 +83,11 @@ def read_source(path: Path, find: Callable[[str], Experiment | None]) -> ReuseSo
     experiment = find(kind) if isinstance(kind, str) else None
     if experiment is None:
         raise MbnInputError(f"{rundir.manifest}: kind {kind!r} is not an experiment mbn runs")
-    version = data.get("mbn_version")
-    if version != __version__:
-        raise MbnInputError(
-            f"{rundir.manifest}: made by mbn {version}, this is {__version__}; stages are taken "
-            "only from runs of the same version"
-        )
     seed = data.get("seed")
     if not isinstance(seed, int) or isinstance(seed, bool):
         raise MbnInputError(f"{rundir.manifest}: seed: expected an integer, got {seed!r}")
     config = experiment.config_from_dict(data.get("config"), str(rundir.manifest)).to_dict()
-    return ReuseSource(rundir.root, experiment, seed, config)
+    return ReuseSource(rundir.root, experiment, seed, config, data.get("code"))
 
 
 def shared_defaults(experiment: Experiment, quick: bool) -> dict[str, Any]:
@@ -123,9 +122,16 @@ def settings_disagreement(
     return None
 
 
-def _check_agreement(
-    experiment: Experiment, source: ReuseSource, seed: int, config: RunConfig
-) -> None:
+def check_agreement(
+    experiment: Experiment,
+    source: ReuseSource,
+    seed: int,
+    config: RunConfig,
+    *,
+    allow_other_code: bool = False,
+) -> str | None:
+    """Refuse (one line) a source of another seed, other settings or, unless
+    ``allow_other_code``, other code; returns how its code differs (None: the same code)."""
     where = RunDir(source.root).manifest
     if source.seed != seed:
         raise MbnInputError(f"--reuse {source.root}: a run of seed {source.seed}, not {seed}")
@@ -140,6 +146,13 @@ def _check_agreement(
             f"{where}: the run there was made with other settings ({diff}); nothing is taken "
             "from it"
         )
+    other = code_difference(source.code)
+    if other is not None and not allow_other_code:
+        raise MbnInputError(
+            f"{where}: {other}; nothing is taken from it (pass --allow-other-code to take its "
+            "stages all the same; run.json records that you did)"
+        )
+    return other
 
 
 def takeable(experiment: Experiment, rundir: RunDir, source: ReuseSource) -> list[str]:
@@ -196,10 +209,13 @@ def take_stages(
     seed: int,
     config: RunConfig,
     source: ReuseSource,
+    *,
+    allow_other_code: bool = False,
 ) -> list[str]:
     """Copy into ``rundir`` (whose ``run.json`` exists) the stages it can take from ``source``
-    (module docstring); returns their names and records them in ``run.json``."""
-    _check_agreement(experiment, source, seed, config)
+    (module docstring); returns their names and records them in ``run.json``, with the code
+    that made them (and ``other_code: true`` where it was not this code, ``allow_other_code``)."""
+    other = check_agreement(experiment, source, seed, config, allow_other_code=allow_other_code)
     names = takeable(experiment, rundir, source)
     src = RunDir(source.root)
     stages = list(source.experiment.registry.names)
@@ -214,6 +230,13 @@ def take_stages(
         manifest = rundir.read_manifest()
         before = manifest.get("reused")
         entries = list(before) if isinstance(before, list) else []
-        entries.append({"from": str(source.root), "stages": names})
+        entries.append(
+            {
+                "from": str(source.root),
+                "stages": names,
+                "code": source.code,
+                "other_code": other is not None,
+            }
+        )
         write_json_atomic(rundir.manifest, {**manifest, "reused": entries})
     return names

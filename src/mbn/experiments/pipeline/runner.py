@@ -11,16 +11,13 @@ when asked, then a settings file) is written whole to ``run.json`` and ``results
 from __future__ import annotations
 
 import contextlib
-import platform
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import jax
-import numpy as np
 
-from mbn import __version__
 from mbn.config import Settings
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.context import StageContext
@@ -32,6 +29,7 @@ from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings, first_dif
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import check_writable, write_json_atomic
 from mbn.precision import scope
+from mbn.provenance import code_difference, code_identity, environment
 
 __all__ = [
     "Experiment",
@@ -49,22 +47,8 @@ __all__ = [
 
 
 def versions() -> dict[str, str]:
-    """Versions of what the results depend on."""
-    from importlib.metadata import version
-
-    import jaxlib
-    import optax
-
-    return {
-        "mbn": __version__,
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": jaxlib.__version__,
-        "numpy": np.__version__,
-        "optax": optax.__version__,
-        "matplotlib": version("matplotlib"),
-        "platform": jax.default_backend(),
-    }
+    """Versions of what the results depend on (:func:`mbn.provenance.environment`)."""
+    return dict(environment())
 
 
 def check_out_dir(out: Path, kind: str, *, resume: bool, force: bool) -> None:
@@ -104,7 +88,9 @@ def check_out_dir(out: Path, kind: str, *, resume: bool, force: bool) -> None:
 def _manifest(experiment: Experiment, seed: int, config: RunConfig) -> dict[str, Any]:
     return {
         "kind": experiment.kind,
-        "mbn_version": __version__,
+        "mbn_version": code_identity()["version"],
+        "code": code_identity(),
+        "versions": versions(),
         "seed": seed,
         "config": config.to_dict(),
     }
@@ -118,9 +104,12 @@ def prepare(
     *,
     resume: bool,
     force: bool,
+    allow_other_code: bool = False,
 ) -> None:
     """Check the folder (:func:`check_out_dir`), then create it, or check that a run resumed was
-    started with the same seed and config."""
+    started with the same seed, config and code (:func:`mbn.provenance.code_difference`; other
+    code is refused unless ``allow_other_code``, and then recorded in ``run.json``,
+    ``other_code``)."""
     check_out_dir(rundir.root, experiment.kind, resume=resume, force=force)
     try:
         if force:
@@ -151,8 +140,32 @@ def prepare(
                 f"{rundir.manifest}: the run was started with another config ({diff}); resume it "
                 "with the same options and settings file"
             )
+        _check_code(rundir, old, "resume", allow_other_code)
     else:
         write_json_atomic(rundir.manifest, mine)
+
+
+def other_code_entry(action: str, recorded: Any) -> dict[str, Any]:
+    """What ``run.json`` (``other_code``) or ``sweep.json`` records when ``action`` (``resume``,
+    ``reuse``) went on with code other than ``recorded``: the action and both identities."""
+    return {"action": action, "recorded": recorded, "code": code_identity()}
+
+
+def _check_code(rundir: RunDir, manifest: dict[str, Any], action: str, allow: bool) -> None:
+    """Refuse to ``action`` a run whose ``run.json`` records other code than this (one line),
+    unless ``allow``; then record it there (``other_code``)."""
+    diff = code_difference(manifest.get("code"))
+    if diff is None:
+        return
+    if not allow:
+        raise MbnInputError(
+            f"{rundir.manifest}: {diff}; pass --allow-other-code to {action} it with this code "
+            "(run.json records that you did)"
+        )
+    entries = manifest.get("other_code")
+    entries = list(entries) if isinstance(entries, list) else []
+    entries.append(other_code_entry(action, manifest.get("code")))
+    write_json_atomic(rundir.manifest, {**manifest, "other_code": entries})
 
 
 def _context(
@@ -220,6 +233,7 @@ def collect_results(
         "quick": config.quick,
         "config": config.to_dict(),
         "versions": versions(),
+        "code": code_identity(),
         "stages": {s.name: s.metrics(stages[s.name]) for s in experiment.registry},
     }
     if experiment.results is not None:
@@ -240,18 +254,31 @@ def run_experiment(
     stages: Sequence[str] | None = None,
     workers: int = 1,
     reuse: ReuseSource | None = None,
+    allow_other_code: bool = False,
 ) -> dict[str, Any]:
     """Every stage not yet done (all, or those named in ``stages`` and what they need), then
     ``results.json`` and the report; returns the results (or, for a partial run, the data of
     the stages run). ``workers``: populations are evaluated in that many parts at once (threads;
     the results do not depend on it). ``reuse``: another run of the same seed whose stages this
-    run takes where it can (:mod:`~mbn.experiments.pipeline.reuse`)."""
+    run takes where it can (:mod:`~mbn.experiments.pipeline.reuse`). ``allow_other_code``: resume
+    a run, or take stages from one, made by other code (:mod:`mbn.provenance`); refused
+    otherwise."""
     rundir = RunDir(Path(out))
     if reuse is not None and reuse.root.resolve() == rundir.root.resolve():
         raise MbnInputError(f"--reuse {reuse.root}: the run's own folder (use --resume)")
-    prepare(experiment, rundir, seed, config, resume=resume, force=force)
+    prepare(
+        experiment,
+        rundir,
+        seed,
+        config,
+        resume=resume,
+        force=force,
+        allow_other_code=allow_other_code,
+    )
     if reuse is not None:
-        taken = take_stages(experiment, rundir, seed, config, reuse)
+        taken = take_stages(
+            experiment, rundir, seed, config, reuse, allow_other_code=allow_other_code
+        )
         if taken:
             log(f"stages {', '.join(taken)}: taken from {reuse.root}")
         else:

@@ -28,9 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
-from mbn import __version__
+from mbn._version import __version__
 from mbn.errors import MbnInputError
 from mbn.io import atomic_open, check_writable, json_text, read_json
+from mbn.provenance import code_difference, code_identity, environment
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.experiment import Experiment
@@ -284,6 +285,27 @@ def one_line(exc: BaseException) -> str:
     return text if len(text) <= 300 else text[:297] + "..."
 
 
+def _check_sweep_code(out: Path, found: dict[str, Any] | None, allow: bool) -> list[dict[str, Any]]:
+    """The ``other_code`` entries of a sweep continued in ``out`` (``found``: its
+    ``sweep.json``, None for a new sweep): refused in one line when it was made by other code,
+    unless ``allow``, which adds an entry."""
+    if found is None:
+        return []
+    before = found.get("other_code")
+    entries = list(before) if isinstance(before, list) else []
+    diff = code_difference(found.get("code"))
+    if diff is None:
+        return entries
+    if not allow:
+        raise MbnInputError(
+            f"{out / SWEEP_FILE}: {diff}; pass --allow-other-code to continue it with this code "
+            "(sweep.json records that you did)"
+        )
+    from mbn.experiments.pipeline.runner import other_code_entry
+
+    return [*entries, other_code_entry("continue", found.get("code"))]
+
+
 # -- one seed (the body of a task) -----------------------------------------------------------------
 
 
@@ -294,12 +316,13 @@ def run_seed(
     resume: bool,
     experiment: Experiment | str | None = None,
     reuse: str | None = None,
+    allow_other_code: bool = False,
 ) -> dict[str, Any]:
     """Run (or resume) the run of ``seed`` into ``out/seed-K``, as ``mbn reproduce --seed K
     --out out/seed-K [--resume]`` does (or ``mbn run NAME``: ``experiment``, by name or itself;
     default the reproduction), taking the stages it can from the run in ``reuse`` (``mbn run
-    --reuse``); never raises: a crash is returned as ``{"state": "failed", "error": one
-    line}``."""
+    --reuse``), with ``--allow-other-code`` where ``allow_other_code``; never raises: a crash
+    is returned as ``{"state": "failed", "error": one line}``."""
     t0 = time.perf_counter()
     worker = {
         "host": socket.gethostname(),
@@ -339,6 +362,7 @@ def run_seed(
                 progress=False,
                 log=lambda m: notices.append(m) if m.startswith(("notice", "stages")) else None,
                 reuse=source,
+                allow_other_code=allow_other_code,
             )
         state, error = "done", None
     except Exception as exc:  # a crash of one seed is reported, the others go on
@@ -545,8 +569,13 @@ def run_sweep(
     poll_s: float = 1.0,
     finish: Callable[[Path], Any] | None = None,
     reuse: Path | None = None,
+    allow_other_code: bool = False,
 ) -> dict[str, Any]:
     """Run every seed of ``settings`` not yet done into ``out``; returns ``sweep.json``.
+
+    ``sweep.json`` records the code and the versions it runs with (:mod:`mbn.provenance`); a
+    sweep made by other code is continued only with ``allow_other_code`` (then recorded in
+    ``other_code``, and each seed's run resumes or takes stages with it).
 
     ``reuse``: another sweep folder; the run of seed K takes the stages it can from
     ``reuse/seed-K`` where that holds a run (:mod:`~mbn.experiments.pipeline.reuse`).
@@ -557,7 +586,8 @@ def run_sweep(
     """
     out = Path(out)
     t0 = time.perf_counter()
-    check_sweep_dir(out, settings)
+    found = check_sweep_dir(out, settings)
+    other_code = _check_sweep_code(out, found, allow_other_code)
     if reuse is not None:
         check_reuse_dir(Path(reuse), out, settings, experiment)
     states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
@@ -586,6 +616,9 @@ def run_sweep(
     data: dict[str, Any] = {
         "kind": SWEEP_KIND,
         "mbn_version": __version__,
+        "code": old.get("code", code_identity()) if old else code_identity(),
+        "versions": dict(environment()),
+        **({"other_code": other_code} if other_code else {}),
         "settings": settings.to_dict(),
         "runs": runs,
         "skipped": [s for s in settings.seeds if states[s] == "done"],
@@ -606,7 +639,9 @@ def run_sweep(
                 for s in todo:
                     args: tuple[Any, ...] = (str(out), s, settings.config, states[s] == "resume")
                     source = _reuse_seed(reuse, s)
-                    if source is not None:
+                    if allow_other_code:
+                        args = (*args, chosen, source, True)
+                    elif source is not None:
                         args = (*args, chosen, source)
                     elif chosen:
                         args = (*args, chosen)
