@@ -324,6 +324,7 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
     import jax
 
     from mbn.networks.emulation import EmulationConfig, published_check
+    from mbn.notation import connection_name
 
     mul = _load_mul(args.params)
     defaults = EmulationConfig()
@@ -341,7 +342,7 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
     print(
         "interpreter of the published RF with programmable "
         + ", ".join(
-            f"{c['connection']} ({c['paper_name']}) in [{c['min']:.4g}, {c['max']:.4g}]"
+            f"{connection_name(c['connection'])} in [{c['min']:.4g}, {c['max']:.4g}]"
             for c in result["connections"]
         )
     )

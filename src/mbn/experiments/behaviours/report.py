@@ -16,6 +16,7 @@ from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
+from mbn.notation import connection_name
 from mbn.world.mazes.load import load_maze
 
 __all__ = ["claims", "write_report"]
@@ -230,7 +231,7 @@ def write_report(rundir: RunDir) -> None:
                     [
                         [
                             str(len(r["connections"])),
-                            r["connections"][-1],
+                            connection_name(r["connections"][-1]),
                             f"{r['agreement_rf']['rate']:.1%}",
                             f"{r['agreement_lf']['rate']:.1%}",
                         ]

@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.reproduce.protocol import WHO
+from mbn.notation import connection_names
 
 __all__ = [
     "AGREEMENT_TARGET",
@@ -101,7 +102,7 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
         (
             "lf",
             "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1; "
-            f"here {', '.join(lf['connections_paper_notation'])})",
+            f"here {connection_names(lf['connections'])})",
         ),
         ("im_rf", "The interpreter (IM) with the RF program behaves as RF (section 3.2)"),
         ("im_lf", "The interpreter (IM) with the LF program behaves as LF (section 3.2)"),

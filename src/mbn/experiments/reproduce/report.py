@@ -17,6 +17,9 @@ from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.reproduce.protocol import TESTED
 from mbn.io import read_json
+from mbn.networks.programmable import differing_connections
+from mbn.notation import connection_names
+from mbn.paper import published_lf, published_rf
 from mbn.viz.multiplier import draw_multiplier_error
 from mbn.viz.runs import de_curves, mbn_animation, mbn_traces, test_trajectories
 from mbn.world.mazes.load import load_maze
@@ -205,9 +208,9 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"{rf['noise']['sigma']}²); the paper's terms of "
                 f"the best: F_M {rf['paper_F_M']:.2f}, F_R {rf['paper_F_R']:.2f}, F_L "
                 f"{rf['paper_F_L']:.2f}).",
-                f"LF: the 3 connections re-evolved are {', '.join(lf['connections'])} (paper "
-                f"notation {', '.join(lf['connections_paper_notation'])}; the paper changed "
-                f"W_23, WE_21, WE_22), chosen among {len(s['lf_search']['triples'])} triples; "
+                f"LF: the 3 connections re-evolved are {connection_names(lf['connections'])} "
+                f"(the paper changed {_paper_changed()}), chosen among "
+                f"{len(s['lf_search']['triples'])} triples; "
                 f"best fitness {lf['best_fitness']:.2f}"
                 + (
                     f"; kept: member {lf['member']} of its final population, the best in the "
@@ -217,7 +220,7 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                     else ""
                 )
                 + f" (F_L {lf['paper_F_L']:.2f}).",
-                f"IM: programmable {', '.join(im['connections_paper_notation'])}, "
+                f"IM: programmable {connection_names(im['connections'])}, "
                 f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
                 f"LF program {_vec(im['programs']['left'])}.",
                 (
@@ -296,6 +299,12 @@ def _pm_start(start: dict[str, Any] | None) -> str:
         f"{start['settled_after_seconds']:g} s), sending {_vec(start['program'])}{rf}; it "
         f"is judged by the {start['rule']} rule before its first tile."
     )
+
+
+def _paper_changed() -> str:
+    """The connections in which the paper's published RF and LF differ (section 3.1), named."""
+    changed = differing_connections(published_rf(), published_lf())
+    return connection_names(p.connection for p in changed)
 
 
 def _yes(ok: bool) -> str:

@@ -33,6 +33,7 @@ from mbn.networks.programmable import (
     build_interpreter,
     differing_connections,
 )
+from mbn.notation import connection_name
 from mbn.world.mazes.load import load_maze
 
 __all__ = ["FULL_CONNECTIONS", "IMFullSettings", "IMFullStage", "nested_sets"]
@@ -221,7 +222,7 @@ class IMFullStage(Stage):
         largest = max((len(r["connections"]) for r in curve if holds(r)), default=None)
         return {
             "connections": [str(c) for c in interp.connections],
-            "connections_paper_notation": [c.paper_name for c in interp.connections],
+            "connections_paper_notation": [connection_name(c) for c in interp.connections],
             "bound": s.bound,
             "neurons": int(interp.num_neurons),
             "multiplier_neurons": int(interp.mul_size),

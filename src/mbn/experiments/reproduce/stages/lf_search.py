@@ -26,6 +26,7 @@ from mbn.experiments.reproduce.stages.common import (
     task,
 )
 from mbn.networks.programmable import Connection
+from mbn.notation import connection_name, connection_names
 
 __all__ = [
     "TURNING_CANDIDATES",
@@ -133,9 +134,7 @@ class LFSearchStage(Stage):
             "triples": rows,
             "chosen": rows[best]["connections"],
             "chosen_index": best,
-            "chosen_paper_notation": [
-                Connection.parse(c).paper_name for c in rows[best]["connections"]
-            ],
+            "chosen_paper_notation": [connection_name(c) for c in rows[best]["connections"]],
             "generations": s.generations,
             "episodes": s.variants * 7,
             "noise": {
@@ -146,4 +145,4 @@ class LFSearchStage(Stage):
         }
 
     def summary(self, data: dict[str, Any]) -> str:
-        return f"chose {', '.join(data['chosen'])}"
+        return f"chose {connection_names(data['chosen'])}"
