@@ -59,6 +59,7 @@ class Progress:
         self._tasks: dict[int, _Task] = {}
         self._next = 0  # the next task's key
         self._latest: int | None = None  # the task last moved
+        self._finished: _Task | None = None  # the stage's task that finished last
         self._stage: str | None = None
         self._stage_started = clock()
         self._last_line = clock()
@@ -114,6 +115,7 @@ class Progress:
             self._stage = name
             self._stage_started = self._last_line = self._clock()
             self._latest = None
+            self._finished = None
 
     def task(self, description: str, total: int | None, *, quiet: bool = False) -> Any:
         """A new bar (None when silent); a ``quiet`` task has no plain line of its own (the run's
@@ -151,6 +153,7 @@ class Progress:
                     self._say(t, now)
                 del self._tasks[task]
                 self._latest = None
+                self._finished = t
                 return
         self.tick()
 
@@ -170,11 +173,18 @@ class Progress:
         stage = f"stage {self._stage}: " if self._stage else ""
         what = "running"
         if t is not None:
-            done = f"{t.completed}/{t.total}" if t.total is not None else f"{t.completed}"
-            what = f"{t.description} {done}" + (f", {t.info}" if t.info else "")
+            what = _state(t)
+        elif self._finished is not None:
+            what = f"running on after {_state(self._finished)}"
         assert self._lines is not None
         self._lines(f"{stage}{what}; {_clock(now - self._stage_started)} into the stage")
         self._last_line = now
+
+
+def _state(t: _Task) -> str:
+    """``RF: DE generations 120/300, best 23.41``."""
+    done = f"{t.completed}/{t.total}" if t.total is not None else f"{t.completed}"
+    return f"{t.description} {done}" + (f", {t.info}" if t.info else "")
 
 
 def _clock(seconds: float) -> str:
