@@ -20,7 +20,7 @@ from mbn.experiments.trials import as_test_record
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
 
-__all__ = ["CONTROLLER_NAMES", "noise_over_runs", "noise_tests", "statistics"]
+__all__ = ["CONTROLLER_NAMES", "levels_text", "noise_over_runs", "noise_tests", "statistics"]
 
 #: The controllers of ``noise_levels`` (``levels.CONTROLLERS``), named here so that a sweep's
 #: report imports no experiment.
@@ -43,6 +43,12 @@ def noise_tests(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             for x in _TESTS:
                 tests[f"{name}_realistic_{x}"] = as_test_record(point[x])
     return tests
+
+
+def levels_text(levels: Mapping[str, float]) -> str:
+    """Noise levels as a run recorded them, the channels that are on: ``sonar_std = 0.02,
+    wheel_std = 0.05``."""
+    return ", ".join(f"{k} = {v:g}" for k, v in levels.items() if v > 0) or "every channel off"
 
 
 def _over(values: list[tuple[float, int, int]]) -> dict[str, Any]:
@@ -107,6 +113,19 @@ def noise_over_runs(
     sections: list[Section] = []
     images: list[tuple[str, str]] = []
     n = stats["runs"]
+    realistic = sorted(
+        {levels_text(r["realistic"]["noise"]) for r in runs.values() if r.get("realistic")}
+    )
+    if realistic:
+        sections.append(
+            Section(
+                "The realistic noise",
+                [
+                    "The realistic noise of these runs (every channel at once), as they recorded "
+                    "it: " + "; ".join(realistic) + "."
+                ],
+            )
+        )
     for channel, per in stats["channels"].items():
         names = list(per)
         levels = max((len(p) for p in per.values()), default=0)

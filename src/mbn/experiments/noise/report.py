@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mbn.experiments.noise.over_runs import levels_text
 from mbn.experiments.noise.stages.levels import CONTROLLERS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
@@ -47,7 +48,7 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             "could be not the case for a real environment (paper, section 4)",
             "measured": f"the MBN evolved {evolved} passes {mbn['jitter']['rate']:.1%} of "
             f"the jittered trials and {mbn['heldout']['rate']:.1%} held out under the "
-            "realistic noise (sonar 2 cm, dropout 1 %, wheels 5 %, camera misses 5 %); "
+            f"realistic noise ({levels_text(r['noise'])}); "
             + ", ".join(
                 f"{LABELS[n]} {r[n]['jitter']['rate']:.1%}" for n in CONTROLLERS if n != "mbn"
             ),
@@ -107,7 +108,7 @@ def write_report(rundir: RunDir) -> None:
         claims_section(rows),
         Section(
             "Realistic noise",
-            [", ".join(f"{k} = {v:g}" for k, v in r["noise"].items() if v > 0)],
+            [levels_text(r["noise"])],
             table=(
                 ["controller", "jittered", "95 % CI", "held-out", "95 % CI"],
                 [
