@@ -117,9 +117,9 @@ def settings_run(tmp_path_factory):
     config = folder / "settings.toml"
     config.write_text(SETTINGS)
     out = folder / "run"
+    command = ["reproduce", "--quick", "--config", str(config), "--out", str(out), "--seed", "1"]
     proc = subprocess.run(
-        [sys.executable, "-m", "mbn", "reproduce", "--quick", "--config", str(config)]
-        + ["--out", str(out), "--seed", "1"],
+        [sys.executable, "-m", "mbn", *command],
         capture_output=True,
         text=True,
         timeout=1200,
@@ -180,9 +180,7 @@ def test_the_claims_state_the_runs_multiplier(settings_run):
 
 def test_the_stage_lines_state_the_runs_generations(settings_run):
     _, stdout = settings_run
-    lines = {
-        line.split(":")[0]: line for line in stdout.splitlines() if line.startswith("stage ")
-    }
+    lines = {line.split(":")[0]: line for line in stdout.splitlines() if line.startswith("stage ")}
     assert "after 2 generations" in lines["stage rf"]
     assert "after 3 generations (W_23, WE_21, WE_22)" in lines["stage lf"]
     assert "after 4 generations" in lines["stage pm"]
