@@ -6,8 +6,9 @@ from __future__ import annotations
 
 from mbn.experiments.ablations.report import claims as ablation_claims
 from mbn.experiments.ablations.report import what
-from mbn.experiments.noise.over_runs import levels_text, noise_over_runs
+from mbn.experiments.noise.over_runs import noise_over_runs
 from mbn.experiments.noise.report import claims as noise_claims
+from mbn.experiments.noise.report import levels_text
 
 
 def _rate(rate: float) -> dict[str, float]:

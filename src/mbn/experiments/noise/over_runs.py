@@ -20,7 +20,7 @@ from mbn.experiments.trials import as_test_record
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
 
-__all__ = ["CONTROLLER_NAMES", "levels_text", "noise_over_runs", "noise_tests", "statistics"]
+__all__ = ["CONTROLLER_NAMES", "noise_over_runs", "noise_tests", "statistics"]
 
 #: The controllers of ``noise_levels`` (``levels.CONTROLLERS``), named here so that a sweep's
 #: report imports no experiment.
@@ -43,12 +43,6 @@ def noise_tests(data: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             for x in _TESTS:
                 tests[f"{name}_realistic_{x}"] = as_test_record(point[x])
     return tests
-
-
-def levels_text(levels: Mapping[str, float]) -> str:
-    """Noise levels as a run recorded them, the channels that are on: ``sonar_std = 0.02,
-    wheel_std = 0.05``."""
-    return ", ".join(f"{k} = {v:g}" for k, v in levels.items() if v > 0) or "every channel off"
 
 
 def _over(values: list[tuple[float, int, int]]) -> dict[str, Any]:
@@ -105,7 +99,7 @@ def noise_over_runs(
     """The statistics (for ``sweep.json``), a report section per channel (the jittered test:
     median [IQR] over runs, and the pooled Wilson interval, per level and controller) and one
     figure per channel (``out/figures/noise_CHANNEL.png``)."""
-    from mbn.experiments.noise.report import UNITS
+    from mbn.experiments.noise.report import UNITS, levels_text
     from mbn.experiments.pipeline.document import Section
     from mbn.viz.noise import LABELS, success_vs_noise_over_runs
 

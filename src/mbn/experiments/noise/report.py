@@ -2,21 +2,27 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
-from mbn.experiments.noise.over_runs import levels_text
 from mbn.experiments.noise.stages.levels import CONTROLLERS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.io import read_json
 from mbn.viz.noise import LABELS
 
-__all__ = ["TITLE", "claims", "write_report"]
+__all__ = ["TITLE", "claims", "levels_text", "write_report"]
 
 TITLE = "mbn: what survives noise"
 
 #: The units of the channels' levels, for the figures.
 UNITS = {"sonar_std": "m", "wheel_std": "relative", "neuron_std": "potential"}
+
+
+def levels_text(levels: Mapping[str, float]) -> str:
+    """Noise levels as a run recorded them, the channels that are on: ``sonar_std = 0.02,
+    wheel_std = 0.05``."""
+    return ", ".join(f"{k} = {v:g}" for k, v in levels.items() if v > 0) or "every channel off"
 
 
 def _falls_below(points: list[dict[str, Any]], threshold: float, test: str = "jitter") -> str:
