@@ -59,8 +59,8 @@ class IMFullSettings(Settings):
     section = "im_full"
     connections: tuple[str, ...] = setting(
         FULL_CONNECTIONS,
-        doc="the programmable connections, 0-based ('W[i,j]', 'WE[i,k]'), in the order the "
-        "agreement curve adds them",
+        doc="the programmable connections in the code's 0-based form ('W[i,j]', 'WE[i,k]'; "
+        "'W[1,2]' is the paper's W_23), in the order the agreement curve adds them",
         source="docs/behaviours.md (every connection of the follower genome, and LF's)",
     )
     bound: float = setting(

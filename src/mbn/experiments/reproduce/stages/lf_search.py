@@ -48,7 +48,8 @@ class LFSearchSettings(Settings):
     section = "lf_search"
     candidates: tuple[str, ...] = setting(
         TURNING_CANDIDATES,
-        doc="connections tried, 0-based ('W[i,j]', 'WE[i,k]'); every triple is evolved",
+        doc="connections tried, in the code's 0-based form ('W[i,j]', 'WE[i,k]'; 'W[1,2]' is "
+        "the paper's W_23); every triple is evolved",
         source="docs/reproduce.md (the connections into the turning neuron)",
     )
     generations: int = setting(100, doc="DE generations per triple", low=0, high=100_000)
