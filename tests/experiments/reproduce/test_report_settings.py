@@ -93,7 +93,7 @@ REPORTED: tuple[tuple[str, Callable[[Any], str]], ...] = (
     ("multiplier.neurons", lambda v: f"{v}-neuron multiplier, shipped"),
     ("rf.generations", lambda v: f"RF: {_plural(v, 'generation')}"),
     ("lf_search.generations", lambda v: f"evolved {_plural(v, 'generation')} each"),
-    ("lf.generations", lambda v: f"each; {_plural(v, 'generation')},"),
+    ("lf.generations", lambda v: f"each; re-evolved for {_plural(v, 'generation')},"),
     ("pm.generations", lambda v: f"PM: {_plural(v, 'generation')}"),
     ("pm.camera_range", lambda v: f"camera range {v:g} m"),
     ("tests.seconds", lambda v: f"; {v:g} s per trial"),

@@ -220,7 +220,7 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"LF: the 3 connections re-evolved are {connection_names(lf['connections'])} "
                 f"(the paper changed {_paper_changed()}), chosen among "
                 f"{_count(len(s['lf_search']['triples']), 'triple')} evolved "
-                f"{_count(s['lf_search']['generations'], 'generation')} each; "
+                f"{_count(s['lf_search']['generations'], 'generation')} each; re-evolved for "
                 f"{_count(lf['generations'], 'generation')}, "
                 f"best fitness {lf['best_fitness']:.2f}"
                 + (
