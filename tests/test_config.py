@@ -161,3 +161,38 @@ def test_absurd_numbers_in_a_settings_file_are_refused_in_one_line(tmp_path, tex
     with pytest.raises(MbnInputError, match=message) as exc:
         REPRODUCE.config(document=read_toml(path))
     assert len(str(exc.value)) < 200
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["reproduce"],
+        ["run", "new-behaviours"],
+        ["run", "noise"],
+        ["run", "ablations"],
+        ["run", "programs-vs-dynamics"],
+    ],
+)
+def test_print_config_is_plain_toml_with_whole_sentences(command, capsys):
+    """Every table's description is the first paragraph of its docstring, whole (it ends with
+    a full stop) and without reST markup; the whole text parses as TOML."""
+    import tomllib
+
+    assert main([*command, "--print-config"]) == 0
+    text = capsys.readouterr().out
+    data = tomllib.loads(text)
+    assert "`" not in text
+    assert ":mod:" not in text and ":class:" not in text
+    lines = text.splitlines()
+    headers = [i for i, line in enumerate(lines) if line.startswith("[")]
+    assert [lines[i].strip("[]") for i in headers] == list(data)
+    for i in headers:
+        assert lines[i] == f"[{lines[i].strip('[]')}]", lines[i]  # no comment cut after it
+        above = []
+        k = i - 1
+        while k >= 0 and lines[k].startswith("# "):
+            above.insert(0, lines[k][2:])
+            k -= 1
+        assert above, f"{lines[i]} has no description"
+        assert above[-1].endswith((".", ".)")), f"{lines[i]}: {above[-1]!r} ends mid-sentence"
+        assert all(len(line) <= 99 for line in lines[k + 1 : i])

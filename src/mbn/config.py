@@ -19,7 +19,9 @@ field as a comment. The schema checks are those of :mod:`mbn.io`.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import re
+import textwrap
 import tomllib
 import types
 import typing
@@ -35,7 +37,9 @@ __all__ = [
     "Settings",
     "TomlDocument",
     "from_mapping",
+    "plain_text",
     "read_toml",
+    "section_description",
     "setting",
     "settings_to_dict",
     "to_toml",
@@ -296,7 +300,7 @@ def _toml_value(value: Any) -> str:
 
 def _comment(f: dataclasses.Field[Any]) -> str:
     meta = f.metadata
-    parts = [meta.get("doc", "")]
+    parts = [plain_text(meta.get("doc", ""))]
     if meta.get("unit"):
         parts.append(f"unit: {meta['unit']}")
     low, high = meta.get("low"), meta.get("high")
@@ -307,19 +311,43 @@ def _comment(f: dataclasses.Field[Any]) -> str:
     if meta.get("choices"):
         parts.append("one of " + ", ".join(meta["choices"]))
     if meta.get("source"):
-        parts.append(f"source: {meta['source']}")
+        parts.append(f"source: {plain_text(meta['source'])}")
     return "; ".join(p for p in parts if p)
 
 
+#: reST markup in docstrings: a role (``:mod:``), then text in single or double backquotes.
+_REST = re.compile(r"(?::[a-z]+:)?`{1,2}~?([^`]+?)`{1,2}")
+
+#: Width of the comment lines :func:`to_toml` wraps a section's description to.
+COMMENT_WIDTH = 99
+
+
+def plain_text(text: str) -> str:
+    """``text`` with its reST markup replaced by the text marked (a role and its backquotes,
+    or double backquotes, dropped) and its lines joined into one."""
+    return " ".join(_REST.sub(r"\1", text).split())
+
+
+def section_description(cls: type[Settings]) -> str:
+    """What a settings section is, in plain text: the first paragraph of its docstring, whole
+    (every sentence of it), without reST markup; empty when it has no docstring."""
+    doc = inspect.cleandoc(cls.__doc__ or "")
+    return plain_text(doc.split("\n\n")[0])
+
+
 def to_toml(sections: Sequence[Settings], header: str = "") -> str:
-    """The sections as a TOML document, each field after a comment with what it is, its unit,
-    range and source (reads back with :func:`read_toml` into the same settings)."""
+    """The sections as a TOML document: each table after a comment with what it is (the first
+    paragraph of its docstring, whole and in plain text), each field after a comment with what
+    it is, its unit, range and source (reads back with :func:`read_toml` into the same
+    settings)."""
     out = [f"# {line}" if line else "#" for line in header.splitlines()]
     for s in sections:
         if out:
             out.append("")
-        doc = (type(s).__doc__ or "").strip().splitlines()
-        out.append(f"[{s.section}]" + (f"  # {doc[0]}" if doc else ""))
+        description = section_description(type(s))
+        if description:
+            out.extend(f"# {line}" for line in textwrap.wrap(description, COMMENT_WIDTH - 2))
+        out.append(f"[{s.section}]")
         for f in dataclasses.fields(s):
             value = getattr(s, f.name)
             out.append(f"# {_comment(f)}")

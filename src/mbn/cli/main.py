@@ -48,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
         + reproduce.EPILOG
         + sweep.EPILOG
         + run.EPILOG
-        + evaluate.EPILOG,
+        + evaluate.EPILOG
+        + "\nhow long a run takes: README, Set-up.\n",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"mbn {__version__}")

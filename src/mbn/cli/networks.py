@@ -34,6 +34,11 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "mul",
         help="the multiplier CTRNN (paper 2.1)",
         description="Train, evaluate and inspect multiplier CTRNNs.",
+        epilog="examples:\n"
+        "  mbn mul report --out mul.png    the shipped 3-neuron multiplier: error map and metrics\n"
+        "  mbn mul train --neurons 3 --seed 0 --out runs/mul.json\n"
+        "  mbn mul eval --pairs pairs.csv --out products.csv",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     mul_sub = mul.add_subparsers(dest="mul_command", required=True, parser_class=parser_class)
 
@@ -124,6 +129,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "pnn",
         help="programmable networks (paper section 2)",
         description="Programmable-network tools.",
+        epilog="example:\n"
+        "  mbn pnn check    how closely the interpreter of the paper's RF and LF emulates them",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     pnn_sub = pnn.add_subparsers(dest="pnn_command", required=True, parser_class=parser_class)
     check = pnn_sub.add_parser(
@@ -316,6 +324,7 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
     import jax
 
     from mbn.networks.emulation import EmulationConfig, published_check
+    from mbn.notation import connection_name
 
     mul = _load_mul(args.params)
     defaults = EmulationConfig()
@@ -333,7 +342,7 @@ def _cmd_pnn_check(args: argparse.Namespace) -> int:
     print(
         "interpreter of the published RF with programmable "
         + ", ".join(
-            f"{c['connection']} ({c['paper_name']}) in [{c['min']:.4g}, {c['max']:.4g}]"
+            f"{connection_name(c['connection'])} in [{c['min']:.4g}, {c['max']:.4g}]"
             for c in result["connections"]
         )
     )

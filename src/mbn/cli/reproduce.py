@@ -21,7 +21,7 @@ __all__ = ["EPILOG", "add_commands", "effective_config"]
 
 EPILOG = """\
   mbn reproduce --out runs/full                the paper's whole experiment and its report
-  mbn reproduce --quick --out runs/quick       a smoke run of every stage (about a minute)
+  mbn reproduce --quick --out runs/quick       a smoke run of every stage
 """
 
 _REPRODUCE_EPILOG = """\
@@ -39,8 +39,10 @@ outputs in DIR: results.json, report.md, report.html (self-contained), controlle
 lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figures/,
 timings.json, stages/, records/, checkpoints/, run.json
 
+how long it takes: README, Set-up.
+
 examples:
-  mbn reproduce                                full run into runs/reproduce (about 6 min on 2 cores)
+  mbn reproduce                                full run into runs/reproduce
   mbn reproduce --quick --out /tmp/q           smoke run
   mbn reproduce --out runs/s2 --seed 2         another seed
   mbn reproduce --out runs/s2 --seed 2 --resume    continue it after an interruption

@@ -24,7 +24,8 @@ EPILOG = """\
   mbn run new-behaviours --out runs/nb        new behaviours by programs alone
   mbn run noise --out runs/noise              what survives noise
   mbn run ablations --out runs/ablations      ablations of the program path
-  mbn run programs-vs-dynamics --out runs/pvd programs against dynamics (one seed)
+  mbn run programs-vs-dynamics --out runs/pvd
+                                              programs against dynamics (one seed)
 """
 
 #: The experiments ``mbn run`` knows, with a line each.

@@ -43,6 +43,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "mazes",
         help="list the built-in mazes",
         description="List the built-in mazes (names usable wherever a maze is asked for).",
+        epilog="examples:\n"
+        "  mbn mazes           one line per maze: its name and what it is\n"
+        "  mbn mazes --json    the same as one JSON object",
         formatter_class=raw,
     )
     mazes.add_argument("--json", action="store_true", help="print one JSON object")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from mbn.networks.programmable import Connection
+from mbn.notation import connection_name, connection_names
 from mbn.viz.animate import animate_episode
 from mbn.viz.episodes import plot_episodes
 from mbn.viz.style import new_figure, save_png
@@ -62,7 +62,7 @@ def de_curves(stages: dict[str, Any], path: Path) -> None:
     chosen = stages["lf_search"]["chosen"]
     fit = [r["best_fitness"] for r in rows]
     robust = [r.get("robust_fitness", np.nan) for r in rows]
-    labels = [", ".join(Connection.parse(c).paper_name for c in r["connections"]) for r in rows]
+    labels = [connection_names(r["connections"]) for r in rows]
     colors = ["C2" if r["connections"] == chosen else "C7" for r in rows]
     y = np.arange(len(rows))
     ax.barh(y, robust, color=colors, height=0.6, label="choice score: perturbed copies, corners")
@@ -114,7 +114,12 @@ def mbn_traces(
     ax[0].set_yticks([0, 1, 2], ["none", "1 colour", "2 colours"])
     ax[0].legend(loc="upper right", fontsize=8)
     for k in range(program.shape[1]):
-        ax[1].plot(t, program[:, k], label=f"program {k + 1} ({connections[k]})", color=f"C{k}")
+        ax[1].plot(
+            t,
+            program[:, k],
+            label=f"program {k + 1} ({connection_name(connections[k])})",
+            color=f"C{k}",
+        )
     for name, style in (("right", ":"), ("left", "--")):
         for k, v in enumerate(programs[name]):
             ax[1].axhline(v, color=f"C{k}", ls=style, lw=0.8, alpha=0.6)

@@ -388,3 +388,20 @@ def test_report_renders_in_a_headless_browser(quick_run, tmp_path):
         assert img.size == (1200, 2400)
         colours = img.convert("RGB").getcolors(maxcolors=1 << 20)
     assert colours is not None and len(colours) > 50  # text, tables and figures, not a blank page
+
+
+def test_the_report_and_claims_name_connections_in_the_papers_notation(quick_run):
+    """Connections are named W_23, WE_21 (1-based, the paper's) in report.md, report.html and
+    the claims; never W[1,2] (the code's)."""
+    from mbn.notation import connection_names
+
+    out, _ = quick_run
+    results = json.loads((out / "results.json").read_text())
+    code = re.compile(r"\bWE?\[\d+, ?\d+\]")
+    names = connection_names(results["stages"]["lf"]["connections"])
+    for file in ("report.md", "report.html"):
+        text = (out / file).read_text()
+        assert not code.search(text), code.search(text)
+        assert f"re-evolved are {names}" in text
+    claims = " ".join(c["claim"] + c["measured"] for c in results["claims"])
+    assert not code.search(claims) and f"here {names}" in claims

@@ -7,14 +7,27 @@ from typing import Any
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.io import read_json
+from mbn.networks.programmable import DEFAULT_TAU_RATIO as PAPER_TAU_RATIO
 
-__all__ = ["TITLE", "claims", "write_report"]
+__all__ = ["TITLE", "claims", "what", "write_report"]
 
 TITLE = "mbn: ablations of the program path"
 
 
 def _pct(value: float | None) -> str:
     return "-" if value is None else f"{value:.1%}"
+
+
+def what(name: str, row: dict[str, Any]) -> str:
+    """What an ablation changed, with the interpreter it ran as recorded (the multipliers' time
+    constant and sub-steps) where it ran one of its own."""
+    interp = row.get("interpreter")
+    if interp is None:
+        return str(row["what"])
+    ran = f"multipliers at τ/{1 / interp['tau_ratio']:g}, {interp['substeps']} sub-steps"
+    if name.startswith("tau_"):
+        return ran + (", the paper's" if interp["tau_ratio"] == PAPER_TAU_RATIO else "")
+    return f"{row['what']}; {ran}"
 
 
 def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
@@ -39,7 +52,7 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             "tau_10",
             lambda r: r["mbn_jitter"]["rate"] >= 0.95,
             "the paper's multipliers an order of magnitude faster than the neurons (τ/10) suffice",
-            "the MBN keeps >= 95 % of jittered trials at τ/10",
+            "the MBN keeps >= 95 % of jittered trials at τ/{tau}",
         ),
         (
             "mul3",
@@ -51,6 +64,8 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
         if name not in rows:
             continue
         r = rows[name]
+        if "{tau}" in target:  # the ratio the variant ran at, as recorded
+            target = target.format(tau=f"{1 / r['interpreter']['tau_ratio']:g}")
         # a failure means something only where the run's MBN passes
         testable = name not in ("wrong_program", "frozen_program") or (
             base is not None and base["mbn_jitter"]["rate"] >= 0.95
@@ -58,7 +73,7 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
         out.append(
             {
                 "claim": claim,
-                "measured": f"{r['what']}: MBN {_pct(r['mbn_jitter']['rate'])} jittered, "
+                "measured": f"{what(name, r)}: MBN {_pct(r['mbn_jitter']['rate'])} jittered, "
                 f"{_pct(r['mbn_heldout']['rate'])} held out"
                 + (
                     f"; agreement with RF {_pct(r['agreement']['rf_jitter'])}, with LF "
@@ -90,7 +105,7 @@ def write_report(rundir: RunDir) -> None:
         table.append(
             [
                 name,
-                r["what"],
+                what(name, r),
                 f"{r['mbn_jitter']['successes']}/{r['mbn_jitter']['trials']}",
                 f"{r['mbn_heldout']['successes']}/{r['mbn_heldout']['trials']}",
                 _pct(a.get("rf_jitter")),

@@ -99,7 +99,7 @@ def noise_over_runs(
     """The statistics (for ``sweep.json``), a report section per channel (the jittered test:
     median [IQR] over runs, and the pooled Wilson interval, per level and controller) and one
     figure per channel (``out/figures/noise_CHANNEL.png``)."""
-    from mbn.experiments.noise.report import UNITS
+    from mbn.experiments.noise.report import UNITS, levels_text
     from mbn.experiments.pipeline.document import Section
     from mbn.viz.noise import LABELS, success_vs_noise_over_runs
 
@@ -107,6 +107,19 @@ def noise_over_runs(
     sections: list[Section] = []
     images: list[tuple[str, str]] = []
     n = stats["runs"]
+    realistic = sorted(
+        {levels_text(r["realistic"]["noise"]) for r in runs.values() if r.get("realistic")}
+    )
+    if realistic:
+        sections.append(
+            Section(
+                "The realistic noise",
+                [
+                    "The realistic noise of these runs (every channel at once), as they recorded "
+                    "it: " + "; ".join(realistic) + "."
+                ],
+            )
+        )
     for channel, per in stats["channels"].items():
         names = list(per)
         levels = max((len(p) for p in per.values()), default=0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from mbn.experiments.noise.stages.levels import CONTROLLERS
@@ -10,12 +11,18 @@ from mbn.experiments.pipeline.document import Section, claims_section, write_doc
 from mbn.io import read_json
 from mbn.viz.noise import LABELS
 
-__all__ = ["TITLE", "claims", "write_report"]
+__all__ = ["TITLE", "claims", "levels_text", "write_report"]
 
 TITLE = "mbn: what survives noise"
 
 #: The units of the channels' levels, for the figures.
 UNITS = {"sonar_std": "m", "wheel_std": "relative", "neuron_std": "potential"}
+
+
+def levels_text(levels: Mapping[str, float]) -> str:
+    """Noise levels as a run recorded them, the channels that are on: ``sonar_std = 0.02,
+    wheel_std = 0.05``."""
+    return ", ".join(f"{k} = {v:g}" for k, v in levels.items() if v > 0) or "every channel off"
 
 
 def _falls_below(points: list[dict[str, Any]], threshold: float, test: str = "jitter") -> str:
@@ -47,7 +54,7 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             "could be not the case for a real environment (paper, section 4)",
             "measured": f"the MBN evolved {evolved} passes {mbn['jitter']['rate']:.1%} of "
             f"the jittered trials and {mbn['heldout']['rate']:.1%} held out under the "
-            "realistic noise (sonar 2 cm, dropout 1 %, wheels 5 %, camera misses 5 %); "
+            f"realistic noise ({levels_text(r['noise'])}); "
             + ", ".join(
                 f"{LABELS[n]} {r[n]['jitter']['rate']:.1%}" for n in CONTROLLERS if n != "mbn"
             ),
@@ -107,7 +114,7 @@ def write_report(rundir: RunDir) -> None:
         claims_section(rows),
         Section(
             "Realistic noise",
-            [", ".join(f"{k} = {v:g}" for k, v in r["noise"].items() if v > 0)],
+            [levels_text(r["noise"])],
             table=(
                 ["controller", "jittered", "95 % CI", "held-out", "95 % CI"],
                 [

@@ -290,8 +290,9 @@ def run_experiment(
             raise MbnInputError(
                 f"no stage {name!r} (the stages: {', '.join(experiment.registry.names)})"
             )
-    with Progress(progress) as bars, scope(config["run"].precision):
-        overall = bars.task(f"mbn {experiment.name}", len(experiment.registry) + 1)
+    # without bars (no terminal), plain lines through ``log`` while a stage runs long
+    with Progress(progress, lines=log) as bars, scope(config["run"].precision):
+        overall = bars.task(f"mbn {experiment.name}", len(experiment.registry) + 1, quiet=True)
         ran: dict[str, Any] = {}
         for k, stage in enumerate(experiment.registry):
             bars.update(overall, completed=k, info=stage.name)
@@ -304,7 +305,9 @@ def run_experiment(
                     continue
                 log(f"notice: stage {stage.name}: {missing[0]} is missing; running it again")
             t0 = time.perf_counter()
+            bars.stage(stage.name)
             data = stage.run(_context(experiment, rundir, seed, config, stage, bars, log, workers))
+            bars.stage(None)
             rundir.write_stage(stage.name, data)
             timings[stage.name] = round(time.perf_counter() - t0, 2)
             rundir.write_timings(timings)
@@ -317,7 +320,9 @@ def run_experiment(
         results = collect_results(experiment, rundir, seed, config)
         write_json_atomic(rundir.results, results)
         if experiment.report is not None:
+            bars.stage("report")
             experiment.report(rundir)
+            bars.stage(None)
             timings["report"] = round(time.perf_counter() - t0, 2)
             rundir.write_timings(timings)
         bars.update(overall, completed=len(experiment.registry) + 1, info="done")

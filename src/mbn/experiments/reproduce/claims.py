@@ -11,6 +11,8 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.reproduce.protocol import WHO
+from mbn.experiments.reproduce.stages.multiplier import GRID_POINTS
+from mbn.notation import connection_names
 
 __all__ = [
     "AGREEMENT_TARGET",
@@ -71,7 +73,7 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
             f"largest relative error {v['max_rel_error']:.1%} (smallest target "
             f"{v['min_target']:.4f}); on the paper's 10 x 10 training grid at most "
             f"{g['max_rel_error']:.1%} ({g['fraction_within_5pct']:.0%} within 5 %); on the "
-            f"101 x 101 grid where the target is >= {d['floor']:g}, at most "
+            f"{GRID_POINTS} x {GRID_POINTS} grid where the target is >= {d['floor']:g}, at most "
             f"{d['max_rel_error']:.1%} at {tuple(round(x, 2) for x in d['worst'])}",
             v["max_rel_error"] <= 0.05,
             "every validation pair (100 uniform in (0, 1)^2, as the paper's) within 5 % of its "
@@ -81,11 +83,12 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
     add(
         f"The multiplier the pipeline embeds ({mul['neurons']} neurons) multiplies its two "
         "inputs on [0, 1]^2 (section 2.1)",
-        "3 neurons, within 5 % of the target (row above); the pipeline uses 6 "
-        "(docs/reproduce.md, deviations)",
+        f"3 neurons, within 5 % of the target (row above); this run uses {mul['neurons']}"
+        + (" (docs/reproduce.md, deviations)" if mul["neurons"] != 3 else ""),
         f"{mul['neurons']}-neuron multiplier ({mul['source']}): max |error| "
-        f"{m['max_abs_error_grid']:.4f}, mean {m['mean_abs_error_grid']:.4f} on a 101 x 101 grid; "
-        f"{m['fraction_within_5pct']:.0%} of 100 random pairs within 5 %"
+        f"{m['max_abs_error_grid']:.4f}, mean {m['mean_abs_error_grid']:.4f} on a "
+        f"{m['grid_points_per_axis']} x {m['grid_points_per_axis']} grid; "
+        f"{m['fraction_within_5pct']:.0%} of {m['num_validation_pairs']} random pairs within 5 %"
         + (
             f"; relative error at most {mul['paper_grid']['max_rel_error']:.1%} on the paper's "
             "10 x 10 grid"
@@ -101,7 +104,7 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
         (
             "lf",
             "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1; "
-            f"here {', '.join(lf['connections_paper_notation'])})",
+            f"here {connection_names(lf['connections'])})",
         ),
         ("im_rf", "The interpreter (IM) with the RF program behaves as RF (section 3.2)"),
         ("im_lf", "The interpreter (IM) with the LF program behaves as LF (section 3.2)"),

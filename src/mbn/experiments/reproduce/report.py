@@ -16,12 +16,16 @@ from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.reproduce.protocol import TESTED
+from mbn.experiments.reproduce.settings import InterpreterSettings
 from mbn.io import read_json
+from mbn.networks.programmable import differing_connections
+from mbn.notation import connection_names
+from mbn.paper import published_lf, published_rf
 from mbn.viz.multiplier import draw_multiplier_error
 from mbn.viz.runs import de_curves, mbn_animation, mbn_traces, test_trajectories
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["TITLE", "write_report"]
+__all__ = ["TITLE", "interpreter_settings", "write_report"]
 
 TITLE = "mbn reproduce: the Multiple Behavior Network, end to end"
 
@@ -182,32 +186,42 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
         )
     )
     m = s["multiplier"]
+    tau_ratio, substeps = interpreter_settings(results)
+    grid = m["metrics"]["grid_points_per_axis"]
     secs.append(
         Section(
             "Multiplier",
             [
-                f"{m['neurons']}-neuron multiplier, {m['source']}, embedded at tau/"
-                f"{1 / m['tau_ratio']:g}. "
+                f"{m['neurons']}-neuron multiplier, {m['source']}, embedded in the interpreter "
+                f"at tau/{1 / tau_ratio:g} (tau_m = {tau_ratio:g} tau), integrated in "
+                f"{substeps} steps per robot step. "
                 f"Max |error| {m['metrics']['max_abs_error_grid']:.4f} and mean "
-                f"{m['metrics']['mean_abs_error_grid']:.4f} on a 101 x 101 grid of [0, 1]^2."
+                f"{m['metrics']['mean_abs_error_grid']:.4f} on a {grid} x {grid} grid of "
+                "[0, 1]^2."
             ],
             images=[images["multiplier"]],
         )
     )
     lf, im, pm, rf = s["lf"], s["im"], s["pm"], s["rf"]
+    restarts = len(rf.get("restarts", [])) or 1
     secs.append(
         Section(
             "Evolution",
             [
-                f"RF: {rf['generations']} generations, best fitness {rf['best_fitness']:.2f} "
+                *_de_text(results),
+                f"RF: {_count(rf['generations'], 'generation')}"
+                + (f" in each of {restarts} independent runs" if restarts > 1 else "")
+                + f", best fitness {rf['best_fitness']:.2f} "
                 f"(branch fitness over {rf['episodes']} crossroad episodes, averaged over the "
                 f"genome and {rf['noise']['copies']} copies perturbed by N(0, "
                 f"{rf['noise']['sigma']}²); the paper's terms of "
                 f"the best: F_M {rf['paper_F_M']:.2f}, F_R {rf['paper_F_R']:.2f}, F_L "
                 f"{rf['paper_F_L']:.2f}).",
-                f"LF: the 3 connections re-evolved are {', '.join(lf['connections'])} (paper "
-                f"notation {', '.join(lf['connections_paper_notation'])}; the paper changed "
-                f"W_23, WE_21, WE_22), chosen among {len(s['lf_search']['triples'])} triples; "
+                f"LF: the 3 connections re-evolved are {connection_names(lf['connections'])} "
+                f"(the paper changed {_paper_changed()}), chosen among "
+                f"{_count(len(s['lf_search']['triples']), 'triple')} evolved "
+                f"{_count(s['lf_search']['generations'], 'generation')} each; re-evolved for "
+                f"{_count(lf['generations'], 'generation')}, "
                 f"best fitness {lf['best_fitness']:.2f}"
                 + (
                     f"; kept: member {lf['member']} of its final population, the best in the "
@@ -217,16 +231,17 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                     else ""
                 )
                 + f" (F_L {lf['paper_F_L']:.2f}).",
-                f"IM: programmable {', '.join(im['connections_paper_notation'])}, "
+                f"IM: programmable {connection_names(im['connections'])}, "
                 f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
                 f"LF program {_vec(im['programs']['left'])}.",
                 (
-                    f"PM: {pm['generations']} generations on the program reward, "
+                    f"PM: {_count(pm['generations'], 'generation')} on the program reward, "
                     f"{pm['best_fitness']:.2g} (0 at best: minus the mean squared difference "
                     "between the program it sends and the program of the last tile it was shown, "
                     "without the robot; docs/reproduce.md)"
                     if pm["reward"] == "programs"
-                    else f"PM: {pm['generations']} generations, reward {pm['best_fitness']:.1f} "
+                    else f"PM: {_count(pm['generations'], 'generation')}, reward "
+                    f"{pm['best_fitness']:.1f} "
                     f"of at most {pm['max_fitness']:.0f} ("
                     + (
                         "the paper's two trials: right-rule score with one-colour tiles x "
@@ -296,6 +311,53 @@ def _pm_start(start: dict[str, Any] | None) -> str:
         f"{start['settled_after_seconds']:g} s), sending {_vec(start['program'])}{rf}; it "
         f"is judged by the {start['rule']} rule before its first tile."
     )
+
+
+def interpreter_settings(results: dict[str, Any]) -> tuple[float, int]:
+    """The multipliers' time constant over the neurons' and the integration steps per robot
+    step the run's interpreter ran with: the ``im`` stage's record, else the run's recorded
+    ``[interpreter]`` (a run recorded before the section ran with what
+    ``InterpreterSettings.recorded_before`` says); never a default of today's code."""
+    im = results["stages"]["im"]
+    recorded = {
+        **InterpreterSettings.recorded_before,
+        **results.get("config", {}).get("interpreter", {}),
+    }
+    return (
+        float(im.get("tau_ratio", recorded["tau_ratio"])),
+        int(im.get("substeps", recorded["substeps"])),
+    )
+
+
+def _de_text(results: dict[str, Any]) -> list[str]:
+    """The DE settings the run recorded (``[de]``, ``[followers]``), as a sentence (none for a
+    run that recorded none)."""
+    config = results.get("config", {})
+    de, followers = config.get("de"), config.get("followers")
+    if not de:
+        return []
+    followers = followers or {}
+    bound = ""
+    if "weight_bound" in followers:
+        w = followers["weight_bound"]
+        bound += f"; the followers' genes in [-{w:g}, {w:g}]"
+    if "episode_seconds" in followers:
+        bound += f", crossroad episodes of {followers['episode_seconds']:g} s"
+    return [
+        f"DE/best/1/bin for every evolved stage: population {de['popsize']}, F {de['F']:g}, "
+        f"CR {de['CR']:g}{bound}."
+    ]
+
+
+def _paper_changed() -> str:
+    """The connections in which the paper's published RF and LF differ (section 3.1), named."""
+    changed = differing_connections(published_rf(), published_lf())
+    return connection_names(p.connection for p in changed)
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 triple``, ``20 triples``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _yes(ok: bool) -> str:

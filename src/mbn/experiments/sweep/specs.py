@@ -352,8 +352,8 @@ NOISE_SPEC = SweepSpec(
         for x, title in (("jitter", f"{what}, jittered"), ("heldout", f"{what}, held out"))
     ),
     targets_text="No run has a per-run target here (`docs/noise.md`): `N_none_*` is controller N "
-    "without noise, `N_realistic_*` under the realistic noise (sonar 2 cm, dropout 1 %, wheels "
-    "5 %, camera misses 5 %); the sections below give each channel level by level over the runs.",
+    "without noise, `N_realistic_*` under the realistic noise (its levels as the runs recorded "
+    "them: below); the sections below give each channel level by level over the runs.",
     de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
     load=_load_noise,

@@ -33,6 +33,7 @@ from mbn.networks.programmable import (
     build_interpreter,
     differing_connections,
 )
+from mbn.notation import connection_name
 from mbn.world.mazes.load import load_maze
 
 __all__ = ["FULL_CONNECTIONS", "IMFullSettings", "IMFullStage", "nested_sets"]
@@ -58,8 +59,8 @@ class IMFullSettings(Settings):
     section = "im_full"
     connections: tuple[str, ...] = setting(
         FULL_CONNECTIONS,
-        doc="the programmable connections, 0-based ('W[i,j]', 'WE[i,k]'), in the order the "
-        "agreement curve adds them",
+        doc="the programmable connections in the code's 0-based form ('W[i,j]', 'WE[i,k]'; "
+        "'W[1,2]' is the paper's W_23), in the order the agreement curve adds them",
         source="docs/behaviours.md (every connection of the follower genome, and LF's)",
     )
     bound: float = setting(
@@ -221,7 +222,7 @@ class IMFullStage(Stage):
         largest = max((len(r["connections"]) for r in curve if holds(r)), default=None)
         return {
             "connections": [str(c) for c in interp.connections],
-            "connections_paper_notation": [c.paper_name for c in interp.connections],
+            "connections_paper_notation": [connection_name(c) for c in interp.connections],
             "bound": s.bound,
             "neurons": int(interp.num_neurons),
             "multiplier_neurons": int(interp.mul_size),

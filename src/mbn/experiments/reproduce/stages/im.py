@@ -11,6 +11,7 @@ from mbn.controllers import save_controller
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import MADE_BY, interpreter_of, read_network
 from mbn.networks.multiplier import load_multiplier
+from mbn.notation import connection_name, connection_names
 
 __all__ = ["IMStage"]
 
@@ -31,7 +32,7 @@ class IMStage(Stage):
         interp, programs = spec.interpreter, spec.programs
         return {
             "connections": [str(c) for c in interp.connections],
-            "connections_paper_notation": [c.paper_name for c in interp.connections],
+            "connections_paper_notation": [connection_name(c) for c in interp.connections],
             "lower": np.asarray(interp.lower, dtype=float).tolist(),
             "upper": np.asarray(interp.upper, dtype=float).tolist(),
             "programs": programs,
@@ -42,4 +43,4 @@ class IMStage(Stage):
         }
 
     def summary(self, data: dict[str, Any]) -> str:
-        return f"programmable {', '.join(data['connections'])}; {data['neurons']} neurons"
+        return f"programmable {connection_names(data['connections'])}; {data['neurons']} neurons"

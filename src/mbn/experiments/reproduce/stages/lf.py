@@ -42,6 +42,7 @@ from mbn.experiments.reproduce.stages.rf import evolution_summary
 from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection
+from mbn.notation import connection_name
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
@@ -330,7 +331,7 @@ class LFStage(Stage):
             save=False,
         )
         data.pop("network")
-        data["connections_paper_notation"] = [c.paper_name for c in conns]
+        data["connections_paper_notation"] = [connection_name(c) for c in conns]
         # The fittest genome on the crossroads is not always the population's best in a maze:
         # every member of the final population is validated alone, and the best ``members`` of
         # them by that (the fitter first of equals) are checked as the interpreter's program.

@@ -26,6 +26,7 @@ from mbn.experiments.reproduce.stages.common import (
     task,
 )
 from mbn.networks.programmable import Connection
+from mbn.notation import connection_name, connection_names
 
 __all__ = [
     "TURNING_CANDIDATES",
@@ -47,7 +48,8 @@ class LFSearchSettings(Settings):
     section = "lf_search"
     candidates: tuple[str, ...] = setting(
         TURNING_CANDIDATES,
-        doc="connections tried, 0-based ('W[i,j]', 'WE[i,k]'); every triple is evolved",
+        doc="connections tried, in the code's 0-based form ('W[i,j]', 'WE[i,k]'; 'W[1,2]' is "
+        "the paper's W_23); every triple is evolved",
         source="docs/reproduce.md (the connections into the turning neuron)",
     )
     generations: int = setting(100, doc="DE generations per triple", low=0, high=100_000)
@@ -133,9 +135,7 @@ class LFSearchStage(Stage):
             "triples": rows,
             "chosen": rows[best]["connections"],
             "chosen_index": best,
-            "chosen_paper_notation": [
-                Connection.parse(c).paper_name for c in rows[best]["connections"]
-            ],
+            "chosen_paper_notation": [connection_name(c) for c in rows[best]["connections"]],
             "generations": s.generations,
             "episodes": s.variants * 7,
             "noise": {
@@ -146,4 +146,4 @@ class LFSearchStage(Stage):
         }
 
     def summary(self, data: dict[str, Any]) -> str:
-        return f"chose {', '.join(data['chosen'])}"
+        return f"chose {connection_names(data['chosen'])}"

@@ -22,7 +22,6 @@ from mbn.networks.multiplier import (
     training_pairs,
     validation_pairs,
 )
-from mbn.networks.programmable import DEFAULT_TAU_RATIO
 
 __all__ = ["MultiplierSettings", "MultiplierStage"]
 
@@ -100,10 +99,11 @@ class MultiplierStage(Stage):
             "multiplier_grid",
             {"grid": grid, "output": np.asarray(multiply(mul, grid, precision=precision))},
         )
+        # the time constant it is embedded at is the interpreter's ([interpreter] tau_ratio,
+        # recorded by stage im), not the multiplier's
         return {
             "source": source,
             "neurons": n,
-            "tau_ratio": DEFAULT_TAU_RATIO,
             "metrics": measured,
             "paper_claim": paper_claim,
             "paper_grid": relative_errors(mul, training_pairs(), precision=precision),

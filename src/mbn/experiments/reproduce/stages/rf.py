@@ -10,6 +10,7 @@ from mbn.config import Settings, setting
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import evolve_follower
+from mbn.notation import connection_names
 
 __all__ = ["RFSettings", "RFStage", "evolution_summary"]
 
@@ -43,7 +44,7 @@ def evolution_summary(
 ) -> str:
     """``best fitness F after G generations`` (``label``, F in ``fmt``; and the connections
     evolved, and the success on the validation maze)."""
-    extra = f" ({', '.join(data['connections'])})" if connections else ""
+    extra = f" ({connection_names(data['connections'])})" if connections else ""
     v = data.get("validation")
     check = f"; validation {v['successes']}/{v['trials']}" if v else ""
     return (
