@@ -1,0 +1,72 @@
+"""Keep a run's or a sweep's summary files as evidence: ``evidence/runs/NAME/``.
+
+The documentation cites runs for its figures; their folders (checkpoints, records, figures) stay
+out of the repository, but the files the figures are read from are kept under ``evidence/``, so
+that a reader can check every cited number (``evidence/README.md``):
+
+- a run folder: ``run.json``, ``results.json``, ``timings.json``, ``report.md``;
+- a sweep folder: ``sweep.json``, ``sweep.md`` and, for each ``seed-K``, the run files above.
+
+Usage::
+
+    python scripts/keep_evidence.py runs/pvd              # -> evidence/runs/pvd/
+    python scripts/keep_evidence.py runs/s0 --name reproduce-s0
+
+Existing files of that name are replaced; the total size kept is printed (keep it to a few MB:
+``tests/test_evidence.py`` checks the folder's size).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+TOP = Path(__file__).resolve().parent.parent
+EVIDENCE = TOP / "evidence" / "runs"
+RUN_FILES = ("run.json", "results.json", "timings.json", "report.md")
+SWEEP_FILES = ("sweep.json", "sweep.md")
+
+
+def summary_files(folder: Path) -> list[Path]:
+    """The summary files of a run or sweep folder, relative to it (none: not a run or sweep)."""
+    found = [Path(n) for n in (*RUN_FILES, *SWEEP_FILES) if (folder / n).is_file()]
+    for seed in sorted(folder.glob("seed-*")):
+        if seed.is_dir():
+            found += [seed.relative_to(folder) / n for n in RUN_FILES if (seed / n).is_file()]
+    return found
+
+
+def keep(folder: Path, name: str, evidence: Path = EVIDENCE) -> tuple[Path, int]:
+    """Copy the summary files of ``folder`` to ``evidence/NAME``; returns it and the bytes."""
+    files = summary_files(folder)
+    if not any(f.name in ("run.json", "sweep.json") for f in files):
+        raise SystemExit(f"keep_evidence: {folder}: neither a run (run.json) nor a sweep")
+    target = evidence / name
+    if target.exists():
+        shutil.rmtree(target)
+    size = 0
+    for rel in files:
+        (target / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(folder / rel, target / rel)
+        size += (folder / rel).stat().st_size
+    return target, size
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", type=Path, help="a run or sweep folder")
+    parser.add_argument("--name", help="the name under evidence/runs (default: the folder's)")
+    args = parser.parse_args(argv)
+    target, size = keep(args.folder, args.name or args.folder.name)
+    total = sum(p.stat().st_size for p in EVIDENCE.rglob("*") if p.is_file())
+    print(
+        f"{target.relative_to(TOP)}: {size / 1e3:.0f} kB kept; "
+        f"evidence/runs in all {total / 1e6:.2f} MB"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
