@@ -7,9 +7,10 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mbn.cli.main import main
-from mbn.controllers import CTRNNControllerSpec, save_controller
+from mbn.controllers import CTRNNControllerSpec, controller_to_dict, save_controller
 from mbn.networks.ctrnn import make_ctrnn
 
 TRIAL = ("--maze", "fig4", "--behavior", "right")
@@ -67,3 +68,76 @@ def test_a_1000_neuron_controller_is_checked_and_evaluated(tmp_path, capsys):
     assert status == 0, err
     result = json.loads(out)
     assert result["trials"] == 10 and result["seconds"] == 1.0
+
+
+# -------------------------------------------------------------------------------------------
+# 2. the robot step and the length of a trial
+# -------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("dt", [1e-300, 1e-7, 0.0009])
+def test_a_robot_step_below_a_millisecond_is_refused(tmp_path, capsys, dt):
+    """dt 1e-300 (an OverflowError in the rollout) and 1e-7 (past 120 s) are outside the
+    documented range [0.001, 1] s, refused when the file is read."""
+    data = controller_to_dict(straight_spec())
+    path = write_json(tmp_path / "c.json", {**data, "dt": dt})
+    result = run(capsys, "evaluate", "--controller", path, *TRIAL)
+    one_line_error(*result, f"c.json: dt must be a number in [0.001, 1] s, got {dt!r}")
+
+
+def test_the_shortest_documented_robot_step_runs(tmp_path, capsys):
+    """dt 0.001 s, the bottom of the documented range, runs (a trial of 1 s: 1000 steps)."""
+    path = tmp_path / "c.json"
+    save_controller(path, straight_spec(dt=0.001, substeps=1))
+    status, out, err = run(
+        capsys, "evaluate", "--controller", path, *TRIAL, "--seconds", "1", "--json"
+    )
+    assert status == 0, err
+    assert json.loads(out)["trials"] == 10
+
+
+def test_a_trial_of_more_robot_steps_than_the_limit_is_refused(tmp_path, capsys):
+    path = tmp_path / "c.json"
+    save_controller(path, straight_spec(dt=0.001, substeps=1))
+    result = run(capsys, "evaluate", "--controller", path, *TRIAL, "--seconds", "2000")
+    one_line_error(
+        *result,
+        "c.json: a trial of 2000 s at its dt 0.001 s is 2,000,000 robot steps, above the limit "
+        "of 1,000,000 a trial may take: raise its dt or lower --seconds",
+    )
+
+
+def test_a_trial_of_more_network_steps_than_the_limit_is_refused(tmp_path, capsys):
+    path = tmp_path / "c.json"
+    save_controller(path, straight_spec(substeps=10_000))
+    result = run(capsys, "evaluate", "--controller", path, *TRIAL, "--seconds", "2000")
+    one_line_error(
+        *result,
+        "c.json: a trial of 2000 s is 20,000 robot steps x 10,000 network steps = 200,000,000, "
+        "above the limit of 100,000,000 network steps a trial may take: lower its substeps or "
+        "--seconds",
+    )
+
+
+def test_the_step_limits_count_the_program_module_of_a_whole_mbn():
+    """The whole MBN takes its interpreter's substeps and its program module's each robot
+    step; its interpreter alone, only the interpreter's."""
+    from mbn.controllers import InterpreterControllerSpec, MBNControllerSpec, make_controller
+    from mbn.controllers.load import MAX_NETWORK_STEPS, check_trial_length
+    from mbn.errors import MbnInputError
+    from mbn.networks.multiplier import load_default
+    from mbn.networks.programmable import build_interpreter, differing_connections
+    from mbn.paper import published_lf, published_rf
+
+    rf, lf = published_rf(), published_lf()
+    interp = build_interpreter(rf, differing_connections(rf, lf), load_default())
+    im = InterpreterControllerSpec(interp, {"right": np.asarray(interp.program_of(rf)).tolist()})
+    pm = make_ctrnn(np.zeros((3, 3)), np.zeros((3, 2)), 0.5)
+    spec = MBNControllerSpec(im, pm, (0, 1, 2), pm_substeps=10**6)
+    # 1000 robot steps of 20 + 10^6 network steps: above the limit; the interpreter alone not
+    whole = make_controller(spec, check_stability=False)
+    with pytest.raises(MbnInputError, match=r"1,000 robot steps x 1,000,020 network steps"):
+        check_trial_length(whole, 100.0, "mbn.json")
+    alone = make_controller(spec, "right", check_stability=False)
+    check_trial_length(alone, 100.0, "mbn.json")
+    assert 1000 * 1_000_020 > MAX_NETWORK_STEPS >= 1000 * 20

@@ -281,7 +281,7 @@ CTRNN_CASES = [
     (_set("substeps", 0), r"substeps must be an integer in \[1, 10000\], got 0"),
     (_set("substeps", 10**9), r"substeps must be an integer in \[1, 10000\], got 1000000000"),
     (_set("dt", "fast"), r"dt: expected a finite number"),
-    (_set("dt", 1e6), r"dt must be a number in \(0, 1\] s, got 1000000.0"),
+    (_set("dt", 1e6), r"dt must be a number in \[0.001, 1\] s, got 1000000.0"),
     (_set("network", "W", [["1", 0, 0], [0, 0, 0], [0, 0, 0]]), r"network.W: expected numbers"),
     (_set("method", "leapfrog"), r"method must be euler or rk4"),
     (_set("behavior", "up"), r"behavior: unknown rule 'up'"),

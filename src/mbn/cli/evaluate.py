@@ -204,7 +204,7 @@ def _heading(theta: float) -> str:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import jax
 
-    from mbn.controllers import make_controller, read_controller_spec
+    from mbn.controllers import check_trial_length, make_controller, read_controller_spec
     from mbn.experiments.trials import TrialSpec, route_seconds, run_loaded_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_maze
@@ -238,6 +238,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     )
     spec.check_maze(maze)
     seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)
+    # a bounded number of robot and network steps (a tiny dt or many substeps: hours)
+    check_trial_length(loaded, seconds, str(args.controller), limit_name="--seconds")
     spec = dataclasses.replace(spec, seconds=seconds)
     # the seed becomes the noise's key here, once (the jitter draws from its own generator)
     key = jax.random.fold_in(jax.random.key(args.seed), NOISE_STREAM) if noise.enabled else None
