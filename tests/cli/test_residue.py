@@ -141,3 +141,48 @@ def test_the_step_limits_count_the_program_module_of_a_whole_mbn():
     alone = make_controller(spec, "right", check_stability=False)
     check_trial_length(alone, 100.0, "mbn.json")
     assert 1000 * 1_000_020 > MAX_NETWORK_STEPS >= 1000 * 20
+
+
+# -------------------------------------------------------------------------------------------
+# 3. pnn check --tau-ratio
+# -------------------------------------------------------------------------------------------
+
+
+def parser_error(capsys, *args) -> str:
+    """The one line a flag the parser refuses gives (exit status 2)."""
+    with pytest.raises(SystemExit) as exc:
+        main([str(a) for a in args])
+    assert exc.value.code == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert captured.out == "" and len(lines) == 1 and "Traceback" not in captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize("ratio", ["1e-300", "0.0005", "0", "20", "nan", "inf"])
+def test_pnn_check_refuses_a_tau_ratio_outside_its_range(capsys, ratio):
+    """1e-300 made a step of 5e-302 s and a 48-line TypeError: now one line naming the range."""
+    line = parser_error(capsys, "pnn", "check", "--tau-ratio", ratio)
+    assert line == (
+        f"mbn pnn check: error: argument --tau-ratio: must be in [0.001, 10], got {ratio}"
+    )
+
+
+def test_pnn_check_runs_at_the_smallest_tau_ratio(capsys):
+    """0.001, the bottom of the range, runs (a step of 5e-5 s)."""
+    status, out, err = run(
+        capsys,
+        "pnn",
+        "check",
+        "--tau-ratio",
+        "0.001",
+        "--sequences",
+        "2",
+        "--seconds",
+        "1",
+        "--json",
+    )
+    assert status == 0, err
+    result = json.loads(out)
+    assert result["num_sequences"] == 4
+    assert result["exact"]["max_abs_output_diff"] < 1e-9
