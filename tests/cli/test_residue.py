@@ -186,3 +186,92 @@ def test_pnn_check_runs_at_the_smallest_tau_ratio(capsys):
     result = json.loads(out)
     assert result["num_sequences"] == 4
     assert result["exact"]["max_abs_output_diff"] < 1e-9
+
+
+# -------------------------------------------------------------------------------------------
+# 4. inputs once accepted in silence
+# -------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def interpreter_files(tmp_path_factory):
+    """An interpreter file and an MBN file of the published RF/LF interpreter, each recording
+    the sha256 of its weights in its metadata (as the runs write them)."""
+    from mbn.controllers import InterpreterControllerSpec, MBNControllerSpec
+    from mbn.networks.multiplier import load_default
+    from mbn.networks.programmable import build_interpreter, differing_connections
+    from mbn.paper import published_lf, published_rf
+
+    folder = tmp_path_factory.mktemp("interpreters")
+    rf, lf = published_rf(), published_lf()
+    interp = build_interpreter(rf, differing_connections(rf, lf), load_default())
+    programs = {
+        "right": np.asarray(interp.program_of(rf)).tolist(),
+        "left": np.asarray(interp.program_of(lf)).tolist(),
+    }
+    meta = {"sha256": interp.digest()}
+    im = InterpreterControllerSpec(interp, programs, metadata=meta)
+    save_controller(folder / "im.json", im)
+    pm = make_ctrnn(np.zeros((3, 3)), np.zeros((3, 2)), 0.5)
+    save_controller(folder / "mbn.json", MBNControllerSpec(im, pm, (0, 1, 2), metadata=meta))
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("noise", "key"),
+    [
+        ("sonar=0.1,sonar=0.2", "sonar"),
+        ("sonar_std=0.1,wheel_std=0.1, sonar_std = 0.2", "sonar_std"),
+    ],
+)
+def test_a_noise_key_given_twice_is_refused(tmp_path, capsys, noise, key):
+    """The last value silently won: now one line naming the key."""
+    path = tmp_path / "c.json"
+    save_controller(path, straight_spec())
+    line = parser_error(capsys, "evaluate", "--controller", path, *TRIAL, "--noise", noise)
+    assert line == (
+        f"mbn evaluate: error: argument --noise: {key} is given twice: give each key once"
+    )
+
+
+@pytest.mark.parametrize("name", ["", "  "])
+def test_an_empty_program_name_is_refused(interpreter_files, capsys, name):
+    """``--program ''`` ran the program named by --behavior in silence."""
+    line = parser_error(
+        capsys, "evaluate", "--controller", interpreter_files / "im.json", *TRIAL, "--program", name
+    )
+    assert line == (
+        "mbn evaluate: error: argument --program: expected the name of a program stored in the "
+        f"controller file, got {name!r}"
+    )
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("0.5", "programs.left: expected numbers, got text '0.5' at index 1"),
+        (True, "programs.left: expected numbers, got true at index 1"),
+    ],
+)
+def test_program_values_written_as_text_are_refused(
+    interpreter_files, tmp_path, capsys, value, message
+):
+    """A program value written as ``"0.5"`` was read as 0.5 and run, whichever program
+    ``--program`` chose."""
+    for name in ("im", "mbn"):
+        data = json.loads((interpreter_files / f"{name}.json").read_text())
+        data["programs"]["left"][1] = value
+        path = write_json(tmp_path / f"{name}.json", data)
+        for program in ("right", "left"):
+            result = run(capsys, "evaluate", "--controller", path, *TRIAL, "--program", program)
+            one_line_error(*result, f"mbn: error: {path}: {message}")
+
+
+def test_program_values_given_to_program_are_refused_with_a_hint(interpreter_files, capsys):
+    path = interpreter_files / "im.json"
+    result = run(capsys, "evaluate", "--controller", path, *TRIAL, "--program", "0.5,0.5,0.5")
+    one_line_error(
+        *result,
+        f"mbn: error: {path}: no program '0.5,0.5,0.5' (the file has: right, left); a program is "
+        "chosen by its name, not written as values",
+    )

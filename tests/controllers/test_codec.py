@@ -634,3 +634,25 @@ def test_bad_tile_reading_ctrnn_files(tmp_path, tiles_spec, change, message):
     text = str(exc.value)
     assert text.startswith(f"{path}: ") and "\n" not in text
     assert re.search(message, text), text
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (["0.5", 0.5, 0.5], r"programs\.right: expected numbers, got text '0\.5' at index 0"),
+        ([0.5, True, 0.5], r"programs\.right: expected numbers, got true at index 1"),
+        ("0.5,0.5,0.5", r"programs\.right: expected a list of numbers, got text"),
+        (np.array(["0.5"] * 3), r"programs\.right: expected numbers, got an array of <U3"),
+    ],
+)
+def test_program_values_written_as_text_are_refused(interpreter_spec, value, message):
+    """NumPy reads ``"0.5"`` as 0.5: a program written as text was run in silence."""
+    with pytest.raises(MbnInputError, match=message):
+        InterpreterControllerSpec(interpreter_spec.interpreter, {"right": value})
+    with pytest.raises(MbnInputError, match=r"program_module\.readout: expected numbers, got"):
+        MBNControllerSpec(
+            interpreter_spec,
+            make_ctrnn(np.zeros((3, 3)), np.zeros((3, 2)), 0.5),
+            (0, 1),
+            readout=[["1", 0.0], [0.0, 1.0], [0.0, 1.0]],
+        )

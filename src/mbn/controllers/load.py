@@ -110,8 +110,22 @@ def _choose_program(
             return next(iter(programs))
         raise MbnInputError(f"{where}: choose a program of this {kind} controller ({names})")
     if program not in programs:
-        raise MbnInputError(f"{where}: no program {program!r} (the file has: {names})")
+        values = _looks_like_values(program)
+        raise MbnInputError(
+            f"{where}: no program {program!r} (the file has: {names})"
+            + ("; a program is chosen by its name, not written as values" if values else "")
+        )
     return program
+
+
+def _looks_like_values(text: str) -> bool:
+    """Whether a program name reads as numbers (``"0.5,0.2,0.9"``): values, not a name."""
+    parts = text.replace(",", " ").split()
+    try:
+        [float(p) for p in parts]
+    except ValueError:
+        return False
+    return bool(parts)
 
 
 def _ctrnn_runner(

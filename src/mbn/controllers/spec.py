@@ -277,6 +277,26 @@ def _check_interpreter(interp: Interpreter) -> None:
         )
 
 
+def _refuse_text(values: Any, where: str) -> None:
+    """Refuse program values written as text (``"0.5"``, which NumPy would read as 0.5) or as
+    true/false: a program is numbers."""
+    if isinstance(values, (str, bytes)):
+        raise MbnInputError(f"{where}: expected a list of numbers, got text")
+    if isinstance(values, np.ndarray):
+        if values.dtype.kind in "USb":
+            raise MbnInputError(f"{where}: expected numbers, got an array of {values.dtype}")
+        if values.dtype.kind != "O":
+            return
+        values = values.tolist()
+    if not isinstance(values, (list, tuple)):
+        return  # a JAX array, ...: numbers
+    for i, v in enumerate(values):
+        if isinstance(v, (str, bytes)):
+            raise MbnInputError(f"{where}: expected numbers, got text {repr(v)[:24]} at index {i}")
+        if isinstance(v, (bool, np.bool_)):
+            raise MbnInputError(f"{where}: expected numbers, got {str(v).lower()} at index {i}")
+
+
 def _normalise_programs(
     programs: Mapping[str, Sequence[float]], k: int
 ) -> dict[str, tuple[float, ...]]:
@@ -286,6 +306,7 @@ def _normalise_programs(
     for name, values in programs.items():
         if not isinstance(name, str) or not name:
             raise MbnInputError(f"programs: a program name must be a non-empty string: {name!r}")
+        _refuse_text(values, f"programs.{name}")
         try:
             arr = np.asarray(values, dtype=np.float64)
         except (TypeError, ValueError):
@@ -445,6 +466,9 @@ class MBNControllerSpec:
             )
         k = len(self.interpreter_spec.interpreter.connections)
         if self.readout is not None:
+            rows = self.readout if isinstance(self.readout, (list, tuple)) else [self.readout]
+            for row in rows:
+                _refuse_text(row, "program_module.readout")
             try:
                 R = np.asarray(self.readout, dtype=np.float64)
             except (TypeError, ValueError):
