@@ -275,3 +275,37 @@ def test_program_values_given_to_program_are_refused_with_a_hint(interpreter_fil
         f"mbn: error: {path}: no program '0.5,0.5,0.5' (the file has: right, left); a program is "
         "chosen by its name, not written as values",
     )
+
+
+def test_an_interpreter_whose_weights_changed_since_it_was_written_is_refused(
+    interpreter_files, tmp_path, capsys
+):
+    """Files whose metadata records their interpreter's sha256 run while it holds, and are
+    refused in one line naming the file once a weight is changed."""
+    from mbn.io import read_json
+
+    digest = read_json(interpreter_files / "im.json")["metadata"]["sha256"]
+    for name in ("im", "mbn"):
+        status, out, err = run(
+            capsys,
+            "evaluate",
+            "--controller",
+            interpreter_files / f"{name}.json",
+            *TRIAL,
+            "--program",
+            "left",
+            "--seconds",
+            "1",
+            "--json",
+        )
+        assert status == 0, err
+        assert json.loads(out)["trials"] == 10
+        data = json.loads((interpreter_files / f"{name}.json").read_text())
+        data["interpreter"]["net"]["W"][1][2] += 0.5
+        path = write_json(tmp_path / f"{name}.json", data)
+        status, out, err = run(capsys, "evaluate", "--controller", path, *TRIAL)
+        one_line_error(status, out, err, f"mbn: error: {path}: the interpreter's sha256 is ")
+        assert err.strip().endswith(
+            f"…, not the {digest[:12]}… its metadata records: its weights were changed since the "
+            "file was written"
+        ), err

@@ -656,3 +656,45 @@ def test_program_values_written_as_text_are_refused(interpreter_spec, value, mes
             (0, 1),
             readout=[["1", 0.0], [0.0, 1.0], [0.0, 1.0]],
         )
+
+
+def test_a_recorded_sha256_is_checked_on_reading(tmp_path, interpreter_spec, mbn_spec):
+    """An interpreter or MBN file whose metadata records the sha256 of its interpreter's weights
+    (as the runs write them) reads back in float32 and float64; with a weight changed since, or
+    a recorded value that is no sha256, it is refused in one line naming the file."""
+    import dataclasses
+
+    digest = interpreter_spec.interpreter.digest()
+    for name, spec in (("im", interpreter_spec), ("mbn", mbn_spec)):
+        path = tmp_path / f"{name}.json"
+        save_controller(path, dataclasses.replace(spec, metadata={"sha256": digest}))
+        for x64 in (False, True):
+            with jax.enable_x64(x64):
+                assert load_controller(path, "right").spec.metadata["sha256"] == digest
+        data = json.loads(path.read_text())
+        data["interpreter"]["net"]["W"][0][1] += 1e-6
+        changed = tmp_path / f"{name}_changed.json"
+        changed.write_text(json.dumps(data))
+        message = (
+            re.escape(f"{changed}: the interpreter's sha256 is ")
+            + "[0-9a-f]{12}"
+            + re.escape(
+                f"…, not the {digest[:12]}… its metadata records: its weights were changed since "
+                "the file was written"
+            )
+            + "$"
+        )
+        with pytest.raises(MbnInputError, match=message):
+            load_controller(changed, "right")
+        data = json.loads(path.read_text())
+        data["metadata"]["sha256"] = "abc"
+        changed.write_text(json.dumps(data))
+        with pytest.raises(MbnInputError, match=r"metadata\.sha256: expected the sha256 of"):
+            load_controller(changed, "right")
+    # a spec recording another interpreter's sha256 is not written
+    with pytest.raises(MbnInputError, match="weights were changed"):
+        save_controller(
+            tmp_path / "other.json",
+            dataclasses.replace(interpreter_spec, metadata={"sha256": "0" * 64}),
+        )
+    assert not (tmp_path / "other.json").exists()
