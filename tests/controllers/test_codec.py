@@ -281,7 +281,7 @@ CTRNN_CASES = [
     (_set("substeps", 0), r"substeps must be an integer in \[1, 10000\], got 0"),
     (_set("substeps", 10**9), r"substeps must be an integer in \[1, 10000\], got 1000000000"),
     (_set("dt", "fast"), r"dt: expected a finite number"),
-    (_set("dt", 1e6), r"dt must be a number in \(0, 1\] s, got 1000000.0"),
+    (_set("dt", 1e6), r"dt must be a number in \[0.001, 1\] s, got 1000000.0"),
     (_set("network", "W", [["1", 0, 0], [0, 0, 0], [0, 0, 0]]), r"network.W: expected numbers"),
     (_set("method", "leapfrog"), r"method must be euler or rk4"),
     (_set("behavior", "up"), r"behavior: unknown rule 'up'"),
@@ -634,3 +634,67 @@ def test_bad_tile_reading_ctrnn_files(tmp_path, tiles_spec, change, message):
     text = str(exc.value)
     assert text.startswith(f"{path}: ") and "\n" not in text
     assert re.search(message, text), text
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (["0.5", 0.5, 0.5], r"programs\.right: expected numbers, got text '0\.5' at index 0"),
+        ([0.5, True, 0.5], r"programs\.right: expected numbers, got true at index 1"),
+        ("0.5,0.5,0.5", r"programs\.right: expected a list of numbers, got text"),
+        (np.array(["0.5"] * 3), r"programs\.right: expected numbers, got an array of <U3"),
+    ],
+)
+def test_program_values_written_as_text_are_refused(interpreter_spec, value, message):
+    """NumPy reads ``"0.5"`` as 0.5: a program written as text was run in silence."""
+    with pytest.raises(MbnInputError, match=message):
+        InterpreterControllerSpec(interpreter_spec.interpreter, {"right": value})
+    with pytest.raises(MbnInputError, match=r"program_module\.readout: expected numbers, got"):
+        MBNControllerSpec(
+            interpreter_spec,
+            make_ctrnn(np.zeros((3, 3)), np.zeros((3, 2)), 0.5),
+            (0, 1),
+            readout=[["1", 0.0], [0.0, 1.0], [0.0, 1.0]],
+        )
+
+
+def test_a_recorded_sha256_is_checked_on_reading(tmp_path, interpreter_spec, mbn_spec):
+    """An interpreter or MBN file whose metadata records the sha256 of its interpreter's weights
+    (as the runs write them) reads back in float32 and float64; with a weight changed since, or
+    a recorded value that is no sha256, it is refused in one line naming the file."""
+    import dataclasses
+
+    digest = interpreter_spec.interpreter.digest()
+    for name, spec in (("im", interpreter_spec), ("mbn", mbn_spec)):
+        path = tmp_path / f"{name}.json"
+        save_controller(path, dataclasses.replace(spec, metadata={"sha256": digest}))
+        for x64 in (False, True):
+            with jax.enable_x64(x64):
+                assert load_controller(path, "right").spec.metadata["sha256"] == digest
+        data = json.loads(path.read_text())
+        data["interpreter"]["net"]["W"][0][1] += 1e-6
+        changed = tmp_path / f"{name}_changed.json"
+        changed.write_text(json.dumps(data))
+        message = (
+            re.escape(f"{changed}: the interpreter's sha256 is ")
+            + "[0-9a-f]{12}"
+            + re.escape(
+                f"…, not the {digest[:12]}… its metadata records: its weights were changed since "
+                "the file was written"
+            )
+            + "$"
+        )
+        with pytest.raises(MbnInputError, match=message):
+            load_controller(changed, "right")
+        data = json.loads(path.read_text())
+        data["metadata"]["sha256"] = "abc"
+        changed.write_text(json.dumps(data))
+        with pytest.raises(MbnInputError, match=r"metadata\.sha256: expected the sha256 of"):
+            load_controller(changed, "right")
+    # a spec recording another interpreter's sha256 is not written
+    with pytest.raises(MbnInputError, match="weights were changed"):
+        save_controller(
+            tmp_path / "other.json",
+            dataclasses.replace(interpreter_spec, metadata={"sha256": "0" * 64}),
+        )
+    assert not (tmp_path / "other.json").exists()

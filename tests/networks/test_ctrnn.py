@@ -314,3 +314,71 @@ def test_unknown_method_is_rejected():
     net = random_net()
     with pytest.raises(MbnInputError, match="method"):
         simulate(net, jnp.zeros(4), jnp.zeros((3, 2)), 0.1, method="midpoint")
+
+
+def _unbounded_max_stable_dt(net, method, max_corners=1024):
+    """The check as it was before its cost was bounded: every corner's Jacobian in one stack,
+    every eigenvalue's RK4 ray in one array."""
+    import itertools
+
+    W = np.asarray(net.W, dtype=np.float64)
+    n = W.shape[0]
+    tau = np.asarray(net.tau, dtype=np.float64)
+    top = np.asarray(net.gain, dtype=np.float64) / 4.0
+    if 2**n <= max_corners:
+        corners = np.array(list(itertools.product((0.0, 1.0), repeat=n)))
+    else:
+        rng = np.random.default_rng(0)
+        corners = np.concatenate(
+            [np.zeros((1, n)), np.ones((1, n)), rng.integers(0, 2, (max_corners, n))]
+        ).astype(np.float64)
+    slopes = corners * top
+    jac = (-np.eye(n)[None] + W[None] * slopes[:, None, :]) / tau[None, :, None]
+    lam = np.linalg.eigvals(jac).ravel()
+    lam = lam[lam.real < 0]
+    if method == "euler":
+        return float(np.min(-2.0 * lam.real / np.abs(lam) ** 2, initial=np.inf))
+    radii = np.linspace(0.0, 2.9, 2901)[1:]
+    z = radii[None, :] * (lam / np.abs(lam))[:, None]
+    unstable = np.abs(1.0 + z + z**2 / 2.0 + z**3 / 6.0 + z**4 / 24.0) > 1.0
+    first = np.where(unstable.any(axis=1), unstable.argmax(axis=1), radii.size)
+    return float(np.min(np.concatenate([[0.0], radii])[first] / np.abs(lam), initial=np.inf))
+
+
+@pytest.mark.parametrize(
+    ("n", "method"),
+    [(n, "euler") for n in (1, 3, 10, 11, 40, 64)] + [(n, "rk4") for n in (3, 10, 11)],
+)
+def test_max_stable_dt_is_the_unbounded_checks_up_to_64_neurons(n, method):
+    """The bounded check gives exactly the verdicts of the unbounded one on the networks it was
+    made for (every corner up to 10 neurons, the same 1026 corners up to 64)."""
+    rng = np.random.default_rng(n)
+    net = make_ctrnn(
+        rng.normal(0.0, 30.0, (n, n)),
+        np.zeros((n, 3)),
+        rng.uniform(0.2, 1.0, n),
+        gain=rng.uniform(0.5, 2.0, n),
+    )
+    assert max_stable_dt(net, method) == _unbounded_max_stable_dt(net, method)  # bit for bit
+
+
+def test_max_stable_dt_of_1000_neurons_holds_a_bounded_memory():
+    """A 1000-neuron network is linearised at its two extreme corners, a few Jacobians at a
+    time: under 256 MiB (the unbounded check stacked 1026 of them: 8 GiB), and its limit is that
+    of those corners. W is triangular with diagonal d, so the eigenvalues are known: at rest
+    -1/tau (Euler: h <= 2 tau = 1 s), at the steepest slopes (-1 + d/4)/tau, the most negative
+    (-1 - 40/4)/0.5 = -22 (h <= 2/22 s)."""
+    import tracemalloc
+
+    n = 1000
+    rng = np.random.default_rng(0)
+    W = np.triu(rng.normal(0.0, 1.0, (n, n)), 1) + np.diag(np.linspace(-40.0, 2.0, n))
+    net = make_ctrnn(W, np.zeros((n, 3)), 0.5)
+    tracemalloc.start()
+    try:
+        limit = max_stable_dt(net, "euler")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 256 * 2**20, peak
+    np.testing.assert_allclose(limit, 2.0 / 22.0, rtol=1e-9)

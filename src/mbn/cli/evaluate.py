@@ -88,6 +88,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument(
         "--program",
+        type=_program_name,
         default=None,
         metavar="NAME",
         help="program of an interpreter file (default: the one named by --behavior, e.g. right, "
@@ -118,6 +119,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument(
         "--noise",
+        type=_noise,
         metavar="KEY=VALUE,...|FILE.toml",
         default=None,
         help="run under noise (default none): e.g. sonar_std=0.02,sonar_dropout=0.01,"
@@ -133,6 +135,31 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     ev.add_argument("--json", action="store_true", help="print one JSON object")
     ev.set_defaults(func=_cmd_evaluate, precision=ROBOT)
+
+
+def _noise(text: str) -> str:
+    """``--noise``: kept as written for :func:`mbn.world.sensors.parse_noise`, which reads it;
+    a key given twice is refused here (the last would silently win)."""
+    if text.endswith(".toml"):  # a TOML table holds each key once (its parser refuses a repeat)
+        return text
+    seen: set[str] = set()
+    for item in text.split(","):
+        key, sep, _ = item.partition("=")
+        key = key.strip()
+        if sep and key in seen:
+            shown = key if len(key) <= 40 else key[:40] + "..."
+            raise argparse.ArgumentTypeError(f"{shown} is given twice: give each key once")
+        seen.add(key)
+    return text
+
+
+def _program_name(text: str) -> str:
+    """``--program``: the name of a program stored in the file (not empty)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            f"expected the name of a program stored in the controller file, got {text!r}"
+        )
+    return text
 
 
 def _initial(text: str) -> str:
@@ -204,7 +231,7 @@ def _heading(theta: float) -> str:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import jax
 
-    from mbn.controllers import make_controller, read_controller_spec
+    from mbn.controllers import check_trial_length, make_controller, read_controller_spec
     from mbn.experiments.trials import TrialSpec, route_seconds, run_loaded_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_maze
@@ -238,6 +265,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     )
     spec.check_maze(maze)
     seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)
+    # a bounded number of robot and network steps (a tiny dt or many substeps: hours)
+    check_trial_length(loaded, seconds, str(args.controller), limit_name="--seconds")
     spec = dataclasses.replace(spec, seconds=seconds)
     # the seed becomes the noise's key here, once (the jitter draws from its own generator)
     key = jax.random.fold_in(jax.random.key(args.seed), NOISE_STREAM) if noise.enabled else None

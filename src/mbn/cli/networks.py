@@ -161,7 +161,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     check.add_argument("--seed", type=seed_type, default=0, help="random seed (default 0)")
     check.add_argument(
         "--tau-ratio",
-        type=number_in(10),
+        type=_tau_ratio,
         default=0.1,
         help="multiplier time constant / network time constant (default 0.1, the paper's); the "
         "step is a tenth of the multipliers' time constant",
@@ -178,6 +178,24 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="multiplier JSON (default: the shipped 3-neuron multiplier)",
     )
     check.set_defaults(func=_cmd_pnn_check, precision=NETWORKS)
+
+
+#: ``pnn check --tau-ratio``'s range: the step is a tenth of the multipliers' time constant, so
+#: 0.001 makes it 5e-5 s, 100 times the paper's (400 000 steps a 20 s sequence); below, the steps
+#: of a sequence grow without bound (1e-300: more than an array can hold).
+TAU_RATIO_RANGE = (1e-3, 10.0)
+
+
+def _tau_ratio(text: str) -> float:
+    """``--tau-ratio``: a number in :data:`TAU_RATIO_RANGE`."""
+    low, high = TAU_RATIO_RANGE
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not low <= value <= high:  # also NaN
+        raise argparse.ArgumentTypeError(f"must be in [{low:g}, {high:g}], got {text}")
+    return value
 
 
 @contextlib.contextmanager

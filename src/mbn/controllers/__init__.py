@@ -14,6 +14,7 @@ from mbn.controllers.codec import (
 from mbn.controllers.load import (
     LoadedController,
     check_step,
+    check_trial_length,
     load_controller,
     make_controller,
     step_beyond_limit,
@@ -42,6 +43,7 @@ __all__ = [
     "MBNControllerSpec",
     "PMInitial",
     "check_step",
+    "check_trial_length",
     "controller_from_dict",
     "controller_to_dict",
     "load_controller",

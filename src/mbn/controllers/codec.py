@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -43,7 +44,7 @@ from mbn.io import (
     write_json_atomic,
 )
 from mbn.networks.ctrnn import CTRNN, firing_rate
-from mbn.networks.programmable import Connection, Interpreter
+from mbn.networks.programmable import Connection, Interpreter, weights_digest
 from mbn.provenance import provenance
 from mbn.world.engine import CameraConfig
 from mbn.world.sensors import SensorConfig
@@ -411,6 +412,7 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
             **settings,
         ),
     )
+    _check_recorded_digest(data, im_spec.interpreter, where)
     if kind == KIND_INTERPRETER:
         return im_spec
     here = f"{where}: program_module"
@@ -455,6 +457,42 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
         return spec
     initial = _initial_from_dict(pm_data["initial"], f"{here}.initial", pm, neurons_t)
     return _build(where, lambda: dataclasses.replace(spec, initial=initial))
+
+
+_SHA256 = re.compile(r"[0-9a-fA-F]{64}")
+
+
+def _check_recorded_digest(data: dict[str, Any], interp: Interpreter, where: str) -> None:
+    """Refuse an interpreter or MBN file whose ``metadata.sha256`` (the digest of the
+    interpreter's weights a run records, :meth:`Interpreter.digest`) is not that of the weights
+    it holds: they were changed since it was written. The digest is taken of the file's values
+    (float64), as the writer took it of the same values, in whatever precision it is read."""
+    metadata = data.get("metadata")
+    if not isinstance(metadata, dict) or "sha256" not in metadata:
+        return
+    recorded = metadata["sha256"]
+    if not isinstance(recorded, str) or not _SHA256.fullmatch(recorded):
+        raise MbnInputError(
+            f"{where}: metadata.sha256: expected the sha256 of the interpreter's weights (64 "
+            f"hexadecimal digits), got {repr(recorded)[:80]}"
+        )
+    net = data["interpreter"]["net"]
+    n = interp.net.num_neurons
+
+    def vector(name: str, default: float) -> np.ndarray:
+        return np.broadcast_to(np.asarray(net.get(name, default), np.float64), (n,))
+
+    got = weights_digest(
+        [net["W"], net["WE"], vector("tau", 1.0), vector("bias", 0.0), vector("gain", 1.0)],
+        data["interpreter"]["lower"],
+        data["interpreter"]["upper"],
+        interp.connections,
+    )
+    if got != recorded.lower():
+        raise MbnInputError(
+            f"{where}: the interpreter's sha256 is {got[:12]}…, not the {recorded[:12]}… its "
+            "metadata records: its weights were changed since the file was written"
+        )
 
 
 def _build(where: str, make: Callable[[], Any]) -> Any:

@@ -31,15 +31,18 @@ from mbn.controllers.spec import (
     MBNControllerSpec,
 )
 from mbn.errors import MbnInputError
-from mbn.networks.ctrnn import Method, check_dt, max_stable_dt
+from mbn.networks.ctrnn import Method, max_stable_dt
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import Shared
 from mbn.world.sensors import NoiseConfig, SensorConfig
 
 __all__ = [
+    "MAX_NETWORK_STEPS",
+    "MAX_TRIAL_STEPS",
     "Controller",
     "LoadedController",
     "check_step",
+    "check_trial_length",
     "load_controller",
     "make_controller",
     "step_beyond_limit",
@@ -107,8 +110,22 @@ def _choose_program(
             return next(iter(programs))
         raise MbnInputError(f"{where}: choose a program of this {kind} controller ({names})")
     if program not in programs:
-        raise MbnInputError(f"{where}: no program {program!r} (the file has: {names})")
+        values = _looks_like_values(program)
+        raise MbnInputError(
+            f"{where}: no program {program!r} (the file has: {names})"
+            + ("; a program is chosen by its name, not written as values" if values else "")
+        )
     return program
+
+
+def _looks_like_values(text: str) -> bool:
+    """Whether a program name reads as numbers (``"0.5,0.2,0.9"``): values, not a name."""
+    parts = text.replace(",", " ").split()
+    try:
+        [float(p) for p in parts]
+    except ValueError:
+        return False
+    return bool(parts)
 
 
 def _ctrnn_runner(
@@ -204,17 +221,16 @@ def step_beyond_limit(spec: ControllerSpec, where: str = "controller") -> str | 
         return None
     method: Method = "rk4" if spec.method == "rk4" else "euler"
     h = spec.dt / spec.substeps
-    try:
-        check_dt(spec.net, h, method, on_unstable="raise")
-    except MbnInputError:
-        limit = max_stable_dt(spec.net, method)
-        need = math.ceil(spec.dt / limit)
-        return (
-            f"{where}: its network's step {h * 1000:.3g} ms (dt {spec.dt:g} s / {spec.substeps} "
-            f"substeps) is above the stability limit {limit * 1000:.3g} ms of its integrator; "
-            f"it needs substeps >= {need}"
-        )
-    return None
+    limit = max_stable_dt(spec.net, method)  # once: for a large network it is the costly part
+    # the verdict of check_dt(on_unstable="raise"): a step above a finite limit
+    if not (math.isfinite(limit) and h / limit > 1.0):
+        return None
+    need = math.ceil(spec.dt / limit)
+    return (
+        f"{where}: its network's step {h * 1000:.3g} ms (dt {spec.dt:g} s / {spec.substeps} "
+        f"substeps) is above the stability limit {limit * 1000:.3g} ms of its integrator; "
+        f"it needs substeps >= {need}"
+    )
 
 
 def check_step(spec: ControllerSpec, where: str = "controller") -> None:
@@ -223,6 +239,56 @@ def check_step(spec: ControllerSpec, where: str = "controller") -> None:
     message = step_beyond_limit(spec, where)
     if message is not None:
         raise MbnInputError(message)
+
+
+#: The most robot steps (``seconds / dt``) one trial may take: a trial of the paper's protocol
+#: takes 900 (90 s at Stage's 0.1 s), the longest ``mbn evaluate --seconds`` allows 360 000; a
+#: million robot steps take about a minute on a CPU.
+MAX_TRIAL_STEPS = 1_000_000
+#: The most network steps one trial may take: its robot steps times the network steps of each
+#: (the controller's ``substeps``, plus the program module's for the whole MBN). The paper's
+#: protocol takes 18 000 (20 substeps), the interpreter at 80 substeps 72 000.
+MAX_NETWORK_STEPS = 100_000_000
+
+
+def network_steps_per_robot_step(loaded: LoadedController) -> int:
+    """The network steps a controller takes each robot step: its ``substeps``, plus the program
+    module's for the whole MBN."""
+    spec = loaded.spec
+    if isinstance(spec, MBNControllerSpec):
+        whole = loaded.program is None
+        return spec.interpreter_spec.substeps + (spec.pm_substeps if whole else 0)
+    return spec.substeps
+
+
+def check_trial_length(
+    loaded: LoadedController,
+    seconds: float,
+    where: str = "controller",
+    *,
+    limit_name: str = "the time limit",
+) -> None:
+    """Refuse a trial of ``seconds`` that would take more than :data:`MAX_TRIAL_STEPS` robot
+    steps at the controller's ``dt``, or more than :data:`MAX_NETWORK_STEPS` network steps
+    (:func:`network_steps_per_robot_step`), in one line naming the limit and what to change
+    (``limit_name``: what sets ``seconds``, e.g. ``--seconds``). The count is the rollout's:
+    ``max(1, round(seconds / dt))`` robot steps."""
+    if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds > 0):
+        raise MbnInputError(f"{where}: the time limit must be a finite number > 0, got {seconds!r}")
+    steps = max(1, round(seconds / loaded.dt))
+    if steps > MAX_TRIAL_STEPS:
+        raise MbnInputError(
+            f"{where}: a trial of {seconds:g} s at its dt {loaded.dt:g} s is {steps:,} robot "
+            f"steps, above the limit of {MAX_TRIAL_STEPS:,} a trial may take: raise its dt or "
+            f"lower {limit_name}"
+        )
+    per_step = network_steps_per_robot_step(loaded)
+    if steps * per_step > MAX_NETWORK_STEPS:
+        raise MbnInputError(
+            f"{where}: a trial of {seconds:g} s is {steps:,} robot steps x {per_step:,} network "
+            f"steps = {steps * per_step:,}, above the limit of {MAX_NETWORK_STEPS:,} network steps "
+            f"a trial may take: lower its substeps or {limit_name}"
+        )
 
 
 def make_controller(

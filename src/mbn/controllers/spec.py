@@ -41,6 +41,7 @@ __all__ = [
     "KIND_MBN",
     "MAX_DT",
     "MAX_SUBSTEPS",
+    "MIN_DT",
     "MULTIPLIER_KIND",
     "NUM_INPUTS",
     "PM_INPUTS",
@@ -74,13 +75,18 @@ PM_INPUTS = 2
 #: The longest robot step a controller may ask for (s): Stage's default is 0.1 s; beyond a second
 #: the sonars would sample a corridor too coarsely to follow it.
 MAX_DT = 1.0
+#: The shortest robot step a controller may ask for (s): a trial of the paper's protocol (90 s in
+#: fig4) is then 90 000 robot steps, well within :data:`mbn.controllers.load.MAX_TRIAL_STEPS`;
+#: shorter steps make a trial of a few minutes take hours (1e-7 s: 9e8 steps), or more steps
+#: than a rollout can count (1e-300 s).
+MIN_DT = 1e-3
 #: The most network steps per robot step (each costs a full integration step of the network).
 MAX_SUBSTEPS = 10_000
 
 
 def _check_run_settings(dt: float, substeps: int, method: str) -> None:
-    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (0 < dt <= MAX_DT):
-        raise MbnInputError(f"dt must be a number in (0, {MAX_DT:g}] s, got {dt!r}")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (MIN_DT <= dt <= MAX_DT):
+        raise MbnInputError(f"dt must be a number in [{MIN_DT:g}, {MAX_DT:g}] s, got {dt!r}")
     if (
         isinstance(substeps, bool)
         or not isinstance(substeps, int)
@@ -134,7 +140,7 @@ class CTRNNControllerSpec:
         net: the network (unbatched, 3 inputs; 3 + ``len(tile_rules)`` with tile rules).
         sensors: the sonars cast and their normalisation (must include the paper's 10).
         motor: which neurons set ``v`` and ``w``.
-        dt: robot step (s).
+        dt: robot step (s), in [:data:`MIN_DT`, :data:`MAX_DT`].
         substeps: network steps per robot step.
         method: "euler" or "rk4".
         behavior: what it was made for, "right" or "left" (or None).
@@ -271,6 +277,26 @@ def _check_interpreter(interp: Interpreter) -> None:
         )
 
 
+def _refuse_text(values: Any, where: str) -> None:
+    """Refuse program values written as text (``"0.5"``, which NumPy would read as 0.5) or as
+    true/false: a program is numbers."""
+    if isinstance(values, (str, bytes)):
+        raise MbnInputError(f"{where}: expected a list of numbers, got text")
+    if isinstance(values, np.ndarray):
+        if values.dtype.kind in "USb":
+            raise MbnInputError(f"{where}: expected numbers, got an array of {values.dtype}")
+        if values.dtype.kind != "O":
+            return
+        values = values.tolist()
+    if not isinstance(values, (list, tuple)):
+        return  # a JAX array, ...: numbers
+    for i, v in enumerate(values):
+        if isinstance(v, (str, bytes)):
+            raise MbnInputError(f"{where}: expected numbers, got text {repr(v)[:24]} at index {i}")
+        if isinstance(v, (bool, np.bool_)):
+            raise MbnInputError(f"{where}: expected numbers, got {str(v).lower()} at index {i}")
+
+
 def _normalise_programs(
     programs: Mapping[str, Sequence[float]], k: int
 ) -> dict[str, tuple[float, ...]]:
@@ -280,6 +306,7 @@ def _normalise_programs(
     for name, values in programs.items():
         if not isinstance(name, str) or not name:
             raise MbnInputError(f"programs: a program name must be a non-empty string: {name!r}")
+        _refuse_text(values, f"programs.{name}")
         try:
             arr = np.asarray(values, dtype=np.float64)
         except (TypeError, ValueError):
@@ -439,6 +466,9 @@ class MBNControllerSpec:
             )
         k = len(self.interpreter_spec.interpreter.connections)
         if self.readout is not None:
+            rows = self.readout if isinstance(self.readout, (list, tuple)) else [self.readout]
+            for row in rows:
+                _refuse_text(row, "program_module.readout")
             try:
                 R = np.asarray(self.readout, dtype=np.float64)
             except (TypeError, ValueError):

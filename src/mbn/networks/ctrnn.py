@@ -474,12 +474,31 @@ def _ray_limits(method: str, lam: np.ndarray) -> np.ndarray:
         return out
     # RK4: the stability region along the ray from 0 in direction lam ends before |z| = 2.9.
     radii = np.linspace(0.0, 2.9, 2901)[1:]
-    direction = lam / np.abs(lam)
-    unstable = np.abs(_stability_polynomial(method, radii[None, :] * direction[:, None])) > 1.0
-    first = np.where(unstable.any(axis=1), unstable.argmax(axis=1), radii.size)
-    r_max = np.concatenate([[0.0], radii])[first]
+    r_max = np.empty(lam.shape)
+    for start in range(0, lam.size, _RAY_CHUNK):  # (chunk, 2900) at a time: bounded memory
+        part = lam[start : start + _RAY_CHUNK]
+        direction = part / np.abs(part)
+        unstable = np.abs(_stability_polynomial(method, radii[None, :] * direction[:, None])) > 1.0
+        first = np.where(unstable.any(axis=1), unstable.argmax(axis=1), radii.size)
+        r_max[start : start + _RAY_CHUNK] = np.concatenate([[0.0], radii])[first]
     out[decaying] = r_max / np.abs(lam)
     return out
+
+
+#: Eigenvalues whose RK4 rays :func:`_ray_limits` walks at once (a 2900-point ray each: 45 MiB
+#: of complex numbers).
+_RAY_CHUNK = 1024
+
+
+#: The eigenvalue work :func:`max_stable_dt` may do, in units of ``n**3`` (one ``n x n``
+#: eigenproblem costs about that): all 1026 corners (1024 random + the two extremes) up to 64
+#: neurons, as before the bound; fewer random corners beyond (the two extremes always), so that
+#: a 1000-neuron network costs two eigenproblems, not 1026 (seconds, not an hour).
+CORNER_WORK = 1026 * 64**3
+#: The most Jacobian entries :func:`max_stable_dt` holds at once (32 MiB of float64): the
+#: corners are linearised a few at a time, never as one ``(corners, n, n)`` stack (8 GiB for
+#: 1000 neurons).
+_CHUNK_ENTRIES = 2**22
 
 
 def max_stable_dt(net: CTRNN, method: Method = "rk4", *, max_corners: int = 1024) -> float:
@@ -493,6 +512,10 @@ def max_stable_dt(net: CTRNN, method: Method = "rk4", *, max_corners: int = 1024
     dynamics and do not limit the step. It is a heuristic (the worst case need not lie at a
     corner) that matches observed blow-ups well: a self-weight of -266 gives
     ``h/tau ~ 0.03`` for Euler. Only unbatched networks are accepted.
+
+    Its cost is bounded: the corners are linearised a few at a time (``_CHUNK_ENTRIES``), and
+    beyond 64 neurons fewer random corners are drawn, within ``CORNER_WORK`` (the two extremes
+    always); up to 64 neurons the corners and the result are those of the unbounded check.
     """
     integrator(method)
     W = np.asarray(net.W, dtype=np.float64)
@@ -505,13 +528,19 @@ def max_stable_dt(net: CTRNN, method: Method = "rk4", *, max_corners: int = 1024
         corners = np.array(list(itertools.product((0.0, 1.0), repeat=n)))
     else:
         rng = np.random.default_rng(0)  # fixed: the check must be deterministic
+        draws = min(max_corners, max(0, CORNER_WORK // max(n, 1) ** 3 - 2))
         corners = np.concatenate(
-            [np.zeros((1, n)), np.ones((1, n)), rng.integers(0, 2, (max_corners, n))]
+            [np.zeros((1, n)), np.ones((1, n)), rng.integers(0, 2, (draws, n))]
         ).astype(np.float64)
-    slopes = corners * top  # (C, n)
-    jac = (-np.eye(n)[None] + W[None] * slopes[:, None, :]) / tau[None, :, None]
-    lam = np.linalg.eigvals(jac).ravel()
-    return float(np.min(_ray_limits(method, lam)))
+    eye = np.eye(n)[None]
+    chunk = max(1, _CHUNK_ENTRIES // max(n * n, 1))
+    limit = np.inf
+    for start in range(0, len(corners), chunk):
+        slopes = corners[start : start + chunk] * top  # (c, n)
+        jac = (-eye + W[None] * slopes[:, None, :]) / tau[None, :, None]
+        lam = np.linalg.eigvals(jac).ravel()
+        limit = min(limit, float(np.min(_ray_limits(method, lam))))
+    return float(limit)
 
 
 def check_dt(

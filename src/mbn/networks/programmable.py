@@ -61,6 +61,7 @@ __all__ = [
     "differing_connections",
     "run",
     "run_network",
+    "weights_digest",
 ]
 
 Kind = Literal["W", "WE"]
@@ -137,6 +138,25 @@ class Programmable:
             raise MbnInputError(f"{self.connection}: bounds must be finite")
         if not self.lower < self.upper:
             raise MbnInputError(f"{self.connection}: min {self.lower} must be < max {self.upper}")
+
+
+def weights_digest(
+    net: Sequence[ArrayLike], lower: ArrayLike, upper: ArrayLike, connections: Sequence[object]
+) -> str:
+    """sha256 of an interpreter's fixed weights, :meth:`Interpreter.digest`: ``net`` its
+    network's ``(W, WE, tau, bias, gain)`` (``tau``, ``bias`` and ``gain`` of shape ``(n,)``),
+    each array hashed as float64 with its shape, then the connections' names. A file's values
+    give the digest of the interpreter that wrote them, in float32 or float64 (a float32 value
+    is written exactly)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for a in (*net, lower, upper):
+        arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+        h.update(str(arr.shape).encode())
+        h.update(arr.tobytes())
+    h.update(",".join(map(str, connections)).encode())
+    return h.hexdigest()
 
 
 def all_connections(net: CTRNN, *, bound: float = 10.0) -> list[Programmable]:
@@ -216,20 +236,14 @@ class Interpreter:
 
     def digest(self) -> str:
         """sha256 of the interpreter's fixed weights (W, WE, tau, bias, gain, bounds, and its
-        connections): a run records it to check the interpreter was not changed."""
-        import hashlib
-
-        h = hashlib.sha256()
-        for a in (
-            *(getattr(self.net, f) for f in ("W", "WE", "tau", "bias", "gain")),
+        connections): a run records it to check the interpreter was not changed
+        (:func:`weights_digest`)."""
+        return weights_digest(
+            [getattr(self.net, f) for f in ("W", "WE", "tau", "bias", "gain")],
             self.lower,
             self.upper,
-        ):
-            arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
-            h.update(str(arr.shape).encode())
-            h.update(arr.tobytes())
-        h.update(",".join(map(str, self.connections)).encode())
-        return h.hexdigest()
+            self.connections,
+        )
 
     def blocks(self) -> BlockNet:
         """The same network by its structure (:mod:`mbn.networks.structured`)."""
