@@ -9,8 +9,7 @@ when it is a grid of corridors (``docs/mazes.md``, "Which mazes can be judged"):
 * no free space is two cells across (no 2 x 2 block of free cells);
 * every corridor has one width ``w``: a free cell between walls on its north and south sides is
   ``w`` tall, one between walls on its east and west sides ``w`` wide, and any other free cell
-  (a junction, a corner, a dead end's end) ``w`` x ``w``; blocks (and a corridor's length) may
-  be of any size;
+  (a junction, a corner) ``w`` x ``w``; blocks (and a corridor's length) may be of any size;
 * its bounds lie within :data:`MAX_COORDINATE` of the origin (the rollout's positions are
   float32), and the grid has at most :data:`MAX_GRID_CELLS` cells.
 
