@@ -141,6 +141,56 @@ def test_junction_pass_is_tracked_like_the_trajectory_analysis(turn):
     assert int(s.junction_stalls[0, 0]) == 0
 
 
+def _plus_of_widths(dx: float, dy: float) -> Maze:
+    """A plus crossing of 1.2 m corridors whose arms are 3.7 m long (not a whole number of
+    corridor widths: a grid of columns and rows of their own widths), its south-west corner at
+    ``(dx, dy)``; one start 3.62 m south of the junction's centre and 13 mm east of it, facing
+    north (no move of 5 cm from it ends on a cell's border, where float32 rounding would decide
+    the step of a pass)."""
+    from mbn.world.mazes.gridify import as_grid_maze
+
+    a, w = 3.7, 1.2
+    size = 2 * a + w
+    blocks = [[0.0, a, 0.0, a], [a + w, size, 0.0, a], [0.0, a, a + w, size]]
+    blocks.append([a + w, size, a + w, size])
+    shift = np.array([dx, dx, dy, dy])
+    maze = Maze(
+        "plus",
+        walls=np.array(blocks) + shift,
+        bounds=tuple(np.array([0.0, size, 0.0, size]) + shift),
+        starts=[[dx + a + w / 2 + 0.013, dy + a + w / 2 - 3.62, math.pi / 2]],
+    )
+    return as_grid_maze(maze)
+
+
+@pytest.mark.parametrize("turn", ["left", "right"])
+def test_a_grid_of_several_widths_is_tracked_like_the_trajectory_analysis_wherever_it_lies(turn):
+    """A robot in the plus crossing of 3.7 m arms (at the origin and far from it) and one in the
+    built-in crossroad, in one batch, make the same pass, as the trajectory analysis sees it."""
+    mazes = [_plus_of_widths(0.0, 0.0), _plus_of_widths(-20.3, -7.7), crossroad("LSR")]
+    assert [m.cell for m in mazes] == [None, None, pytest.approx(1.2)]
+    poses = np.concatenate([m.starts[:1] for m in mazes])
+    tables = np.stack([_turn_table(turn)] * 3)
+    out = run(mazes, tables, poses, np.arange(3), steps=200, record_every=1)
+    s = out.stats
+    for k, maze in enumerate(mazes):
+        assert int(s.n_junctions[k]) == 1
+        assert EXIT_NAMES[int(s.junction_exit[k, 0])] == turn
+        assert EXIT_NAMES[int(s.junction_right[k, 0])] == "right"
+        assert EXIT_NAMES[int(s.junction_left[k, 0])] == "left"
+        assert int(s.junction_heading[k, 0]) == 0
+        passes = junction_sequence(maze, np.asarray(out.trajectory.pose[k]))
+        assert [(p.exit, p.cell) for p in passes] == [
+            (turn, tuple(int(v) for v in np.asarray(s.junction_cell[k, 0])))
+        ]
+        assert passes[0].step_in == int(s.junction_step[k, 0])
+        assert passes[0].step_out == int(s.junction_exit_step[k, 0])
+    assert tuple(np.asarray(s.junction_cell[0, 0])) == (1, 1)  # the middle of 3 x 3 cells
+    # a pure translation: the two plus crossings' passes are the same, step for step
+    for name in ("junction_cell", "junction_step", "junction_exit_step", "junction_exit"):
+        np.testing.assert_array_equal(np.asarray(getattr(s, name))[0], getattr(s, name)[1])
+
+
 def test_rule_exits_depend_on_the_crossroad_kind():
     kinds = ["LS", "SR", "LR"]
     mazes = [crossroad(k) for k in kinds]

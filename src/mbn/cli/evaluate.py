@@ -26,7 +26,9 @@ _EVALUATE_EPILOG = """\
 controller: a controller file (docs/controllers.md): kind mbn.controller.ctrnn, \
 mbn.controller.interpreter or mbn.controller.mbn
 maze: a built-in name (see `mbn mazes`) or a .maze, .toml or Player/Stage .world file with start
-marks (and tiles for --behavior tiles)
+marks (and tiles for --behavior tiles); a .toml or .world maze is judged when it is a grid of
+corridors: closed, every corridor one width and one cell wide, blocks of any size, anywhere within
+10 km of the origin (positions stay the world's; docs/mazes.md, "Which mazes can be judged")
 
 examples:
   mbn evaluate --controller rf.json --maze fig4 --behavior right

@@ -23,6 +23,11 @@ EPILOG = """\
 """
 
 
+#: The largest ``.maze`` grid ``mbn show-maze`` reads (cells): a picture of a few thousand pixels
+#: shows no more, and a 1000 x 1000 grid draws in seconds (its walls and decision cells as raster
+#: images: :data:`mbn.viz.maze.MAX_PATCHES`).
+MAX_DRAW_CELLS = 1_000_000
+
 #: Moves per jitted chunk of ``mbn drive`` (the trajectory of one chunk is held in memory).
 _DRIVE_CHUNK = 20_000
 
@@ -56,7 +61,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         description="Draw a maze: walls, tiles (one-, two- and three-colour), decision cells of "
         "grid mazes, and start poses.",
         epilog="maze: a built-in name (see `mbn mazes`) or a .maze, .toml or Player/Stage .world "
-        "file\nexample:\n  mbn show-maze fig4 --out fig4.png",
+        f"file; a .maze grid of at most {MAX_DRAW_CELLS:,} cells (1000 x 1000)\n"
+        "example:\n  mbn show-maze fig4 --out fig4.png",
         formatter_class=raw,
     )
     show.add_argument("maze", help="built-in name or maze file")
@@ -115,8 +121,18 @@ def _cmd_mazes(args: argparse.Namespace) -> int:
 
 def _cmd_show_maze(args: argparse.Namespace) -> int:
     from mbn.viz.maze import save_maze_png
+    from mbn.world.mazes.builtin import BUILTIN_NAMES
+    from mbn.world.mazes.grid_text import grid_shape
     from mbn.world.mazes.load import load_maze
 
+    path = Path(args.maze)
+    if args.maze not in BUILTIN_NAMES and path.suffix.lower() == ".maze" and path.is_file():
+        rows, cols = grid_shape(path)  # before reading it: a quick look at its lines
+        if rows * cols > MAX_DRAW_CELLS:
+            raise MbnInputError(
+                f"{path}: a grid of {rows} x {cols} cells; show-maze draws grids of at most "
+                f"{MAX_DRAW_CELLS:,} cells (1000 x 1000)"
+            )
     maze = load_maze(args.maze)
     save_maze_png(maze, args.out)
     print(f"wrote {args.out}")

@@ -87,7 +87,7 @@ def maze_figsize(maze: Maze, longest: float = 7.0, extra_h: float = 0.9) -> tupl
 
 def maze_legend_handles(maze: Maze, *, junctions: bool, starts: bool, tiles: bool) -> list[Any]:
     handles: list[Any] = [Patch(facecolor=WALL_COLOR, label="wall")]
-    if junctions and maze.grid is not None and maze.cell is not None:
+    if junctions and maze.grid is not None:
         handles.append(Patch(facecolor=DECISION_COLOR, edgecolor="#b9c6d8", label="decision cell"))
     if tiles and any(t.colors == 1 for t in maze.tiles):
         handles.append(Patch(facecolor=TILE1_COLOR, label="one-colour tile"))
@@ -133,27 +133,97 @@ def legend_below(target: Figure | Axes, handles: list[Any]) -> None:
         target.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.09), **kw)
 
 
-#: Above this many rectangles of one layer, they are drawn as one collection (one artist): a
-#: 300 x 300-cell room draws in seconds instead of a minute. Below it, one patch each.
+#: Above this many rectangles of one layer, they are drawn as one raster image (an artist with
+#: that layer's gid) of at most :data:`RASTER_PIXELS` pixels a side, filled with NumPy: time and
+#: memory stay bounded by the picture, not the maze (a 1000 x 1000-cell maze draws in seconds).
+#: Below it, one patch each.
 MAX_PATCHES = 2000
+#: The longer side of a layer's raster image, in pixels at most.
+RASTER_PIXELS = 2048
 
 
-def _add_rectangles(ax: Axes, rects: np.ndarray, *, gid: str, **style: Any) -> None:
-    """Rectangles ``(K, 4)`` as ``(xmin, xmax, ymin, ymax)``: a patch each, or one
-    :class:`~matplotlib.collections.PatchCollection` (its gid ``gid``) when there are more
-    than :data:`MAX_PATCHES`."""
-    from matplotlib.collections import PatchCollection
+def _raster_step(maze: Maze) -> float:
+    """The pixel side of the raster images of ``maze``: a whole fraction of a grid's square cell
+    (so that cell borders fall on pixel borders), else the longer side of the bounds over
+    :data:`RASTER_PIXELS`."""
+    x0, x1, y0, y1 = maze.bounds
+    if maze.grid is not None and maze.cell is not None:
+        per_cell = RASTER_PIXELS // max(np.shape(maze.grid))
+        if per_cell >= 1:
+            return float(maze.cell) / per_cell
+    return max(x1 - x0, y1 - y0) / RASTER_PIXELS
 
+
+def _add_raster(ax: Axes, maze: Maze, rects: np.ndarray, *, gid: str, **style: Any) -> None:
+    """Rectangles ``(K, 4)`` (clipped to the bounds) as one RGBA image in ``style["facecolor"]``:
+    every rectangle covers at least one pixel, so thin walls stay visible."""
+    from matplotlib.colors import to_rgba
+
+    x0, x1, y0, y1 = maze.bounds
+    step = _raster_step(maze)
+    nx = max(1, math.ceil((x1 - x0) / step - 1e-6))
+    ny = max(1, math.ceil((y1 - y0) / step - 1e-6))
+    r = np.clip(rects, [x0, x0, y0, y0], [x1, x1, y1, y1])
+    i0 = np.clip(np.floor((r[:, 0] - x0) / step + 1e-6), 0, nx - 1).astype(np.int64)
+    i1 = np.clip(np.ceil((r[:, 1] - x0) / step - 1e-6), i0 + 1, nx).astype(np.int64)
+    j0 = np.clip(np.floor((r[:, 2] - y0) / step + 1e-6), 0, ny - 1).astype(np.int64)
+    j1 = np.clip(np.ceil((r[:, 3] - y0) / step - 1e-6), j0 + 1, ny).astype(np.int64)
+    cover = np.zeros((ny + 1, nx + 1), np.int32)
+    np.add.at(cover, (j0, i0), 1)
+    np.add.at(cover, (j0, i1), -1)
+    np.add.at(cover, (j1, i0), -1)
+    np.add.at(cover, (j1, i1), 1)
+    inside = np.cumsum(np.cumsum(cover, 0), 1)[:ny, :nx] > 0  # row 0 south
+    image = np.zeros((ny, nx, 4), np.uint8)
+    image[inside] = np.round(np.array(to_rgba(style["facecolor"])) * 255).astype(np.uint8)
+    ax.imshow(
+        image,
+        origin="lower",
+        extent=(x0, x0 + nx * step, y0, y0 + ny * step),
+        interpolation="nearest",
+        zorder=style.get("zorder", 1),
+        gid=gid,
+    )
+
+
+def _tile_parts(tiles: list[Any], n: int) -> np.ndarray:
+    """The parts of ``tiles`` (all of ``n`` colours), ``(K, n, 4, 2)``: equal strips across the
+    corridor (blob 0 first), each with the corners of :meth:`Tile.corners` (computed for all at
+    once)."""
+    if not tiles:
+        return np.zeros((0, n, 4, 2))
+    x, y, w, length, h = (
+        np.array([getattr(t, k) for t in tiles]) for k in ("x", "y", "width", "length", "heading")
+    )
+    along = np.stack([np.cos(h), np.sin(h)], -1) * (length / 2)[:, None]
+    across = np.stack([-np.sin(h), np.cos(h)], -1) * (w / 2)[:, None]
+    centre = np.stack([x, y], -1)
+    c = np.stack(
+        [
+            centre - along - across,
+            centre + along - across,
+            centre + along + across,
+            centre - along + across,
+        ],
+        1,
+    )
+    f = (np.arange(n + 1) / n)[None, :, None]
+    lo = c[:, None, 0] + (c[:, None, 3] - c[:, None, 0]) * f  # (K, n + 1, 2)
+    hi = c[:, None, 1] + (c[:, None, 2] - c[:, None, 1]) * f
+    return np.stack([lo[:, :-1], hi[:, :-1], hi[:, 1:], lo[:, 1:]], 2)
+
+
+def _add_rectangles(ax: Axes, maze: Maze, rects: np.ndarray, *, gid: str, **style: Any) -> None:
+    """Rectangles ``(K, 4)`` as ``(xmin, xmax, ymin, ymax)``: a patch each, or one raster image
+    (its gid ``gid``, :func:`_add_raster`) when there are more than :data:`MAX_PATCHES`."""
     rects = np.asarray(rects, dtype=float).reshape(-1, 4)
-    patches = [Rectangle((xa, ya), xb - xa, yb - ya, gid=gid) for xa, xb, ya, yb in rects.tolist()]
-    if len(patches) <= MAX_PATCHES:
-        for patch in patches:
-            patch.set(**style)
-            ax.add_patch(patch)
+    if len(rects) > MAX_PATCHES:
+        _add_raster(ax, maze, rects, gid=gid, **style)
         return
-    collection = PatchCollection(patches, match_original=False, **style)
-    collection.set_gid(gid)
-    ax.add_collection(collection, autolim=False)
+    for xa, xb, ya, yb in rects.tolist():
+        patch = Rectangle((xa, ya), xb - xa, yb - ya, gid=gid)
+        patch.set(**style)
+        ax.add_patch(patch)
 
 
 def draw_maze(
@@ -168,14 +238,16 @@ def draw_maze(
 ) -> Figure:
     """Draw ``maze``: walls, free space, tiles, decision cells and start poses.
 
-    Walls are dark grey rectangles (artists with gid ``"wall"``, one per row of ``maze.walls``);
+    Walls are dark grey rectangles (artists with gid ``"wall"``, one per row of ``maze.walls``, or
+    above :data:`MAX_PATCHES` of them one raster image with that gid, as for decision cells);
     a maze whose outside is solid also gets a dark frame round its bounds (gid ``"frame"``). Tiles
     are drawn from :meth:`Tile.corners`: one-colour tiles orange (gid ``"tile1"``), two-colour
     tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1),
     three-colour tiles as three thirds (gid ``"tile3"``: green, yellow, teal).
     Decision cells of grid mazes (:func:`mbn.world.junctions.decision_cells`) are shaded pale blue
     (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled 1, 2, ... in
-    the order of ``maze.starts``.
+    the order of ``maze.starts``. Above :data:`MAX_PATCHES` of a kind, tiles are drawn as raster
+    images of their parts' bounding boxes and start poses as one field of arrows, unnumbered.
 
     Args:
         maze: the maze.
@@ -196,43 +268,46 @@ def draw_maze(
     _, x1, y0, y1 = maze.bounds
     ex0, ex1, ey0, ey1 = _extent(maze)
     ax.set_facecolor("white")
-    if junctions and maze.grid is not None and maze.cell is not None:
+    if junctions and maze.grid is not None:
         from mbn.world.junctions import decision_cells
 
         dec = decision_cells(maze)
-        g = float(maze.cell)
+        xe, ye = maze.grid_edges()
         rows = dec.shape[0]
         r_idx, c_idx = np.nonzero(dec)
+        south = rows - 1 - r_idx
         _add_rectangles(
             ax,
-            np.stack([c_idx * g, (c_idx + 1) * g, (rows - 1 - r_idx) * g, (rows - r_idx) * g], -1),
+            maze,
+            np.stack([xe[c_idx], xe[c_idx + 1], ye[south], ye[south + 1]], -1),
             facecolor=DECISION_COLOR,
             edgecolor="none",
             zorder=0.5,
             gid="decision",
         )
     if tiles:
-        for tile in maze.tiles:
-            c = tile.corners()
-            if tile.colors == 1:
-                ax.add_patch(
-                    Polygon(c, closed=True, facecolor=TILE1_COLOR, edgecolor="none", zorder=1)
-                )
-                ax.patches[-1].set_gid("tile1")
-            else:
-                # equal parts across the corridor, blob 0 first
-                n = tile.colors
-                colors = TILE2_COLORS if n == 2 else TILE3_COLORS
-                lo = [c[0] + (c[3] - c[0]) * i / n for i in range(n + 1)]
-                hi = [c[1] + (c[2] - c[1]) * i / n for i in range(n + 1)]
-                for i, color in enumerate(colors):
-                    part = np.array([lo[i], hi[i], hi[i + 1], lo[i + 1]])
+        for n, colors in ((1, (TILE1_COLOR,)), (2, TILE2_COLORS), (3, TILE3_COLORS)):
+            parts = _tile_parts([t for t in maze.tiles if t.colors == n], n)
+            for i, color in enumerate(colors):  # equal parts across the corridor, blob 0 first
+                if len(parts) > MAX_PATCHES:
+                    x, y = parts[:, i, :, 0], parts[:, i, :, 1]
+                    boxes = np.stack([x.min(1), x.max(1), y.min(1), y.max(1)], -1)
+                    _add_raster(ax, maze, boxes, gid=f"tile{n}", facecolor=color, zorder=1)
+                    continue
+                for part in parts[:, i]:
                     ax.add_patch(
-                        Polygon(part, closed=True, facecolor=color, edgecolor="none", zorder=1)
+                        Polygon(
+                            part,
+                            closed=True,
+                            facecolor=color,
+                            edgecolor="none",
+                            zorder=1,
+                            gid=f"tile{n}",
+                        )
                     )
-                    ax.patches[-1].set_gid(f"tile{n}")
     _add_rectangles(
         ax,
+        maze,
         maze.walls,
         facecolor=WALL_COLOR,
         edgecolor=WALL_COLOR,
@@ -260,7 +335,22 @@ def draw_maze(
                     gid="frame",
                 )
             )
-    if starts and len(maze.starts):
+    if starts and len(maze.starts) > MAX_PATCHES:  # one artist: arrows without numbers
+        sx, sy, sth = np.asarray(maze.starts).T
+        reach = 0.5 * _scale(maze)
+        ax.quiver(
+            sx - 0.5 * reach * np.cos(sth),
+            sy - 0.5 * reach * np.sin(sth),
+            reach * np.cos(sth),
+            reach * np.sin(sth),
+            angles="xy",
+            scale_units="xy",
+            scale=1.0,
+            color=START_COLOR,
+            zorder=4,
+            gid="start",
+        )
+    elif starts and len(maze.starts):
         s = _scale(maze)
         length = 0.5 * s
         for k, (x, y, th) in enumerate(maze.starts):

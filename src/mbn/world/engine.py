@@ -126,6 +126,9 @@ class CameraConfig:
         "rect_count",
         "rect_flat",
         "row_solid",
+        "grid_edges",
+        "grid_shape",
+        "grid_offset",
     ],
     meta_fields=[
         "n_words",
@@ -135,6 +138,7 @@ class CameraConfig:
         "n_seg",
         "n_rect",
         "min_cell",
+        "n_grid_rows",
     ],
 )
 @dataclass(frozen=True)
@@ -160,6 +164,14 @@ class World:
 
     ``min_cell`` (static): the smallest lattice cell (0 on the segment path): a ray of length
     ``r`` crosses at most ``2 (ceil(r / min_cell) + 1)`` cells (:func:`march_steps`).
+
+    Junction judging (:mod:`mbn.world.stats`) indexes a grid maze of square cells by the cells
+    above (its lattice or culling cells are its grid cells). A grid whose columns and rows are not
+    all one width (:attr:`Maze.edges`) has its own: ``grid_edges[m]`` ``(2, E)`` its column (x)
+    and row (y) borders, padded with +inf; ``grid_shape[m]`` its ``(columns, rows)`` (0, 0 for
+    other mazes); ``grid_offset[m]`` the junction-table row of its first cell, after the
+    ``n_rows`` rows above; ``n_grid_rows`` (static) the cells of all such grids. Without such a
+    maze the three arrays are None and ``n_grid_rows`` is 0.
     """
 
     origin: Array
@@ -187,6 +199,10 @@ class World:
     n_seg: int = 1
     n_rect: int = 1
     min_cell: float = 0.0
+    grid_edges: Array | None = None
+    grid_shape: Array | None = None
+    grid_offset: Array | None = None
+    n_grid_rows: int = 0
 
     @property
     def n_rows(self) -> int:
@@ -194,6 +210,12 @@ class World:
         if self.mode == "segments":
             return int(self.seg_start.shape[0])
         return int(self.windows.shape[0])
+
+    @property
+    def n_junction_rows(self) -> int:
+        """Rows of the junction tables (:func:`mbn.world.stats.junction_arrays`): the rows above,
+        then the cells of the grids with columns and rows of several widths."""
+        return self.n_rows + self.n_grid_rows
 
 
 def _rational_gcd(values: list[float]) -> float | None:
@@ -211,12 +233,13 @@ def _rational_gcd(values: list[float]) -> float | None:
 def lattice_cell(maze: Maze) -> tuple[float, tuple[float, float]]:
     """The lattice ``(cell, origin)`` that represents ``maze``'s walls exactly.
 
-    Grid mazes use their own cell and the origin (0, 0); other mazes the largest cell that divides
-    every wall coordinate measured from the lower-left corner of their bounds (at most 2 m).
+    Grid mazes of square cells use their own cell and its south-west corner, the lower-left
+    corner of their bounds ((0, 0) for ``.maze`` files); other mazes the largest cell that divides
+    every wall coordinate measured from that corner (at most 2 m).
     """
-    if maze.grid is not None and maze.cell is not None:
-        return float(maze.cell), (0.0, 0.0)
     x0, _, y0, _ = maze.bounds
+    if maze.grid is not None and maze.cell is not None:
+        return float(maze.cell), (x0, y0)
     vals = [abs(v - x0) for v in maze.walls[:, :2].ravel()] + [
         abs(v - y0) for v in maze.walls[:, 2:].ravel()
     ]
@@ -363,7 +386,35 @@ def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         n_march=n_march,
         n_body=n_body,
         min_cell=float(min(g for g, _ in lattices)),
+        **_edge_grids(mazes, offset, dtype),
     )
+
+
+def _edge_grids(mazes: list[Maze] | tuple[Maze, ...], n_rows: int, dtype: Any) -> dict[str, Any]:
+    """The :class:`World` fields of the grids whose columns and rows are not all one width (none
+    when no maze has one)."""
+    grids = [m.grid_edges() if m.grid is not None and m.cell is None else None for m in mazes]
+    if all(g is None for g in grids):
+        return {}
+    n_edges = max(max(len(g[0]), len(g[1])) for g in grids if g is not None)
+    edges = np.full((len(mazes), 2, n_edges), np.inf)
+    shape = np.zeros((len(mazes), 2), np.int64)
+    offset = np.zeros(len(mazes), np.int64)
+    row = n_rows
+    for k, g in enumerate(grids):
+        if g is None:
+            continue
+        edges[k, 0, : len(g[0])] = g[0]
+        edges[k, 1, : len(g[1])] = g[1]
+        shape[k] = (len(g[0]) - 1, len(g[1]) - 1)
+        offset[k] = row
+        row += int(shape[k, 0] * shape[k, 1])
+    return {
+        "grid_edges": jnp.asarray(edges, dtype),
+        "grid_shape": jnp.asarray(shape, jnp.int32),
+        "grid_offset": jnp.asarray(offset, jnp.int32),
+        "n_grid_rows": row - n_rows,
+    }
 
 
 def _tile_arrays(mazes: list[Maze] | tuple[Maze, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -519,6 +570,7 @@ def _compile_segments(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         mode="segments",
         n_seg=n_seg,
         n_rect=n_rect,
+        **_edge_grids(mazes, row0, dtype),
     )
 
 

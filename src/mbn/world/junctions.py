@@ -1,7 +1,9 @@
 """Junction analysis of grid mazes (NumPy): decision cells, wall-following rule exits, and the
 sequence of junctions a trajectory passes.
 
-Definitions (cells of :attr:`Maze.grid`; outside the grid is wall):
+Definitions (cells of :attr:`Maze.grid`, square or, for a maze whose blocks are not whole
+multiples of its corridor width, columns and rows of their own widths: :meth:`Maze.grid_edges`;
+the grid lies where the maze does; outside it is wall):
 
 * A **decision cell** is a free cell with three or more free 4-neighbours (a T or a plus
   crossing), or exactly two at a right angle (a corner, where the robot must turn). A straight
@@ -68,19 +70,19 @@ _STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))
 _TURN = {"straight": 0, "right": 1, "back": 2, "left": 3}
 
 
-def _grid(maze: Maze) -> tuple[np.ndarray, float]:
-    if maze.grid is None or maze.cell is None:
+def _grid(maze: Maze) -> np.ndarray:
+    if maze.grid is None or (maze.cell is None and maze.edges is None):
         raise MbnInputError(
-            f"maze {maze.name!r}: junction analysis needs a grid maze (a .maze file or a grid"
-            " built-in)"
+            f"maze {maze.name!r}: junction analysis needs a grid maze (a .maze file, a grid"
+            " built-in, or a maze given by rectangles made one by mbn.world.mazes.gridify)"
         )
-    return np.asarray(maze.grid), float(maze.cell)
+    return np.asarray(maze.grid)
 
 
 def free_neighbours(maze: Maze) -> np.ndarray:
     """``(R, C, 4)`` bool: whether each cell's neighbour to the N, E, S, W is free (outside the
     grid is wall)."""
-    grid, _ = _grid(maze)
+    grid = _grid(maze)
     free = np.pad(grid != "#", 1, constant_values=False)
     rows, cols = grid.shape
     out = np.empty((rows, cols, 4), dtype=bool)
@@ -92,7 +94,7 @@ def free_neighbours(maze: Maze) -> np.ndarray:
 def decision_cells(maze: Maze) -> np.ndarray:
     """``(R, C)`` bool: free cells with three or more free 4-neighbours, or exactly two at a right
     angle (corners)."""
-    grid, _ = _grid(maze)
+    grid = _grid(maze)
     nb = free_neighbours(maze)
     count = nb.sum(axis=-1)
     straight = (nb[..., 0] & nb[..., 2]) | (nb[..., 1] & nb[..., 3])
@@ -103,10 +105,17 @@ def cell_of(maze: Maze, x: float, y: float) -> tuple[int, int]:
     """The grid cell ``(row, col)`` containing the point ``(x, y)`` (row 0 north; a point on a
     border belongs to the cell east / north of it; points outside the grid give the nearest
     cell)."""
-    grid, cell = _grid(maze)
+    grid = _grid(maze)
     rows, cols = grid.shape
-    col = min(max(math.floor(x / cell), 0), cols - 1)
-    row = rows - 1 - min(max(math.floor(y / cell), 0), rows - 1)
+    if maze.cell is not None:
+        x0, _, y0, _ = maze.bounds
+        i, j = math.floor((x - x0) / maze.cell), math.floor((y - y0) / maze.cell)
+    else:
+        xe, ye = maze.grid_edges()
+        i = int(np.searchsorted(xe, x, side="right")) - 1
+        j = int(np.searchsorted(ye, y, side="right")) - 1
+    col = min(max(i, 0), cols - 1)
+    row = rows - 1 - min(max(j, 0), rows - 1)
     return int(row), int(col)
 
 
@@ -139,7 +148,7 @@ def rule_exit(
     Works for any free cell; in a corridor cell it is simply ``'straight'`` (or the way round a
     corner, or ``'back'`` at a dead end).
     """
-    grid, _ = _grid(maze)
+    grid = _grid(maze)
     rule = parse_rule(rule)
     h = _heading_index(heading)
     r, c = cell
@@ -217,8 +226,9 @@ def _move_heading(a: tuple[int, int], b: tuple[int, int]) -> int:
 def _cell_track(maze: Maze, poses: np.ndarray, margin: float) -> list[tuple[int, int]]:
     """The cell of every pose; with ``margin > 0`` a move into a new cell counts only once the
     point is at least ``margin`` inside it (hysteresis against wobbling across a border)."""
-    grid, cell = _grid(maze)
+    grid = _grid(maze)
     rows = grid.shape[0]
+    xe, ye = maze.grid_edges()
     track: list[tuple[int, int]] = []
     current: tuple[int, int] | None = None
     for x, y in poses[:, :2]:
@@ -227,8 +237,8 @@ def _cell_track(maze: Maze, poses: np.ndarray, margin: float) -> list[tuple[int,
             current = candidate
         else:
             r, c = candidate
-            x0, y0 = c * cell, (rows - 1 - r) * cell
-            inside = min(x - x0, x0 + cell - x, y - y0, y0 + cell - y)
+            j = rows - 1 - r
+            inside = min(x - xe[c], xe[c + 1] - x, y - ye[j], ye[j + 1] - y)
             if inside >= margin:
                 current = candidate
         track.append(current)
@@ -318,8 +328,9 @@ def rule_route(
 
     From the start cell's centre (heading: the compass direction nearest ``theta``) the walk takes
     in every cell the exit of the rule in force (:func:`rule_exit`: in a corridor simply along
-    it, round a corner, back at a dead end); each cell moved through is one ``cell`` of length,
-    and the route ends half a cell past the centre of the ``junctions``-th decision cell entered
+    it, round a corner, back at a dead end); each move is the distance between the two cells'
+    centres (one ``cell`` in a grid of square cells), and the route ends half a cell past the
+    centre of the ``junctions``-th decision cell entered
     (the start cell is not a pass, as in :func:`junction_sequence`). ``follow_tiles``: entering a
     cell with a tile makes its rule the one in force (``tile_rules[colours - 1]``; the paper's:
     one colour right, two colours left).
@@ -390,9 +401,19 @@ def _walk(
     """:func:`rule_route`'s walk: its length and the decision cells it counts."""
     if junctions < 1:
         raise MbnInputError(f"junctions must be >= 1, got {junctions!r}")
-    grid, cell = _grid(maze)
+    grid = _grid(maze)
     nb = free_neighbours(maze)
     decision = decision_cells(maze)
+    rows, cols = grid.shape
+    # each cell's extent along the north-south axis (h % 2 == 0) and the east-west axis
+    if maze.cell is not None:
+        along = (np.full((rows, cols), maze.cell), np.full((rows, cols), maze.cell))
+    else:
+        xe, ye = maze.grid_edges()
+        along = (
+            np.repeat(np.diff(ye)[::-1][:, None], cols, 1),
+            np.repeat(np.diff(xe)[None, :], rows, 0),
+        )
     tile_rule: dict[tuple[int, int], tuple[str, int]] = {}
     for t in maze.tiles:
         if follow_tiles and t.colors > len(tile_rules):
@@ -424,7 +445,7 @@ def _walk(
         if length > 0 and decision[r, c] and seen_tile:
             passes.append(RoutePass(current, source, frozenset(_open_exits(open_dirs, h))))
             if len(passes) == junctions:
-                return length + cell / 2, passes
+                return length + float(along[h % 2][r, c]) / 2, passes
         if length == 0 and open_dirs[h]:
             exit_name = "straight"  # the start faces along its corridor
         else:
@@ -432,8 +453,9 @@ def _walk(
         h = (h + _TURN[exit_name]) % 4
         if not open_dirs[h]:  # a closed cell
             return None
+        was = float(along[h % 2][r, c])
         r, c = r + _STEP[h][0], c + _STEP[h][1]
-        length += cell
+        length += (was + float(along[h % 2][r, c])) / 2  # centre to centre
         if follow_tiles and (r, c) in tile_rule:
             current, source = tile_rule[(r, c)]
             seen_tile = True

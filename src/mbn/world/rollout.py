@@ -52,6 +52,8 @@ from mbn.world.stats import (
     count_sensing,
     episode_stats,
     junction_arrays,
+    junction_cell,
+    junction_constants,
     log_junctions,
     start_junctions,
     start_tally,
@@ -309,16 +311,24 @@ class Carry(NamedTuple):
 @dataclass(frozen=True)
 class Scene:
     """What every step of one rollout shares: the world (in the poses' precision), each robot's
-    maze ``maze_index (B,)`` and its constants ``mc``, the junction tables, the settings, the
-    controller (vmapped over the batch) and the noise key (None without noise)."""
+    maze ``maze_index (B,)`` and its constants ``mc`` (and as the junction log reads them,
+    ``junction_mc``: :func:`mbn.world.stats.junction_constants`), the junction tables, the
+    settings, the controller (vmapped over the batch) and the noise key (None without noise)."""
 
     world: World
     mc: MazeConstants
+    junction_mc: MazeConstants
     maze_index: Array
     junctions: Array
     config: RolloutConfig
     controller: Controller
     key: Array | None
+
+
+def junction_cells(scene: Scene, place: Place) -> tuple[Array, Array]:
+    """The cells of ``place`` that the junction log records (:func:`mbn.world.stats.
+    junction_cell`)."""
+    return junction_cell(scene.world, scene.maze_index, place.pose, place.ci, place.cj)
 
 
 def step_key(scene: Scene, step: Array) -> Array | None:
@@ -401,9 +411,9 @@ def one_step(scene: Scene, carry: Carry, step: Array) -> tuple[Carry, tuple[Any,
     junctions = log_junctions(
         carry.junctions,
         scene.junctions,
-        scene.mc,
-        (carry.prev.place.ci, carry.prev.place.cj),
-        (here.place.ci, here.place.cj),
+        scene.junction_mc,
+        junction_cells(scene, carry.prev.place),
+        junction_cells(scene, here.place),
         tile,
         step,
         tally.n_stall,
@@ -501,9 +511,9 @@ def finish(scene: Scene, carry: Carry) -> EpisodeStats:
     junctions = log_junctions(
         carry.junctions,
         scene.junctions,
-        scene.mc,
-        (carry.prev.place.ci, carry.prev.place.cj),
-        (final.place.ci, final.place.cj),
+        scene.junction_mc,
+        junction_cells(scene, carry.prev.place),
+        junction_cells(scene, final.place),
         carry.tile,
         jnp.asarray(steps, jnp.int32),
         tally.n_stall,
@@ -554,10 +564,12 @@ def rollout(
         tiles=world.tiles.astype(dtype),
     )
     if junctions is None:
-        junctions = jnp.full((world.n_rows, 4, 2), -1, jnp.int8)
+        junctions = jnp.full((world.n_junction_rows, 4, 2), -1, jnp.int8)
+    mc = maze_constants(world, maze_index)
     scene = Scene(
         world=world,
-        mc=maze_constants(world, maze_index),
+        mc=mc,
+        junction_mc=junction_constants(world, mc, maze_index),
         maze_index=maze_index,
         junctions=junctions,
         config=config,

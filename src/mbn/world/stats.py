@@ -31,6 +31,8 @@ __all__ = [
     "count_sensing",
     "episode_stats",
     "junction_arrays",
+    "junction_cell",
+    "junction_constants",
     "log_junctions",
     "relative_exit",
     "start_junctions",
@@ -82,15 +84,21 @@ class EpisodeStats(NamedTuple):
 
 
 def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
-    """Rule-exit tables aligned with ``world.windows`` rows: ``(rows, 4, 3)`` int8 (entry heading
-    N, E, S, W; the right rule's exit, the left rule's, and the mask of open exits,
+    """Rule-exit tables aligned with ``world.windows`` rows (a grid of square cells is its
+    lattice), then the cells of the grids with columns and rows of several widths
+    (:attr:`World.grid_offset`): ``(world.n_junction_rows, 4, 3)`` int8 (entry heading N, E, S,
+    W; the right rule's exit, the left rule's, and the mask of open exits,
     :data:`mbn.world.rules.OPEN_BITS`); -1 where the cell is not a decision cell."""
     from mbn.world.junctions import junction_tables
 
-    total = world.n_rows
+    total = world.n_junction_rows
     out = np.full((total, 4, 3), -1, dtype=np.int8)
     shapes = np.asarray(world.shape)
     offsets = np.asarray(world.offset)
+    if world.grid_shape is not None and world.grid_offset is not None:
+        on_edges = np.asarray(world.grid_shape)[:, 0] > 0
+        shapes = np.where(on_edges[:, None], np.asarray(world.grid_shape), shapes)
+        offsets = np.where(on_edges, np.asarray(world.grid_offset), offsets)
     for k, maze in enumerate(mazes):
         if maze.grid is None:
             continue
@@ -110,6 +118,39 @@ def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
                 out[idx, :, 1] = left[r, c]
                 out[idx, :, 2] = mask[r, c]
     return jnp.asarray(out)
+
+
+def junction_constants(world: World, mc: MazeConstants, maze_index: Array) -> MazeConstants:
+    """The robots' maze constants as :func:`log_junctions` reads them: ``mc`` itself, except
+    that for a grid with columns and rows of several widths ``shape`` is that grid's
+    ``(columns, rows)`` and ``offset`` the junction-table row of its first cell."""
+    if world.grid_shape is None or world.grid_offset is None:
+        return mc
+    shape = world.grid_shape[maze_index]
+    on_edges = shape[..., 0] > 0
+    return mc._replace(
+        shape=jnp.where(on_edges[..., None], shape, mc.shape),
+        offset=jnp.where(on_edges, world.grid_offset[maze_index], mc.offset),
+    )
+
+
+def junction_cell(
+    world: World, maze_index: Array, pose: Array, ci: Array, cj: Array
+) -> tuple[Array, Array]:
+    """The cells :func:`log_junctions` records, ``(B,)`` each: the lattice (or culling) cell
+    ``(ci, cj)``, except in a grid with columns and rows of several widths: the column and the row
+    (from the south) of its grid holding ``pose``'s ``(x, y)`` (a point on a border belongs to
+    the cell east / north of it; -1, or the count of columns or rows, outside)."""
+    if world.grid_edges is None or world.grid_shape is None:
+        return ci, cj
+    edges = world.grid_edges[maze_index].astype(pose.dtype)  # (B, 2, E), padded with +inf
+    gi = jnp.sum(edges[:, 0, :] <= pose[:, 0, None], axis=-1) - 1
+    gj = jnp.sum(edges[:, 1, :] <= pose[:, 1, None], axis=-1) - 1
+    on_edges = world.grid_shape[maze_index, 0] > 0
+    return (
+        jnp.where(on_edges, gi.astype(ci.dtype), ci),
+        jnp.where(on_edges, gj.astype(cj.dtype), cj),
+    )
 
 
 # ---------------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -134,3 +135,20 @@ def test_start_overlapping_a_wall_is_an_error_naming_its_line():
         r"\(0\.75, 0\.25, 90 deg\): the robot's body overlaps a wall",
     ):
         parse_maze_text("cell = 0.5\n...\n#^#\n", "m.maze")
+
+
+def test_a_maze_without_a_corridor_is_refused_from_its_content_quickly():
+    """A 1000 x 1000 checkerboard (no two free cells side by side: nowhere to drive) is refused
+    in one line in well under a second, before its walls are merged or its starts checked; two
+    free cells side by side are a corridor."""
+    n = 1000
+    rows = ["".join("." if (r + c) % 2 else "#" for c in range(n)) for r in range(n)]
+    t0 = time.perf_counter()
+    with pytest.raises(MbnInputError) as info:
+        parse_maze_text("\n".join(["; a checkerboard", *rows]) + "\n", "m.maze")
+    assert time.perf_counter() - t0 < 5.0
+    assert str(info.value) == (
+        "m.maze:2: no corridor: no two free cells side by side (each is walled in on four "
+        "sides, e.g. a checkerboard); a maze needs free cells to drive between"
+    )
+    assert parse_maze_text("###\n#.#\n#.#\n###\n", "m.maze").grid.shape == (4, 3)

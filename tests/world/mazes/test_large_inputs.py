@@ -136,3 +136,58 @@ def test_a_png_floorplan_that_decodes_to_too_many_pixels_is_refused(tmp_path, ca
         "more pixels than the limit" in err
     ), err
     assert not (tmp_path / "w.png").exists()
+
+
+def test_show_maze_refuses_a_grid_over_its_limit_up_front(tmp_path, capsys):
+    """A 2000 x 2000 grid (4 M cells) is refused from a look at its lines, in a second or two,
+    in one line naming the limit; nothing is written."""
+    path = _grid_maze(tmp_path / "huge.maze", 2000)
+    out = tmp_path / "huge.png"
+    t0 = time.perf_counter()
+    assert main(["show-maze", str(path), "--out", str(out)]) == 2
+    assert time.perf_counter() - t0 < 5
+    assert capsys.readouterr().err == (
+        f"mbn: error: {path}: a grid of 2000 x 2000 cells; show-maze draws grids of at most "
+        "1,000,000 cells (1000 x 1000)\n"
+    )
+    assert not out.exists()
+
+
+def test_show_maze_refuses_a_1000_by_1000_checkerboard_from_its_content(tmp_path, capsys):
+    """Within the limit, but with no corridor: refused in one line in seconds, not drawn."""
+    path = tmp_path / "checker.maze"
+    path.write_text("\n".join("".join(".#"[(r + c) % 2] for c in range(1000)) for r in range(1000)))
+    t0 = time.perf_counter()
+    assert main(["show-maze", str(path), "--out", str(tmp_path / "c.png")]) == 2
+    assert time.perf_counter() - t0 < 5
+    err = capsys.readouterr().err
+    assert err.startswith(f"mbn: error: {path}:1: no corridor: no two free cells side by side")
+    assert len(err.splitlines()) == 1
+
+
+def test_a_700_by_700_maze_draws_in_bounded_time_as_raster_layers():
+    """Its 120 000 wall rectangles and decision cells are one raster image each (at most
+    RASTER_PIXELS a side, a whole number of pixels a cell), drawn in seconds."""
+    from matplotlib.image import AxesImage
+
+    from mbn.viz.maze import RASTER_PIXELS, draw_maze
+    from mbn.world.mazes.model import merge_cells
+
+    n = 700
+    grid = np.full((n, n), "#")
+    grid[1:-1, 1:-1] = np.where(
+        (np.arange(1, n - 1)[:, None] % 2 == 1) | (np.arange(1, n - 1)[None, :] % 2 == 1), ".", "#"
+    )
+    maze = Maze(
+        "lattice", merge_cells(grid == "#", 1.2), (0.0, n * 1.2, 0.0, n * 1.2), grid=grid, cell=1.2
+    )
+    assert len(maze.walls) > 100_000
+    t0 = time.perf_counter()
+    ax = draw_maze(maze).axes[0]
+    assert time.perf_counter() - t0 < 15
+    images = {im.get_gid(): im for im in ax.get_images() if isinstance(im, AxesImage)}
+    assert set(images) == {"wall", "decision"}
+    assert not [p for p in ax.patches if p.get_gid() in ("wall", "decision")]
+    wall = images["wall"].get_array()
+    assert wall.shape[:2] == (n * (RASTER_PIXELS // n), n * (RASTER_PIXELS // n))
+    assert images["wall"].get_extent() == pytest.approx((0.0, n * 1.2, 0.0, n * 1.2))

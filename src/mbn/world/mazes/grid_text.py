@@ -46,6 +46,7 @@ from mbn.world.mazes.validate import read_text, validate_maze
 __all__ = [
     "GRID_CHARS",
     "START_HEADINGS",
+    "grid_shape",
     "grid_tile_heading",
     "parse_maze_text",
     "read_maze_file",
@@ -56,6 +57,7 @@ GRID_CHARS = ("#", ".", "1", "2", "3", ">", "<", "^", "v")
 #: Heading (radians) of the start pose each start mark stands for.
 START_HEADINGS = {">": 0.0, "<": math.pi, "^": math.pi / 2, "v": -math.pi / 2}
 
+_GRID_SET = frozenset(GRID_CHARS)
 _HEADER_RE = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*([^;]*?)\s*(;.*)?$")
 
 
@@ -91,21 +93,9 @@ def _parse_header_value(key: str, value: str, at: str) -> float | str:
     raise MbnInputError(f"{at}: unknown header key {key!r} (expected cell or name)")
 
 
-def parse_maze_text(
-    text: str,
-    where: str = "<maze>",
-    *,
-    name: str | None = None,
-    source: str = "",
-) -> Maze:
-    """Parse the ``.maze`` format (see the module docstring) into a validated :class:`Maze`.
-
-    Args:
-        text: the file's text.
-        where: the file name used in error messages (``"{where}:{line}: ..."``).
-        name: the maze's name when the text has no ``name`` header (default: ``where``'s stem).
-        source: recorded as :attr:`Maze.source` (default: ``where``).
-    """
+def _split(text: str, where: str) -> tuple[dict[str, float | str], list[tuple[int, str]]]:
+    """The header (key: value) and the grid lines ``(1-based line number, text)`` of a ``.maze``
+    text, or the one-line error of its first bad line."""
     header: dict[str, float | str] = {}
     grid_lines: list[tuple[int, str]] = []  # (1-based line number, text)
     blank_after_grid: int | None = None
@@ -135,54 +125,84 @@ def parse_maze_text(
                 f"{where}:{blank_after_grid}: blank line inside the grid (grid lines follow on"
                 f" line {number})"
             )
-        for col, ch in enumerate(line):
-            if ch not in GRID_CHARS:
-                raise MbnInputError(
-                    f"{at}: unknown character {ch!r} in column {col + 1}"
-                    f" (expected one of {' '.join(GRID_CHARS)})"
-                )
+        if not _GRID_SET.issuperset(line):
+            col, ch = next((c, ch) for c, ch in enumerate(line) if ch not in _GRID_SET)
+            raise MbnInputError(
+                f"{at}: unknown character {ch!r} in column {col + 1}"
+                f" (expected one of {' '.join(GRID_CHARS)})"
+            )
         grid_lines.append((number, line))
     if not grid_lines:
         raise MbnInputError(f"{where}: no grid (the file has no maze lines)")
+    return header, grid_lines
 
+
+def grid_shape(path: str | os.PathLike[str]) -> tuple[int, int]:
+    """The ``(rows, columns)`` of a ``.maze`` file's grid, from its lines alone (a quick look
+    before reading it, e.g. to refuse a grid too large to draw)."""
+    _, grid_lines = _split(read_text(path), str(path))
+    return len(grid_lines), max((len(line) for _, line in grid_lines), default=0)
+
+
+def parse_maze_text(
+    text: str,
+    where: str = "<maze>",
+    *,
+    name: str | None = None,
+    source: str = "",
+) -> Maze:
+    """Parse the ``.maze`` format (see the module docstring) into a validated :class:`Maze`.
+
+    Args:
+        text: the file's text.
+        where: the file name used in error messages (``"{where}:{line}: ..."``).
+        name: the maze's name when the text has no ``name`` header (default: ``where``'s stem).
+        source: recorded as :attr:`Maze.source` (default: ``where``).
+    """
+    header, grid_lines = _split(text, where)
     cell = float(header.get("cell", DEFAULT_CELL))
     rows = len(grid_lines)
     cols = max(len(line) for _, line in grid_lines)
     grid = np.full((rows, cols), "#", dtype="<U1")
     for r, (_, line) in enumerate(grid_lines):
         grid[r, : len(line)] = list(line)
-    if not np.any(grid != "#"):
+    free = grid != "#"
+    if not np.any(free):
         raise MbnInputError(
             f"{where}:{grid_lines[0][0]}: no free cell in the grid (every cell is '#')"
+        )
+    if not (np.any(free[1:] & free[:-1]) or np.any(free[:, 1:] & free[:, :-1])):
+        raise MbnInputError(
+            f"{where}:{grid_lines[0][0]}: no corridor: no two free cells side by side (each is "
+            "walled in on four sides, e.g. a checkerboard); a maze needs free cells to drive "
+            "between"
         )
 
     tiles: list[Tile] = []
     tile_labels: list[str] = []
     starts: list[tuple[float, float, float]] = []
     start_labels: list[str] = []
-    for r in range(rows):
-        for c in range(cols):
-            ch = str(grid[r, c])
-            if ch in "#.":
-                continue
-            x = (c + 0.5) * cell
-            y = (rows - 1 - r + 0.5) * cell
-            label = f"{where}:{grid_lines[r][0]}"
-            if ch in START_HEADINGS:
-                starts.append((x, y, START_HEADINGS[ch]))
-                start_labels.append(f"{label}: start #{len(starts)} ({ch!r} in column {c + 1})")
-            else:
-                tiles.append(
-                    Tile(
-                        x=x,
-                        y=y,
-                        colors=int(ch),
-                        width=cell,
-                        length=DEFAULT_TILE_LENGTH,
-                        heading=grid_tile_heading(grid, r, c),
-                    )
+    for r, c in zip(*np.nonzero(grid > "."), strict=True):  # digits and start marks, row-major
+        r, c = int(r), int(c)
+        ch = str(grid[r, c])
+        x = (c + 0.5) * cell
+        y = (rows - 1 - r + 0.5) * cell
+        label = f"{where}:{grid_lines[r][0]}"
+        if ch in START_HEADINGS:
+            starts.append((x, y, START_HEADINGS[ch]))
+            start_labels.append(f"{label}: start #{len(starts)} ({ch!r} in column {c + 1})")
+        else:
+            tiles.append(
+                Tile(
+                    x=x,
+                    y=y,
+                    colors=int(ch),
+                    width=cell,
+                    length=DEFAULT_TILE_LENGTH,
+                    heading=grid_tile_heading(grid, r, c),
                 )
-                tile_labels.append(f"{label}: tile #{len(tiles)} ({ch!r} in column {c + 1})")
+            )
+            tile_labels.append(f"{label}: tile #{len(tiles)} ({ch!r} in column {c + 1})")
 
     maze_name = str(header.get("name", name if name is not None else Path(where).stem))
     maze = Maze(

@@ -4,7 +4,10 @@ A :class:`Maze` is plain immutable data in SI units (metres, radians; x east, y 
 solid axis-aligned rectangles ``(xmin, xmax, ymin, ymax)``; ``outside_is_wall`` says whether the
 space outside ``bounds`` is solid (grid and ``[[free]]`` mazes) or open (mazes given by walls only).
 Mazes read from a ``.maze`` grid also keep the grid itself (``grid``, ``cell``) for junction
-analysis. Files are read by :mod:`mbn.world.mazes.load`; the built-in mazes are in
+analysis; a maze given by rectangles becomes such a grid maze when it is one
+(:mod:`mbn.world.mazes.gridify`), its grid then lying wherever its bounds lie and, when its blocks
+are not whole multiples of its corridor width, with columns and rows of more than one width
+(``edges``). Files are read by :mod:`mbn.world.mazes.load`; the built-in mazes are in
 :mod:`mbn.world.mazes.builtin`.
 """
 
@@ -91,9 +94,16 @@ class Maze:
         outside_is_wall: whether everything outside ``bounds`` is solid.
         tiles: floor tiles.
         starts: ``(S, 3)`` start poses ``(x, y, theta)``.
-        grid: for mazes given as a grid, the ``(R, C)`` array of characters, first row north.
-        cell: the grid's cell side (metres), or ``None`` without a grid.
+        grid: for grid mazes, the ``(R, C)`` array of characters, first row north; its
+            south-west corner is ``(bounds[0], bounds[2])`` (``(0, 0)`` for ``.maze`` files).
+        cell: the side of a grid's square cells (metres); ``None`` without a grid, and for a
+            grid whose columns and rows are not all one width (then ``edges`` has them).
         source: where the maze came from (a path, or ``"builtin"``).
+        edges: for a grid whose columns and rows are not all one width (``cell`` is None), the
+            ``x`` borders of its columns ``(C + 1,)`` and the ``y`` borders of its rows
+            ``(R + 1,)``, increasing from ``bounds[0]`` and ``bounds[2]`` (row ``r`` spans
+            ``[y[R - 1 - r], y[R - r]]``); ``None`` otherwise (:meth:`grid_edges` gives both
+            kinds).
     """
 
     name: str
@@ -105,6 +115,7 @@ class Maze:
     grid: np.ndarray | None = None
     cell: float | None = None
     source: str = ""
+    edges: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         walls = np.asarray(self.walls, dtype=np.float64).reshape(-1, 4)
@@ -120,6 +131,34 @@ class Maze:
         x0, x1, y0, y1 = self.bounds
         if not (x0 < x1 and y0 < y1):
             raise MbnInputError(f"maze {self.name!r}: empty bounds {self.bounds}")
+        if self.edges is not None:
+            xe, ye = (np.asarray(e, dtype=np.float64) for e in self.edges)
+            object.__setattr__(self, "edges", (xe, ye))
+            rows, cols = np.shape(self.grid) if self.grid is not None else (-1, -1)
+            if (
+                self.cell is not None
+                or xe.shape != (cols + 1,)
+                or ye.shape != (rows + 1,)
+                or not (np.all(np.diff(xe) > 0) and np.all(np.diff(ye) > 0))
+            ):
+                raise MbnInputError(
+                    f"maze {self.name!r}: edges must be the increasing borders of its grid's "
+                    "columns and rows (and cell None)"
+                )
+
+    def grid_edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """The ``x`` borders of a grid maze's columns ``(C + 1,)`` and the ``y`` borders of its
+        rows ``(R + 1,)`` (increasing; row ``r`` spans ``[y[R - 1 - r], y[R - r]]``): ``edges``,
+        or ``cell`` steps from the south-west corner of ``bounds``."""
+        if self.grid is None:
+            raise MbnInputError(f"maze {self.name!r} has no grid")
+        if self.edges is not None:
+            return self.edges
+        if self.cell is None:
+            raise MbnInputError(f"maze {self.name!r}: a grid needs cell or edges")
+        rows, cols = np.shape(self.grid)
+        x0, _, y0, _ = self.bounds
+        return x0 + np.arange(cols + 1) * self.cell, y0 + np.arange(rows + 1) * self.cell
 
     def is_free(self, x: float, y: float) -> bool:
         """Whether the point ``(x, y)`` lies in free space (on a wall's edge counts as free)."""
