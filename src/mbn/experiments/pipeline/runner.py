@@ -119,9 +119,11 @@ def prepare(
     resume: bool,
     force: bool,
 ) -> None:
-    """Check the folder (:func:`check_out_dir`), then create it, or check that a run resumed was
-    started with the same seed and config."""
+    """Check the folder (:func:`check_out_dir`) and what the settings name
+    (:meth:`RunConfig.check`: nothing is written or cleared for a config refused), then create
+    the folder, or check that a run resumed was started with the same seed and config."""
     check_out_dir(rundir.root, experiment.kind, resume=resume, force=force)
+    config.check()
     try:
         if force:
             rundir.clear()
@@ -193,6 +195,7 @@ def run_stage(
     """Run one stage against a run folder whose ``needs`` are done; writes ``stages/NAME.json``
     and returns the stage's data."""
     stage = experiment.registry[name]
+    config.check()
     missing = [n for n in stage.needs if not rundir.stage_done(n)]
     if missing:
         raise MbnInputError(
@@ -311,4 +314,7 @@ def _wanted(registry: Registry, name: str, wanted: Sequence[str]) -> bool:
 
 def replace_section(config: RunConfig, section: Settings) -> RunConfig:
     """``config`` with one section replaced."""
-    return RunConfig(tuple(section if s.section == section.section else s for s in config.sections))
+    return RunConfig(
+        tuple(section if s.section == section.section else s for s in config.sections),
+        origin=config.origin,
+    )

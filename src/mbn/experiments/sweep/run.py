@@ -558,6 +558,7 @@ def run_sweep(
     out = Path(out)
     t0 = time.perf_counter()
     check_sweep_dir(out, settings)
+    settings.config.check()  # what the settings name, before any seed runs (each checks again)
     if reuse is not None:
         check_reuse_dir(Path(reuse), out, settings, experiment)
     states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
