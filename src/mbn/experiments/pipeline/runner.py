@@ -27,7 +27,12 @@ from mbn.experiments.pipeline.context import StageContext
 from mbn.experiments.pipeline.experiment import Experiment
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
-from mbn.experiments.pipeline.reuse import ReuseSource, take_stages
+from mbn.experiments.pipeline.reuse import (
+    ReuseSource,
+    settings_disagreement,
+    shared_defaults,
+    take_stages,
+)
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings, first_difference
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import check_writable, write_json_atomic
@@ -250,8 +255,8 @@ def run_experiment(
     the results do not depend on it). ``reuse``: another run of the same seed whose stages this
     run takes where it can (:mod:`~mbn.experiments.pipeline.reuse`)."""
     rundir = RunDir(Path(out))
-    if reuse is not None and reuse.root.resolve() == rundir.root.resolve():
-        raise MbnInputError(f"--reuse {reuse.root}: the run's own folder (use --resume)")
+    if reuse is not None:
+        _check_reuse(experiment, rundir, seed, config, reuse)
     prepare(experiment, rundir, seed, config, resume=resume, force=force)
     if reuse is not None:
         taken = take_stages(experiment, rundir, seed, config, reuse)
@@ -298,6 +303,30 @@ def run_experiment(
             rundir.write_timings(timings)
         bars.update(overall, completed=len(experiment.registry) + 1, info="done")
     return results
+
+
+def _check_reuse(
+    experiment: Experiment, rundir: RunDir, seed: int, config: RunConfig, reuse: ReuseSource
+) -> None:
+    """Refuse a ``--reuse`` source before the run's folder is made or its ``run.json`` written
+    (a refused command must leave nothing that blocks the corrected one): the run's own folder,
+    a run of another seed, or one made with other settings for the stages both have (as
+    :func:`~mbn.experiments.pipeline.reuse.take_stages` checks again as it takes them)."""
+    if reuse.root.resolve() == rundir.root.resolve():
+        raise MbnInputError(f"--reuse {reuse.root}: the run's own folder (use --resume)")
+    if reuse.seed != seed:
+        raise MbnInputError(f"--reuse {reuse.root}: a run of seed {reuse.seed}, not {seed}")
+    diff = settings_disagreement(
+        config.to_dict(),
+        shared_defaults(experiment, config.quick),
+        reuse.config,
+        shared_defaults(reuse.experiment, config.quick),
+    )
+    if diff is not None:
+        raise MbnInputError(
+            f"{RunDir(reuse.root).manifest}: the run there was made with other settings "
+            f"({diff}); nothing is taken from it"
+        )
 
 
 def _wanted(registry: Registry, name: str, wanted: Sequence[str]) -> bool:
