@@ -49,6 +49,7 @@ __all__ = [
     "run_sweep",
     "seed_dir",
     "seed_state",
+    "settle",
     "thread_env",
     "write_sweep",
 ]
@@ -220,6 +221,30 @@ def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
         ):
             return "done"
     return "resume" if (folder / "run.json").exists() else "new"
+
+
+def settle(out: Path, seed: int, config: RunConfig, result: Mapping[str, Any]) -> dict[str, Any]:
+    """A seed's record in ``sweep.json`` once its task ended: its state is one thing, done or
+    failed, as its folder says (what a rerun of the sweep goes by, :func:`seed_state`). A task
+    reported failed whose run is complete (its ``results.json`` and report written: its worker
+    died after the run's last file) is done, the failure kept as a notice; ``error`` is set only
+    for a failed seed."""
+    state, error = str(result["state"]), result.get("error")
+    notices = list(result.get("notices") or [])
+    if state != "done" and seed_state(out, seed, config) == "done":
+        notices.append(
+            f"notice: the run was complete when its worker ended abnormally ({error}); kept"
+        )
+        state, error = "done", None
+    elif state != "done":
+        state = "failed"
+    return {
+        "state": state,
+        "error": error if state == "failed" else None,
+        "seconds": result.get("seconds"),
+        **({"worker": result["worker"]} if "worker" in result else {}),
+        **({"notices": notices} if notices else {}),
+    }
 
 
 def check_reuse_dir(
@@ -619,16 +644,10 @@ def run_sweep(
                     handles.remove(h)
                     r = ex.result(h) if ex is not None else {}
                     s = int(r["seed"])
-                    runs[str(s)] = {
-                        "state": r["state"],
-                        "error": r.get("error"),
-                        "seconds": r.get("seconds"),
-                        "resumed": states[s] == "resume",
-                        **({"worker": r["worker"]} if "worker" in r else {}),
-                        **({"notices": r["notices"]} if r.get("notices") else {}),
-                    }
+                    record = settle(out, s, settings.config, r)
+                    runs[str(s)] = {**record, "resumed": states[s] == "resume"}
                     write_sweep(out, data)  # a finished seed is recorded at once
-                    mon.mark(s, r["state"], r.get("error"))
+                    mon.mark(s, record["state"], record["error"])
                 mon.poll()
     finally:
         if ex is not None:
