@@ -18,8 +18,10 @@ libraries to that many threads, and XLA to one where that is one (:func:`thread_
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
+import subprocess
 import sys
 import tempfile
 import time
@@ -30,6 +32,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from mbn import __version__
 from mbn.errors import MbnInputError
+from mbn.experiments.sweep.reaper import GRACE_S, start_reaper
 from mbn.io import atomic_open, check_writable, json_text, read_json
 
 if TYPE_CHECKING:
@@ -44,6 +47,8 @@ __all__ = [
     "RayExecutor",
     "SweepSettings",
     "check_sweep_dir",
+    "divert_ray_notices",
+    "ray_notice",
     "read_sweep",
     "run_seed",
     "run_sweep",
@@ -453,6 +458,40 @@ def auth_hint(address: str | None, env: Mapping[str, str]) -> str:
     )
 
 
+def ray_notice(data: Mapping[str, Any], ignore_prefix: bool = False) -> None:
+    """Print one of Ray's driver-side notices (its raylet's: a worker that died, ...) as one
+    warning line per message on stderr: the first sentence, the rest being in Ray's session logs
+    (``/tmp/ray/session_*/logs``). Ray itself prints them on the driver's stdout, which is the
+    sweep's progress and summary."""
+    for line in data.get("lines", ()):
+        text = " ".join(str(line).split())
+        first = text.split(". ", 1)[0].rstrip(".")
+        if first:
+            who = data.get("pid") or "ray"
+            print(f"mbn: warning: Ray ({who}): {first[:300]}", file=sys.stderr, flush=True)
+
+
+def divert_ray_notices() -> Callable[[], None]:
+    """Send Ray's driver-side notices to :func:`ray_notice` instead of stdout; returns what
+    undoes it. Ray offers no option for this (``log_to_driver=False`` covers the workers' output
+    only): its thread that listens for the raylet's errors prints them through
+    ``ray._private.worker.print_to_stdstream``, which is replaced while the sweep runs. Where a
+    version of Ray has no such function, nothing is changed."""
+    try:
+        import ray._private.worker as ray_worker
+    except ImportError:
+        return lambda: None
+    original = getattr(ray_worker, "print_to_stdstream", None)
+    if original is None:
+        return lambda: None
+    ray_worker.print_to_stdstream = ray_notice
+
+    def undo() -> None:
+        ray_worker.print_to_stdstream = original
+
+    return undo
+
+
 def import_ray() -> Any:
     """The ``ray`` module, or one line saying how to install it."""
     try:
@@ -466,8 +505,10 @@ class RayExecutor:
     """One Ray task per seed, each asking for ``cpus_per_run`` CPUs, its threads pinned.
 
     Without ``address``, a local Ray is started on this machine with as many CPUs as it has
-    cores; with one, the sweep joins that cluster (whose workers must see ``--out`` at the same
-    path: a shared file system).
+    cores, and ends with the sweep however the sweep ends (:mod:`~mbn.experiments.sweep.reaper`);
+    with one, the sweep joins that cluster (whose workers must see ``--out`` at the same path: a
+    shared file system). Ray's notices on the driver (a worker that died) go to stderr as one
+    warning line each (:func:`divert_ray_notices`), not to stdout.
     """
 
     def __init__(
@@ -496,9 +537,12 @@ class RayExecutor:
                 f"--address {address or '(local)'}: cannot start or join Ray ({one_line(exc)})"
                 + auth_hint(address, os.environ)
             ) from None
+        # Ray's processes started here end with this process, even when it is killed
+        self._reaper = start_reaper() if address is None else None
+        self._undo_notices = divert_ray_notices()
         total = int(ray.cluster_resources().get("CPU", 0))
         if cpus_per_run > total:
-            ray.shutdown()
+            self.close()
             raise MbnInputError(
                 f"--cpus-per-run {cpus_per_run}: the Ray cluster has only {total} CPUs"
             )
@@ -531,6 +575,13 @@ class RayExecutor:
 
     def close(self) -> None:
         self.ray.shutdown()
+        self._undo_notices()
+        if self._reaper is not None:  # what ray.shutdown() left ends now
+            assert self._reaper.stdin is not None
+            self._reaper.stdin.close()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self._reaper.wait(timeout=2 * GRACE_S + 5)
+            self._reaper = None
 
 
 # -- the sweep -------------------------------------------------------------------------------------
