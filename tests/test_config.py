@@ -97,7 +97,7 @@ def test_a_settings_file_overrides_the_defaults_and_the_quick_preset(tmp_path):
             "[pm]\nreward = 'best'\n",
             r"s\.toml:2: pm\.reward: expected one of programs, memory, paper",
         ),
-        ("[pm]\ninit = 20.0\n", r"s\.toml:1: \[pm\]: pm\.init must be in \(0, pm\.bound\]"),
+        ("[pm]\ninit = 20.0\n", r"s\.toml:2: pm\.init must be in \(0, pm\.bound\]"),
         ("[lf]\napproaches = ['north']\n", r"s\.toml:2: lf\.approaches\[0\]: expected one of"),
         ("[rf\ngenerations = 1\n", r"s\.toml:1: TOML syntax error"),
         ("[rf]\ngenerations = 1\ngenerations = 2\n", r"s\.toml:3: TOML syntax error"),

@@ -25,7 +25,7 @@ import textwrap
 import tomllib
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -34,6 +34,7 @@ from mbn.errors import MbnInputError
 from mbn.io import expect_number, integer_digits
 
 __all__ = [
+    "Locator",
     "Settings",
     "TomlDocument",
     "from_mapping",
@@ -47,6 +48,10 @@ __all__ = [
 ]
 
 S = TypeVar("S", bound="Settings")
+
+#: How a check names a setting in its one-line error: ``where(section, key)`` is
+#: ``FILE:LINE: section.key`` for a value read from a settings file, else ``section.key``.
+Locator = Callable[[str, str], str]
 
 
 def setting(
@@ -157,6 +162,14 @@ class Settings:
     def replace(self: S, **changes: Any) -> S:
         """A copy with some fields changed (validated)."""
         return dataclasses.replace(self, **changes)
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        """Check what this section names (mazes, connections, rules) against the world and the
+        run's other ``sections`` (``section -> settings``), before any work: a maze that cannot
+        be read or run in, a connection the network lacks, a rule no stage provides. Raises one
+        :class:`~mbn.errors.MbnInputError` whose message starts with ``where(section, key)``
+        (``FILE:LINE: section.key`` where the value came from a settings file). A settings class
+        whose fields name nothing checks nothing (this default)."""
 
 
 def settings_to_dict(settings: Settings) -> dict[str, Any]:
@@ -283,6 +296,12 @@ def from_mapping(
     try:
         return dataclasses.replace(start, **changes)
     except MbnInputError as exc:
+        # a check of the whole section that names one key of the table: that key's line
+        text = str(exc)
+        for key in data:
+            prefix = f"{name}.{key}"
+            if text.startswith(prefix) and text[len(prefix) : len(prefix) + 1] in (":", "[", " "):
+                raise MbnInputError(f"{at(key)}{text[len(prefix) :]}") from None
         raise MbnInputError(f"{at('')}: {exc}") from None
 
 

@@ -118,6 +118,20 @@ def test_seeds_required_unless_summarize(capsys, tmp_path):
     assert code == 2 and "no sweep there" in err
 
 
+def test_a_bad_named_setting_is_one_line_before_ray_or_any_seed(capsys, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # refused before Ray is needed
+    config = tmp_path / "s.toml"
+    config.write_text('[validation]\nmaze = "heldout"\n')
+    out = tmp_path / "s"
+    code, err = _run(capsys, "--seeds", "0-1", "--out", str(out), "--config", str(config))
+    assert code == 2
+    assert err == (
+        f"mbn: error: {config}:2: validation.maze: 'heldout' is a test maze ([tests] "
+        "heldout_maze); a maze that validates candidates during evolution must be one no test uses"
+    )
+    assert not out.exists()
+
+
 #: Budgets under the quick preset's, for the tiny sweep of CI.
 TINY = """\
 [followers]

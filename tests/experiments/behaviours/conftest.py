@@ -33,9 +33,11 @@ def im_full_run(quick_run, tmp_path_factory):
     section = config["im_full"].replace(
         curve=True, connections=(*extra, *differ), tau_ratio=0.1, substeps=20
     )
-    data = run_stage(
-        NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=replace_section(config, section)
-    )
+    # the LF search's candidates narrowed to them too: an interpreter must have every
+    # connection LF may re-evolve programmable (here LF has run: its triple is known)
+    search = config["lf_search"].replace(candidates=(*extra, *differ))
+    config = replace_section(replace_section(config, section), search)
+    data = run_stage(NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=config)
     return rundir, data, [*extra, *differ]
 
 

@@ -78,7 +78,10 @@ def test_a_test_maze_is_refused_for_validation(nb_copy):
     config = replace_section(
         config, dataclasses.replace(config["programs"], validation_mazes=("tiles3",))
     )
-    with pytest.raises(MbnInputError, match=r"programs\.validation_mazes: tiles3 is a test maze"):
+    with pytest.raises(
+        MbnInputError,
+        match=r"^programs\.validation_mazes\[0\]: 'tiles3' is a test maze \(\[tests3\] maze\)",
+    ):
         run_stage(NEW_BEHAVIOURS, rundir, "programs", seed=3, config=config)
 
 
@@ -89,6 +92,8 @@ def test_rules_are_checked():
         ProgramsSettings(rules=("straight-right", "SRL"))
     with pytest.raises(MbnInputError, match="RF's and LF's"):
         ProgramsSettings(rules=("right",))
+    with pytest.raises(MbnInputError, match=r"^programs\.rules: no rule: the stage learns"):
+        ProgramsSettings(rules=())
 
 
 @pytest.mark.slow

@@ -207,6 +207,36 @@ def test_another_seed_or_other_shared_settings_are_refused(tmp_path):
     assert CALLS == {"sphere": 1, "norm": 1, "tail": 1}
 
 
+def _files(folder):
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+def test_a_refused_reuse_writes_nothing_so_the_corrected_command_runs(tmp_path):
+    """Refused before the folder is made or its run.json written (before, the run.json left
+    behind refused the corrected command as "holds another run"); with --force, before the
+    run there is cleared."""
+    _run(FIRST, tmp_path / "first", log=lambda _: None)
+    source = _source(tmp_path / "first")
+    out = tmp_path / "run"
+    with pytest.raises(MbnInputError, match=r"a run of seed 4, not 5$"):
+        _run(SECOND, out, seed=5, reuse=source)
+    assert not out.exists()
+    toml = tmp_path / "g6.toml"
+    toml.write_text("[sphere]\ngenerations = 6\n")
+    with pytest.raises(MbnInputError, match=r"other settings \(sphere\.generations: 5 then"):
+        _run(SECOND, out, document=read_toml(toml), reuse=source)
+    assert not out.exists()
+    CALLS.clear()
+    lines: list[str] = []
+    _run(SECOND, out, reuse=source, log=lines.append)  # the corrected command
+    assert CALLS == {"tail": 1} and f"stages sphere, norm: taken from {source.root}" in lines
+    # --force over a run: the refusal leaves that run as it was
+    before = _files(out)
+    with pytest.raises(MbnInputError, match=r"a run of seed 4, not 5$"):
+        _run(SECOND, out, seed=5, force=True, reuse=source)
+    assert _files(out) == before
+
+
 def test_a_source_that_is_no_run_is_refused_in_one_line(tmp_path):
     with pytest.raises(MbnInputError, match=r"--reuse .*nowhere: no such folder$"):
         _source(tmp_path / "nowhere")

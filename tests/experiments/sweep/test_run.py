@@ -130,6 +130,33 @@ def test_one_crashing_seed_is_reported_and_the_others_finish(tmp_path):
     assert data["runs"]["1"]["state"] == "done" and data["runs"]["1"]["resumed"] is True
 
 
+def test_a_seed_is_done_or_failed_never_both_when_its_worker_dies(tmp_path):
+    """A worker that aborts (as Ray reports it: the task failed, no result) after its run was
+    complete leaves a done seed, the failure a notice; one that aborts before, a failed seed.
+    Either way sweep.json's state is what the folder says, which a rerun goes by."""
+    crash = "WorkerCrashedError: The worker died unexpectedly while executing this task."
+
+    def aborts(out, seed, config, resume, experiment=None):
+        if seed == 0:
+            run_seed(out, seed, config, resume, experiment)  # the run completes, then the abort
+        return {"seed": seed, "state": "failed", "error": crash, "seconds": None}
+
+    settings = SweepSettings((0, 1), TOY.config())
+    data = run_sweep(tmp_path / "s", settings, lambda: InlineExecutor(aborts), experiment=TOY)
+    done, failed = data["runs"]["0"], data["runs"]["1"]
+    assert seed_state(tmp_path / "s", 0, TOY.config()) == "done" and done["state"] == "done"
+    assert done["error"] is None
+    assert done["notices"] == [
+        f"notice: the run was complete when its worker ended abnormally ({crash}); kept"
+    ]
+    assert seed_state(tmp_path / "s", 1, TOY.config()) == "new"
+    assert failed["state"] == "failed" and failed["error"] == crash
+    # the same command again: the done seed is skipped, the failed one runs
+    CALLS.clear()
+    again = _sweep(tmp_path / "s", [0, 1])
+    assert again["skipped"] == [0] and CALLS == [("draw", 1), ("total", 1)]
+
+
 def test_an_interrupted_seed_resumes_and_ends_as_an_uninterrupted_one(tmp_path):
     CRASH["total"].add(2)
     _sweep(tmp_path / "a", [2, 3])

@@ -80,7 +80,7 @@ class Experiment:
             if isinstance(current, RunSettings) and use_quick and not current.quick:
                 current = current.replace(quick=True)
             sections.append(current)
-        return RunConfig(tuple(sections))
+        return RunConfig(tuple(sections), origin=document)
 
     def config_from_dict(self, data: Any, where: str) -> RunConfig:
         """The config recorded in a ``run.json`` (a table per section)."""

@@ -4,10 +4,10 @@ section every experiment has (:class:`RunSettings`: ``[run]``)."""
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-from mbn.config import Settings, setting, settings_to_dict, to_toml
+from mbn.config import Settings, TomlDocument, setting, settings_to_dict, to_toml
 from mbn.precision import PRECISIONS, ROBOT
 
 __all__ = ["RunConfig", "RunSettings", "first_difference"]
@@ -33,9 +33,13 @@ class RunSettings(Settings):
 
 @dataclass(frozen=True)
 class RunConfig:
-    """A run's effective settings: one :class:`~mbn.config.Settings` per section, in order."""
+    """A run's effective settings: one :class:`~mbn.config.Settings` per section, in order.
+
+    ``origin``: the settings file the values were read from, if any (not part of the config:
+    it only lets :meth:`check` name the file and line of a value)."""
 
     sections: tuple[Settings, ...]
+    origin: TomlDocument | None = field(default=None, compare=False, repr=False)
 
     def __getitem__(self, name: str) -> Any:
         for s in self.sections:
@@ -46,6 +50,22 @@ class RunConfig:
     @property
     def quick(self) -> bool:
         return bool(self["run"].quick)
+
+    def where(self, section: str, key: str) -> str:
+        """How an error names ``section.key``: with the settings file and line where the value
+        was read from one (:meth:`~mbn.config.TomlDocument.where`), else ``section.key``."""
+        table = self.origin.data.get(section) if self.origin is not None else None
+        if self.origin is not None and isinstance(table, dict) and key in table:
+            return self.origin.where(section, key)
+        return f"{section}.{key}"
+
+    def check(self) -> None:
+        """Check what every section names (:meth:`~mbn.config.Settings.check_names`: mazes,
+        connections, rules, against the world and one another) before a run does any work:
+        the first problem as one :class:`~mbn.errors.MbnInputError` naming the setting."""
+        sections = {s.section: s for s in self.sections}
+        for s in self.sections:
+            s.check_names(sections, self.where)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         return {s.section: settings_to_dict(s) for s in self.sections}

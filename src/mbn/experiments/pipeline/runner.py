@@ -24,7 +24,7 @@ from mbn.experiments.pipeline.context import StageContext
 from mbn.experiments.pipeline.experiment import Experiment
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
-from mbn.experiments.pipeline.reuse import ReuseSource, take_stages
+from mbn.experiments.pipeline.reuse import ReuseSource, check_agreement, take_stages
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings, first_difference
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import check_writable, write_json_atomic
@@ -106,11 +106,13 @@ def prepare(
     force: bool,
     allow_other_code: bool = False,
 ) -> None:
-    """Check the folder (:func:`check_out_dir`), then create it, or check that a run resumed was
-    started with the same seed, config and code (:func:`mbn.provenance.code_difference`; other
-    code is refused unless ``allow_other_code``, and then recorded in ``run.json``,
-    ``other_code``)."""
+    """Check the folder (:func:`check_out_dir`) and what the settings name
+    (:meth:`RunConfig.check`: nothing is written or cleared for a config refused), then create
+    the folder, or check that a run resumed was started with the same seed, config and code
+    (:func:`mbn.provenance.code_difference`; other code is refused unless ``allow_other_code``,
+    and then recorded in ``run.json``, ``other_code``)."""
     check_out_dir(rundir.root, experiment.kind, resume=resume, force=force)
+    config.check()
     try:
         if force:
             rundir.clear()
@@ -206,6 +208,7 @@ def run_stage(
     """Run one stage against a run folder whose ``needs`` are done; writes ``stages/NAME.json``
     and returns the stage's data."""
     stage = experiment.registry[name]
+    config.check()
     missing = [n for n in stage.needs if not rundir.stage_done(n)]
     if missing:
         raise MbnInputError(
@@ -264,8 +267,8 @@ def run_experiment(
     a run, or take stages from one, made by other code (:mod:`mbn.provenance`); refused
     otherwise."""
     rundir = RunDir(Path(out))
-    if reuse is not None and reuse.root.resolve() == rundir.root.resolve():
-        raise MbnInputError(f"--reuse {reuse.root}: the run's own folder (use --resume)")
+    if reuse is not None:
+        _check_reuse(experiment, rundir, seed, config, reuse, allow_other_code)
     prepare(
         experiment,
         rundir,
@@ -329,6 +332,24 @@ def run_experiment(
     return results
 
 
+def _check_reuse(
+    experiment: Experiment,
+    rundir: RunDir,
+    seed: int,
+    config: RunConfig,
+    reuse: ReuseSource,
+    allow_other_code: bool,
+) -> None:
+    """Refuse a ``--reuse`` source before the run's folder is made or its ``run.json`` written
+    (a refused command must leave nothing that blocks the corrected one): the run's own folder,
+    a run of another seed, one made with other settings for the stages both have, or by other
+    code unless ``allow_other_code`` (:func:`~mbn.experiments.pipeline.reuse.check_agreement`,
+    which :func:`~mbn.experiments.pipeline.reuse.take_stages` runs again as it takes them)."""
+    if reuse.root.resolve() == rundir.root.resolve():
+        raise MbnInputError(f"--reuse {reuse.root}: the run's own folder (use --resume)")
+    check_agreement(experiment, reuse, seed, config, allow_other_code=allow_other_code)
+
+
 def _wanted(registry: Registry, name: str, wanted: Sequence[str]) -> bool:
     """Whether ``name`` is wanted or needed (transitively) by a wanted stage."""
     todo, seen = list(wanted), set()
@@ -343,4 +364,7 @@ def _wanted(registry: Registry, name: str, wanted: Sequence[str]) -> bool:
 
 def replace_section(config: RunConfig, section: Settings) -> RunConfig:
     """``config`` with one section replaced."""
-    return RunConfig(tuple(section if s.section == section.section else s for s in config.sections))
+    return RunConfig(
+        tuple(section if s.section == section.section else s for s in config.sections),
+        origin=config.origin,
+    )

@@ -7,13 +7,15 @@ gives a value, else the documented deviation (``docs/reproduce.md``, "Deviations
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers.spec import MAX_SUBSTEPS
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import EPISODE_SECONDS
+from mbn.experiments.named import PAPER_TILE_RULES, check_not_test_mazes, locate, trial_maze
 
 __all__ = [
     "QUICK",
@@ -166,6 +168,19 @@ class ValidationSettings(Settings):
         high=20,
         source="docs/reproduce.md",
     )
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # each maze read and runnable (with the paper's tiles where the MBN is validated in
+        # it: the pm stage), and none of them a test maze
+        rules = PAPER_TILE_RULES if "pm" in sections else None
+        names = [(locate(where, self.section, "maze"), self.maze)]
+        names += [
+            (locate(where, self.section, "extra_mazes", k), name)
+            for k, name in enumerate(self.extra_mazes)
+        ]
+        for at, name in names:
+            trial_maze(name, at, rules)
+        check_not_test_mazes(names, sections)
 
 
 #: The quick preset (``--quick``): a smoke run of every stage and output with tiny budgets.

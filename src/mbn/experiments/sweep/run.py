@@ -18,8 +18,10 @@ libraries to that many threads, and XLA to one where that is one (:func:`thread_
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
+import subprocess
 import sys
 import tempfile
 import time
@@ -30,6 +32,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from mbn._version import __version__
 from mbn.errors import MbnInputError
+from mbn.experiments.sweep.reaper import GRACE_S, start_reaper
 from mbn.io import atomic_open, check_writable, json_text, read_json
 from mbn.provenance import code_difference, code_identity, environment
 
@@ -45,11 +48,14 @@ __all__ = [
     "RayExecutor",
     "SweepSettings",
     "check_sweep_dir",
+    "divert_ray_notices",
+    "ray_notice",
     "read_sweep",
     "run_seed",
     "run_sweep",
     "seed_dir",
     "seed_state",
+    "settle",
     "thread_env",
     "write_sweep",
 ]
@@ -221,6 +227,30 @@ def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
         ):
             return "done"
     return "resume" if (folder / "run.json").exists() else "new"
+
+
+def settle(out: Path, seed: int, config: RunConfig, result: Mapping[str, Any]) -> dict[str, Any]:
+    """A seed's record in ``sweep.json`` once its task ended: its state is one thing, done or
+    failed, as its folder says (what a rerun of the sweep goes by, :func:`seed_state`). A task
+    reported failed whose run is complete (its ``results.json`` and report written: its worker
+    died after the run's last file) is done, the failure kept as a notice; ``error`` is set only
+    for a failed seed."""
+    state, error = str(result["state"]), result.get("error")
+    notices = list(result.get("notices") or [])
+    if state != "done" and seed_state(out, seed, config) == "done":
+        notices.append(
+            f"notice: the run was complete when its worker ended abnormally ({error}); kept"
+        )
+        state, error = "done", None
+    elif state != "done":
+        state = "failed"
+    return {
+        "state": state,
+        "error": error if state == "failed" else None,
+        "seconds": result.get("seconds"),
+        **({"worker": result["worker"]} if "worker" in result else {}),
+        **({"notices": notices} if notices else {}),
+    }
 
 
 def check_reuse_dir(
@@ -452,6 +482,40 @@ def auth_hint(address: str | None, env: Mapping[str, str]) -> str:
     )
 
 
+def ray_notice(data: Mapping[str, Any], ignore_prefix: bool = False) -> None:
+    """Print one of Ray's driver-side notices (its raylet's: a worker that died, ...) as one
+    warning line per message on stderr: the first sentence, the rest being in Ray's session logs
+    (``/tmp/ray/session_*/logs``). Ray itself prints them on the driver's stdout, which is the
+    sweep's progress and summary."""
+    for line in data.get("lines", ()):
+        text = " ".join(str(line).split())
+        first = text.split(". ", 1)[0].rstrip(".")
+        if first:
+            who = data.get("pid") or "ray"
+            print(f"mbn: warning: Ray ({who}): {first[:300]}", file=sys.stderr, flush=True)
+
+
+def divert_ray_notices() -> Callable[[], None]:
+    """Send Ray's driver-side notices to :func:`ray_notice` instead of stdout; returns what
+    undoes it. Ray offers no option for this (``log_to_driver=False`` covers the workers' output
+    only): its thread that listens for the raylet's errors prints them through
+    ``ray._private.worker.print_to_stdstream``, which is replaced while the sweep runs. Where a
+    version of Ray has no such function, nothing is changed."""
+    try:
+        import ray._private.worker as ray_worker
+    except ImportError:
+        return lambda: None
+    original = getattr(ray_worker, "print_to_stdstream", None)
+    if original is None:
+        return lambda: None
+    ray_worker.print_to_stdstream = ray_notice
+
+    def undo() -> None:
+        ray_worker.print_to_stdstream = original
+
+    return undo
+
+
 def import_ray() -> Any:
     """The ``ray`` module, or one line saying how to install it."""
     try:
@@ -465,8 +529,10 @@ class RayExecutor:
     """One Ray task per seed, each asking for ``cpus_per_run`` CPUs, its threads pinned.
 
     Without ``address``, a local Ray is started on this machine with as many CPUs as it has
-    cores; with one, the sweep joins that cluster (whose workers must see ``--out`` at the same
-    path: a shared file system).
+    cores, and ends with the sweep however the sweep ends (:mod:`~mbn.experiments.sweep.reaper`);
+    with one, the sweep joins that cluster (whose workers must see ``--out`` at the same path: a
+    shared file system). Ray's notices on the driver (a worker that died) go to stderr as one
+    warning line each (:func:`divert_ray_notices`), not to stdout.
     """
 
     def __init__(
@@ -495,9 +561,12 @@ class RayExecutor:
                 f"--address {address or '(local)'}: cannot start or join Ray ({one_line(exc)})"
                 + auth_hint(address, os.environ)
             ) from None
+        # Ray's processes started here end with this process, even when it is killed
+        self._reaper = start_reaper() if address is None else None
+        self._undo_notices = divert_ray_notices()
         total = int(ray.cluster_resources().get("CPU", 0))
         if cpus_per_run > total:
-            ray.shutdown()
+            self.close()
             raise MbnInputError(
                 f"--cpus-per-run {cpus_per_run}: the Ray cluster has only {total} CPUs"
             )
@@ -530,6 +599,13 @@ class RayExecutor:
 
     def close(self) -> None:
         self.ray.shutdown()
+        self._undo_notices()
+        if self._reaper is not None:  # what ray.shutdown() left ends now
+            assert self._reaper.stdin is not None
+            self._reaper.stdin.close()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self._reaper.wait(timeout=2 * GRACE_S + 5)
+            self._reaper = None
 
 
 # -- the sweep -------------------------------------------------------------------------------------
@@ -588,6 +664,7 @@ def run_sweep(
     t0 = time.perf_counter()
     found = check_sweep_dir(out, settings)
     other_code = _check_sweep_code(out, found, allow_other_code)
+    settings.config.check()  # what the settings name, before any seed runs (each checks again)
     if reuse is not None:
         check_reuse_dir(Path(reuse), out, settings, experiment)
     states = {s: seed_state(out, s, settings.config) for s in settings.seeds}
@@ -653,16 +730,10 @@ def run_sweep(
                     handles.remove(h)
                     r = ex.result(h) if ex is not None else {}
                     s = int(r["seed"])
-                    runs[str(s)] = {
-                        "state": r["state"],
-                        "error": r.get("error"),
-                        "seconds": r.get("seconds"),
-                        "resumed": states[s] == "resume",
-                        **({"worker": r["worker"]} if "worker" in r else {}),
-                        **({"notices": r["notices"]} if r.get("notices") else {}),
-                    }
+                    record = settle(out, s, settings.config, r)
+                    runs[str(s)] = {**record, "resumed": states[s] == "resume"}
                     write_sweep(out, data)  # a finished seed is recorded at once
-                    mon.mark(s, r["state"], r.get("error"))
+                    mon.mark(s, record["state"], record["error"])
                 mon.poll()
     finally:
         if ex is not None:

@@ -7,12 +7,13 @@ agreement with LF and RF as connections are made programmable one by one, from t
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
@@ -20,6 +21,7 @@ from mbn.controllers import (
     save_controller,
 )
 from mbn.errors import MbnInputError
+from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES, test_specs
 from mbn.experiments.reproduce.stages.common import MADE_BY, read_network, rf_lf_programs
@@ -91,13 +93,23 @@ class IMFullSettings(Settings):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for c in self.connections:
-            try:
-                Connection.parse(c)
-            except MbnInputError as exc:
-                raise MbnInputError(f"im_full.connections: {exc}") from None
-        if len(set(self.connections)) != len(self.connections):
-            raise MbnInputError("im_full.connections: a connection is listed twice")
+        # connections RF has (3 neurons, 3 inputs), none twice
+        follower_connections(self.connections, "im_full.connections")
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # LF differs from RF in the triple of [lf_search] candidates it re-evolves: every one
+        # must be programmable, or the interpreter could not run LF's program (found after LF)
+        if "lf_search" not in sections:
+            return
+        search: Any = sections["lf_search"]
+        mine = follower_connections(self.connections, "im_full.connections")
+        for c in follower_connections(search.candidates, "lf_search.candidates"):
+            if c not in mine:
+                raise MbnInputError(
+                    f"{where(self.section, 'connections')}: {c} is not listed, and LF may "
+                    "re-evolve it ([lf_search] candidates): the interpreter could not run LF's "
+                    "program"
+                )
 
 
 def nested_sets(first: list[Connection], order: list[Connection]) -> list[list[Connection]]:

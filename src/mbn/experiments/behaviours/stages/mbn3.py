@@ -11,7 +11,7 @@ PM latches after one)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     InterpreterControllerSpec,
     MBNControllerSpec,
@@ -40,7 +40,7 @@ from mbn.experiments.program_module import (
 from mbn.experiments.reproduce.stages.common import MADE_BY, de_config
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
-from mbn.world.rules import parse_rule
+from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
     "CodePM",
@@ -93,6 +93,20 @@ class MBN3Settings(Settings):
             raise MbnInputError(f"mbn3.tile_rules: one rule per tile kind (3), got {len(names)}")
         if len(set(names)) != len(names):
             raise MbnInputError("mbn3.tile_rules: a rule is listed twice")
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # each rule has a program: RF's, LF's or one the programs stage learns
+        if "programs" not in sections:
+            return
+        programs: Any = sections["programs"]
+        learned = parse_rules(programs.rules, "programs.rules")
+        for text in self.tile_rules:
+            rule = parse_rule(text).name
+            if rule not in ("right", "left", *learned):
+                raise MbnInputError(
+                    f"{where(self.section, 'tile_rules')}: {rule} has no program: right and "
+                    f"left are RF's and LF's, [programs] rules learns {', '.join(learned)}"
+                )
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ maze). The validation mazes are ``[validation]``'s and ``[programs] validation_m
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
@@ -33,6 +33,7 @@ from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
+from mbn.experiments.named import check_not_test_mazes, locate, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     MADE_BY,
@@ -103,6 +104,10 @@ class ProgramsSettings(Settings):
     def __post_init__(self) -> None:
         super().__post_init__()
         names = parse_rules(self.rules, "programs.rules")
+        if not names:
+            raise MbnInputError(
+                "programs.rules: no rule: the stage learns at least one new rule by programs"
+            )
         if len(set(names)) != len(names):
             raise MbnInputError("programs.rules: a rule is listed twice")
         if set(names) & {"right", "left"}:
@@ -111,6 +116,16 @@ class ProgramsSettings(Settings):
             check_approaches(self.approaches)
         except MbnInputError as exc:
             raise MbnInputError(f"programs.{exc}") from None
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # each maze read and runnable, and none of them a test maze
+        names = [
+            (locate(where, self.section, "validation_mazes", k), name)
+            for k, name in enumerate(self.validation_mazes)
+        ]
+        for at, name in names:
+            trial_maze(name, at)
+        check_not_test_mazes(names, sections)
 
 
 def check_digest(interp: Interpreter, expected: str, where: str) -> None:
@@ -263,13 +278,6 @@ class ProgramsStage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: ProgramsSettings = ctx.settings
-        tests = ctx.section("tests3")
-        leaked = set(s.validation_mazes) & {tests.maze, tests.heldout_maze}
-        if leaked:
-            raise MbnInputError(
-                f"programs.validation_mazes: {', '.join(sorted(leaked))} is a test maze "
-                "([tests3]); validate in mazes no test uses"
-            )
         spec = read_controller_spec(ctx.rundir.controller_file("im_full"))
         if not isinstance(spec, InterpreterControllerSpec):
             raise MbnInputError(f"{ctx.rundir.controller_file('im_full')}: not an interpreter")

@@ -8,12 +8,13 @@ sha256 in every file the run wrote, checked against the one ``im_full`` recorded
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
@@ -22,6 +23,7 @@ from mbn.controllers import (
     read_controller_spec,
 )
 from mbn.experiments.behaviours.stages.programs import check_digest
+from mbn.experiments.named import trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import SUFFIXES
 from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
@@ -40,6 +42,13 @@ class Tests3Settings(Settings):
     heldout_maze: str = setting(
         "tiles3_heldout", doc="a three-tile maze no training sees", source="docs/mazes.md"
     )
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # read and runnable, with the tiles of the three-behaviour MBN tested in them
+        owner: Any = next((sections[s] for s in ("mbn3", "contest3") if s in sections), None)
+        rules = tuple(owner.tile_rules) if owner is not None else None
+        for key in ("maze", "heldout_maze"):
+            trial_maze(getattr(self, key), where(self.section, key), rules)
 
 
 def trial_specs(

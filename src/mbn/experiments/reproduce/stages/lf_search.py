@@ -18,6 +18,7 @@ import numpy as np
 from mbn.config import Settings, setting
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import connection_group_fitness, robust_fitness, split_fitness
+from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import DERun, Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     de_config,
@@ -57,11 +58,8 @@ class LFSearchSettings(Settings):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for c in self.candidates:
-            try:
-                Connection.parse(c)
-            except MbnInputError as exc:
-                raise MbnInputError(f"lf_search.candidates: {exc}") from None
+        # connections RF has (3 neurons, 3 inputs), none twice: refused here, not after RF
+        follower_connections(self.candidates, "lf_search.candidates")
         if len(self.candidates) < 3:
             raise MbnInputError("lf_search.candidates: need at least 3 connections")
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import jax
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
+from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.networks.multiplier import (
     SHIPPED,
@@ -51,6 +53,15 @@ class MultiplierSettings(Settings):
         doc="train the multiplier again by BPTT instead of using the shipped one",
         source="docs/multiplier.md",
     )
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # checked here, not on construction: --retrain is applied after the settings file
+        if not self.retrain and self.neurons not in SHIPPED:
+            raise MbnInputError(
+                f"{where(self.section, 'neurons')}: the shipped multipliers have "
+                f"{' or '.join(map(str, sorted(SHIPPED)))} neurons, not {self.neurons}; set "
+                "[multiplier] retrain = true (or pass --retrain) to train one"
+            )
 
 
 class MultiplierStage(Stage):

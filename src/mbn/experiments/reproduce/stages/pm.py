@@ -4,6 +4,7 @@ rewards: ``docs/experiments.md``."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     InterpreterControllerSpec,
     MBNControllerSpec,
@@ -37,7 +38,6 @@ from mbn.experiments.reproduce.stages.common import (
     MADE_BY,
     de_config,
     read_network,
-    run_noise,
     stage_perturbations,
     validate,
 )
@@ -45,6 +45,7 @@ from mbn.experiments.reproduce.stages.lf import ATTEMPT_KEY
 from mbn.experiments.reproduce.stages.rf import evolution_summary
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
+from mbn.world.sensors import NoiseConfig
 
 __all__ = ["PMSettings", "PMStage"]
 
@@ -138,6 +139,16 @@ class PMSettings(Settings):
         except MbnInputError as exc:
             raise MbnInputError(f"pm.{exc}") from None
 
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # a robot reward under the run's [noise] is refused by the stage: refuse it up front
+        noise = sections.get("noise")
+        if self.reward != "programs" and isinstance(noise, NoiseConfig) and noise.enabled:
+            raise MbnInputError(
+                f"{where(self.section, 'reward')} = {self.reward!r}: a PM evolved on robot "
+                "episodes under [noise] is not supported; the default reward ('programs') needs "
+                "no robot (docs/noise.md)"
+            )
+
 
 class PMStage(Stage):
     name = "pm"
@@ -165,11 +176,6 @@ class PMStage(Stage):
         latch = jax.jit(
             pm_program_fitness(genome, programs, reward=MemoryReward(), switch=s.switch_seconds)
         )
-        if s.reward != "programs" and run_noise(ctx).enabled:
-            raise MbnInputError(
-                f"pm.reward = {s.reward!r}: a PM evolved on robot episodes under [noise] is not "
-                "supported; the default reward ('programs') needs no robot (docs/noise.md)"
-            )
         if s.reward == "programs":
             fitness, maximum = latch, 0.0
         else:

@@ -5,13 +5,14 @@ recordings the report draws (trajectories of every test, one MBN episode with it
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import jax
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     LoadedController,
@@ -20,6 +21,7 @@ from mbn.controllers import (
     read_controller_spec,
 )
 from mbn.errors import MbnInputError
+from mbn.experiments.named import mbn_tile_rules, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.protocol import (
     SUFFIXES,
@@ -80,6 +82,12 @@ class TestsSettings(Settings):
     heldout_maze: str = setting(
         "heldout", doc="a maze no training and no choice ever sees", source="docs/reproduce.md"
     )
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # read and runnable, with the tiles of the MBN the run tests in them (if any)
+        rules = mbn_tile_rules(sections)
+        for key in ("maze", "heldout_maze"):
+            trial_maze(getattr(self, key), where(self.section, key), rules)
 
 
 def _same_settings(a: LoadedController, b: LoadedController, na: str, nb: str) -> None:
