@@ -121,16 +121,14 @@ def _cmd_mazes(args: argparse.Namespace) -> int:
 
 def _cmd_show_maze(args: argparse.Namespace) -> int:
     from mbn.viz.maze import save_maze_png
-    from mbn.world.mazes.builtin import BUILTIN_NAMES
-    from mbn.world.mazes.grid_text import grid_shape
-    from mbn.world.mazes.load import load_maze
+    from mbn.world.mazes.load import load_maze, maze_file_grid_shape
 
-    path = Path(args.maze)
-    if args.maze not in BUILTIN_NAMES and path.suffix.lower() == ".maze" and path.is_file():
-        rows, cols = grid_shape(path)  # before reading it: a quick look at its lines
+    shape = maze_file_grid_shape(args.maze)  # before reading it: a quick look at its lines
+    if shape is not None:
+        rows, cols = shape
         if rows * cols > MAX_DRAW_CELLS:
             raise MbnInputError(
-                f"{path}: a grid of {rows} x {cols} cells; show-maze draws grids of at most "
+                f"{args.maze}: a grid of {rows} x {cols} cells; show-maze draws grids of at most "
                 f"{MAX_DRAW_CELLS:,} cells (1000 x 1000)"
             )
     maze = load_maze(args.maze)

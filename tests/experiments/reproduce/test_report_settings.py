@@ -19,6 +19,9 @@ import pytest
 
 from mbn.experiments.reproduce import REPRODUCE
 
+# one run for the module: its tests on one worker (``--dist loadgroup``), not the run on each
+pytestmark = pytest.mark.xdist_group("report_settings")
+
 #: The run's settings file: every value differs from the default and from the quick preset.
 SETTINGS = """\
 [de]

@@ -17,12 +17,12 @@ from pathlib import Path
 
 from mbn.errors import MbnInputError
 from mbn.world.mazes.builtin import BUILTIN_NAMES, builtin_maze
-from mbn.world.mazes.grid_text import read_maze_file
+from mbn.world.mazes.grid_text import grid_shape, read_maze_file
 from mbn.world.mazes.model import Maze
 from mbn.world.mazes.stage import read_stage_world
 from mbn.world.mazes.toml_maze import read_toml_maze
 
-__all__ = ["MAZE_SUFFIXES", "load_maze"]
+__all__ = ["MAZE_SUFFIXES", "load_maze", "maze_file_grid_shape"]
 
 #: File suffixes :func:`load_maze` reads.
 MAZE_SUFFIXES = (".maze", ".toml", ".world")
@@ -55,3 +55,13 @@ def load_maze(spec: str | os.PathLike[str]) -> Maze:
         f"{path}: cannot tell the maze format from the suffix {path.suffix!r}"
         f" (expected {', '.join(MAZE_SUFFIXES)})"
     )
+
+
+def maze_file_grid_shape(spec: str | os.PathLike[str]) -> tuple[int, int] | None:
+    """The ``(rows, columns)`` of the ``.maze`` file ``spec`` names, from its lines alone (a
+    quick look before reading it, e.g. to refuse a grid too large to draw); None for a built-in
+    name or a file of another format."""
+    path = Path(spec)
+    if str(spec) in BUILTIN_NAMES or path.suffix.lower() != ".maze" or not path.is_file():
+        return None
+    return grid_shape(path)
