@@ -158,3 +158,17 @@ def test_the_cli_gives_its_version_and_allows_other_code_where_runs_resume(capsy
     for command in (["reproduce"], ["run", "ablations"], ["sweep", "--seeds", "0", "--out", "x"]):
         args = parser.parse_args([*command, "--allow-other-code"])
         assert args.allow_other_code is True
+
+
+def test_the_licence_is_mits_and_the_citation_names_this_version_and_the_paper():
+    import yaml  # PyYAML comes with the test extras (Ray needs it)
+
+    licence = (TOP / "LICENSE").read_text()
+    assert licence.startswith("MIT License") and "WITHOUT WARRANTY OF ANY KIND" in licence
+    citation = yaml.safe_load((TOP / "CITATION.cff").read_text())
+    assert citation["cff-version"] == "1.2.0" and citation["type"] == "software"
+    assert citation["version"] == __version__ and citation["license"] == "MIT"
+    (paper,) = citation["references"]
+    assert paper["doi"] == "10.1007/978-3-642-20282-7_26"
+    assert [a["family-names"] for a in paper["authors"]] == ["Montone", "Donnarumma", "Prevete"]
+    assert (paper["year"], paper["start"], paper["end"]) == (2011, 250, 259)
