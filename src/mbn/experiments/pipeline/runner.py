@@ -147,10 +147,13 @@ def prepare(
         write_json_atomic(rundir.manifest, mine)
 
 
-def other_code_entry(action: str, recorded: Any) -> dict[str, Any]:
-    """What ``run.json`` (``other_code``) or ``sweep.json`` records when ``action`` (``resume``,
-    ``reuse``) went on with code other than ``recorded``: the action and both identities."""
-    return {"action": action, "recorded": recorded, "code": code_identity()}
+def with_other_code(record: dict[str, Any], action: str) -> list[dict[str, Any]]:
+    """The ``other_code`` entries of ``record`` (a ``run.json`` or ``sweep.json``) with one
+    more: ``action`` (``resume``, ``continue``) went on with this code, not the one recorded
+    (both identities)."""
+    before = record.get("other_code")
+    entries = list(before) if isinstance(before, list) else []
+    return [*entries, {"action": action, "recorded": record.get("code"), "code": code_identity()}]
 
 
 def _check_code(rundir: RunDir, manifest: dict[str, Any], action: str, allow: bool) -> None:
@@ -164,10 +167,9 @@ def _check_code(rundir: RunDir, manifest: dict[str, Any], action: str, allow: bo
             f"{rundir.manifest}: {diff}; pass --allow-other-code to {action} it with this code "
             "(run.json records that you did)"
         )
-    entries = manifest.get("other_code")
-    entries = list(entries) if isinstance(entries, list) else []
-    entries.append(other_code_entry(action, manifest.get("code")))
-    write_json_atomic(rundir.manifest, {**manifest, "other_code": entries})
+    write_json_atomic(
+        rundir.manifest, {**manifest, "other_code": with_other_code(manifest, action)}
+    )
 
 
 def _context(

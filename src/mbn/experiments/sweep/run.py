@@ -321,19 +321,18 @@ def _check_sweep_code(out: Path, found: dict[str, Any] | None, allow: bool) -> l
     unless ``allow``, which adds an entry."""
     if found is None:
         return []
-    before = found.get("other_code")
-    entries = list(before) if isinstance(before, list) else []
     diff = code_difference(found.get("code"))
     if diff is None:
-        return entries
+        before = found.get("other_code")
+        return list(before) if isinstance(before, list) else []
     if not allow:
         raise MbnInputError(
             f"{out / SWEEP_FILE}: {diff}; pass --allow-other-code to continue it with this code "
             "(sweep.json records that you did)"
         )
-    from mbn.experiments.pipeline.runner import other_code_entry
+    from mbn.experiments.pipeline.runner import with_other_code
 
-    return [*entries, other_code_entry("continue", found.get("code"))]
+    return with_other_code(found, "continue")
 
 
 # -- one seed (the body of a task) -----------------------------------------------------------------
