@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
@@ -69,15 +70,34 @@ __all__ = [
     "Shared",
     "Trajectory",
     "concatenate_states",
+    "count_robot_steps",
     "episode_batch",
     "input_reach",
     "junction_arrays",
     "map_controller",
+    "robot_steps",
     "rollout",
     "strip_shared",
 ]
 
 Controller = Callable[[Any, "Observation"], tuple[Any, tuple[Array, Array]]]
+
+_steps_lock = threading.Lock()
+_steps_done = [0]
+
+
+def count_robot_steps(n: int) -> None:
+    """Add ``n`` robot-steps (robots x steps of a rollout) to this process's tally: the host
+    code that launches a compiled rollout counts it here (a traced rollout cannot), so that a
+    run can report the robot-steps per second each stage reached."""
+    with _steps_lock:
+        _steps_done[0] += int(n)
+
+
+def robot_steps() -> int:
+    """Robot-steps counted so far in this process (:func:`count_robot_steps`)."""
+    with _steps_lock:
+        return _steps_done[0]
 
 
 @jax.tree_util.register_dataclass
