@@ -347,3 +347,40 @@ def test_trial_groups_judge_each_group_as_run_trials_would():
     assert verdicts["a"]["success"].all()
     with pytest.raises(MbnInputError, match="distinct names"):
         run_trial_groups(mazes, groups[:1] * 2, turn_right, seconds=1.0)
+
+
+def test_trials_of_equal_controllers_compile_once():
+    """Two controllers loaded from equal settings, in mazes of the same shapes, run on one
+    compiled rollout (mbn.world.rollout.run_rollout); another time limit compiles another."""
+    from mbn.controllers import CTRNNControllerSpec, make_controller
+    from mbn.networks.ctrnn import make_ctrnn
+    from mbn.world.rollout import _compiled_rollout
+
+    rng = np.random.default_rng(0)
+
+    def loaded():
+        net = make_ctrnn(rng.normal(size=(3, 3)), np.eye(3), 0.5)
+        return make_controller(CTRNNControllerSpec(net=net, behavior="right"), None)
+
+    maze = builtin_maze("fig4")
+    spec = TrialSpec(behavior="right", seconds=3.0)
+
+    def run(c, seconds=3.0):
+        return run_trial_groups(
+            [maze],
+            [TrialGroup("t", 0, spec, c.initial_state)],
+            c.controller,
+            seconds=seconds,
+            dt=c.dt,
+            sensors=c.sensors,
+        )
+
+    run(loaded())
+    before = _compiled_rollout._cache_size()
+    a, b = loaded(), loaded()
+    assert a.controller is b.controller
+    run(a)
+    run(b)
+    assert _compiled_rollout._cache_size() == before
+    run(b, seconds=2.0)
+    assert _compiled_rollout._cache_size() == before + 1

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.memo import memoized
 from mbn.networks.ctrnn import CTRNN, euler_step, euler_steps, firing_rate, integrator, rk4_step
 from mbn.networks.structured import BlockNet, block_euler_steps, block_field, block_rates
 from mbn.world.sensors import NoiseConfig
@@ -79,6 +80,7 @@ def substeps_for(dt: float, tau: float, max_ratio: float = 0.05) -> int:
     return max(1, math.ceil(dt / (tau * max_ratio) - 1e-9))
 
 
+@memoized
 def ctrnn_controller(
     *,
     dt: float = 0.1,
@@ -147,6 +149,7 @@ class ProgrammedState(NamedTuple):
     program: Array
 
 
+@memoized
 def interpreter_controller(
     *,
     dt: float = 0.1,
@@ -186,6 +189,7 @@ class ShadowedState(NamedTuple):
     mismatch: Array
 
 
+@memoized
 def shadowed(
     controller: Callable[[Any, Any], tuple[Any, tuple[Array, Array]]],
     *,
@@ -235,6 +239,7 @@ def tile_inputs(camera: Array, kinds: int, dtype: Any) -> Array:
     return jnp.stack([camera == t for t in range(1, kinds + 1)], axis=-1).astype(dtype)
 
 
+@memoized
 def with_tiles(kinds: int) -> Callable[[Any], Array]:
     """An ``inputs`` function for :func:`ctrnn_controller`: I1..I3 followed by the camera's
     :func:`tile_inputs` (a CTRNN that reads the tiles itself, ``docs/contest.md``)."""

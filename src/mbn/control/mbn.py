@@ -19,6 +19,7 @@ from mbn.control.ctrnn import (
     with_neuron_noise,
 )
 from mbn.errors import MbnInputError
+from mbn.memo import memoized
 from mbn.networks.ctrnn import CTRNN, euler_steps, firing_rate
 from mbn.world.sensors import NoiseConfig
 
@@ -38,6 +39,7 @@ class MBNControllerState(NamedTuple):
     im_y: Array
 
 
+@memoized
 def make_mbn_controller(
     *,
     program_neurons: Sequence[int],

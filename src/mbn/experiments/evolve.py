@@ -10,10 +10,12 @@ one would.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import jax
@@ -30,11 +32,11 @@ from mbn.control.ctrnn import (
 )
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, tell
-from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness
+from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness, paper_terms
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.paper import DEFAULT_TAU
-from mbn.world.rollout import EpisodeStats, rollout
+from mbn.world.rollout import EpisodeStats, count_robot_steps, rollout
 
 __all__ = [
     "FITNESS_PARTS",
@@ -43,6 +45,7 @@ __all__ = [
     "connection_group_fitness",
     "connection_search_fitness",
     "crossroad_fitness",
+    "crossroad_scores",
     "emulated_fitness",
     "evaluate_interpreted",
     "evaluate_networks",
@@ -159,30 +162,153 @@ def _episodes(
         arrays.world,
         controller,
         state,
-        jnp.asarray(np.tile(arrays.poses, (n, 1)), dtype),
-        jnp.asarray(np.tile(arrays.maze_index, n)),
+        jnp.tile(jnp.asarray(arrays.poses, dtype), (n, 1)),
+        jnp.tile(jnp.asarray(arrays.maze_index), n),
         task.rollout_config(),
         junctions=arrays.junctions,
         key=task.rollout_key,
     ).stats
 
 
+@dataclass(frozen=True)
+class _Episodes:
+    """The static part of a crossroad task's episodes, as a compiled fitness takes it: the
+    task's settings without its noise key (a (name, value) tuple, hashable) and the arrays'
+    scalars. The arrays themselves (:func:`_episode_arrays`) are arguments, so that one program
+    serves every base network, every choice of connections and every noise key."""
+
+    task: tuple[tuple[str, Any], ...]
+    cell: float
+    arm_length: float
+
+    @classmethod
+    def of(cls, task: CrossroadTask, arrays: TaskArrays) -> _Episodes:
+        fields = tuple(
+            (f.name, getattr(task, f.name))
+            for f in dataclasses.fields(task)
+            if f.name != "noise_key"
+        )
+        return cls(fields, float(arrays.cell), float(arrays.arm_length))
+
+    def rebuild(self, dynamic: dict[str, Any]) -> tuple[CrossroadTask, TaskArrays]:
+        """The task (with the noise key of ``dynamic``) and its arrays, inside a trace."""
+        task = CrossroadTask(**dict(self.task), noise_key=dynamic["key"])
+        arrays = TaskArrays(
+            mazes=[],
+            world=dynamic["world"],
+            junctions=dynamic["junctions"],
+            poses=dynamic["poses"],
+            maze_index=dynamic["maze_index"],
+            target=dynamic["target"],
+            centre=dynamic["centre"],
+            cell=self.cell,
+            arm_length=self.arm_length,
+        )
+        return task, arrays
+
+
+def _episode_arrays(task: CrossroadTask, arrays: TaskArrays) -> dict[str, Any]:
+    """The arrays of a task's episodes, as a compiled fitness takes them (:class:`_Episodes`)."""
+    return {
+        "world": arrays.world,
+        "junctions": arrays.junctions,
+        "poses": np.asarray(arrays.poses),
+        "maze_index": np.asarray(arrays.maze_index),
+        "target": np.asarray(arrays.target),
+        "centre": np.asarray(arrays.centre),
+        "key": task.rollout_key,
+    }
+
+
+@partial(jax.jit, static_argnames=("episodes", "tau"))
+def _connections_fitness(
+    population: Array,
+    base_W: Array,
+    base_WE: Array,
+    is_input: Array,
+    rows: Array,
+    cols: Array,
+    dynamic: dict[str, Any],
+    *,
+    episodes: _Episodes,
+    tau: float,
+) -> Array:
+    """Fitness ``(P,)`` of genomes that set connections ``(is_input, rows, cols)`` of a base
+    network (:func:`set_connections`), summed over the task's episodes: one compiled program
+    per task, time constant and shapes in a process."""
+    task, arrays = episodes.rebuild(dynamic)
+    W, WE = set_connections(base_W, base_WE, population, is_input, rows, cols)
+    stats = evaluate_networks(W, WE, tau, arrays, task)
+    per_episode = tile_fitness(arrays)(stats, task)
+    return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+
+
+def _counted(population: Array, arrays: TaskArrays, task: CrossroadTask) -> None:
+    count_robot_steps(int(population.shape[0]) * arrays.episodes * task.steps)
+
+
 def crossroad_fitness(
     genome: Genome, task: CrossroadTask, arrays: TaskArrays | None = None
 ) -> Callable[[Array], Array]:
-    """A jitted map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
-    task's episodes)."""
+    """A compiled map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
+    task's episodes). The genome's base weights and the task's arrays are arguments of one
+    program per task and shapes (:func:`_connections_fitness`): every genome of the same
+    length, around any base network, reuses it."""
     arrays = arrays or task.arrays()
-    tiled_fitness = tile_fitness(arrays)
+    episodes = _Episodes.of(task, arrays)
+    dynamic = _episode_arrays(task, arrays)
+    base_W = np.asarray(genome.base_W, np.float64)
+    base_WE = np.asarray(genome.base_WE, np.float64)
+    tables = _connection_tables(genome.connections, genome.size)
 
-    @jax.jit
     def fitness(population: Array) -> Array:
-        W, WE = genome.weights(population)
-        stats = evaluate_networks(W, WE, genome.tau, arrays, task)
-        per_episode = tiled_fitness(stats, task)
-        return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+        population = jnp.asarray(population)
+        _counted(population, arrays, task)
+        return _connections_fitness(
+            population,
+            base_W.astype(population.dtype),
+            base_WE.astype(population.dtype),
+            *tables,
+            dynamic,
+            episodes=episodes,
+            tau=genome.tau,
+        )
 
     return fitness
+
+
+@partial(jax.jit, static_argnames=("episodes", "tau"))
+def _network_terms(
+    W: Array, WE: Array, dynamic: dict[str, Any], *, episodes: _Episodes, tau: float
+) -> dict[str, Array]:
+    task, arrays = episodes.rebuild(dynamic)
+    stats = evaluate_networks(W[None], WE[None], tau, arrays, task)
+    terms = paper_terms(stats)
+    return {
+        "branch_fitness": jnp.sum(episode_fitness(stats, arrays, task)),
+        "paper_F_M": jnp.sum(terms["F_M"]),
+        "paper_F_R": jnp.sum(terms["F_R"]),
+        "paper_F_L": jnp.sum(terms["F_L"]),
+    }
+
+
+def crossroad_scores(
+    net: CTRNN, task: CrossroadTask, arrays: TaskArrays | None = None
+) -> dict[str, float]:
+    """A network's branch fitness summed over the task's episodes and the paper's F_M, F_R,
+    F_L (:func:`mbn.experiments.crossroads.paper_terms`) summed likewise: one compiled program
+    per task in a process."""
+    arrays = arrays or task.arrays()
+    W, WE = jnp.asarray(net.W), jnp.asarray(net.WE)
+    _counted(W[None], arrays, task)
+    values = _network_terms(
+        W,
+        WE,
+        _episode_arrays(task, arrays),
+        episodes=_Episodes.of(task, arrays),
+        tau=float(np.asarray(net.tau).reshape(-1)[0]),
+    )
+    return {k: float(v) for k, v in values.items()}
 
 
 def perturbations(key: Array, copies: int, size: int, sigma: float) -> Array:
@@ -306,16 +432,25 @@ def _connection_run(
     base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None
 ) -> Callable[[Array, Array, Array, Array], Array]:
     arrays = arrays or task.arrays()
-    tiled_fitness = tile_fitness(arrays)
+    episodes = _Episodes.of(task, arrays)
+    dynamic = _episode_arrays(task, arrays)
     tau = float(np.asarray(base.tau).reshape(-1)[0])
-    base_W, base_WE = jnp.asarray(base.W), jnp.asarray(base.WE)
+    base_W, base_WE = np.asarray(base.W), np.asarray(base.WE)
 
-    @jax.jit
     def run(population: Array, is_input: Array, rows: Array, cols: Array) -> Array:
-        W, WE = set_connections(base_W, base_WE, population, is_input, rows, cols)
-        stats = evaluate_networks(W, WE, tau, arrays, task)
-        per_episode = tiled_fitness(stats, task)
-        return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+        population = jnp.asarray(population)
+        _counted(population, arrays, task)
+        return _connections_fitness(
+            population,
+            base_W.astype(population.dtype),
+            base_WE.astype(population.dtype),
+            is_input,
+            rows,
+            cols,
+            dynamic,
+            episodes=episodes,
+            tau=tau,
+        )
 
     return run
 
@@ -364,10 +499,10 @@ def tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, CrossroadTask], 
             mazes=arrays.mazes,
             world=arrays.world,
             junctions=arrays.junctions,
-            poses=np.tile(arrays.poses, (n, 1)),
-            maze_index=np.tile(arrays.maze_index, n),
-            target=np.tile(arrays.target, (n, 1)),
-            centre=np.tile(arrays.centre, (n, 1)),
+            poses=jnp.tile(jnp.asarray(arrays.poses), (n, 1)),
+            maze_index=jnp.tile(jnp.asarray(arrays.maze_index), n),
+            target=jnp.tile(jnp.asarray(arrays.target), (n, 1)),
+            centre=jnp.tile(jnp.asarray(arrays.centre), (n, 1)),
             cell=arrays.cell,
             arm_length=arrays.arm_length,
         )

@@ -38,7 +38,7 @@ from mbn.world.rollout import (
     concatenate_states,
     input_reach,
     junction_arrays,
-    rollout,
+    run_rollout,
 )
 from mbn.world.rules import NAMED_RULES, parse_rule, rule_exit_codes
 from mbn.world.sensors import NoiseConfig, SensorConfig
@@ -439,20 +439,17 @@ def run_trial_groups(
     if config.noise.enabled and key is None:
         raise MbnInputError("the trials' noise is on: pass a PRNG key (a seed)")
     all_poses = np.concatenate(poses)
-    # the mazes are arguments, not constants folded into the program: it compiles faster and
-    # serves any mazes of the same array shapes
-    run = jax.jit(
-        lambda world, junctions, state, p, m, k: rollout(
-            world, controller, state, p, m, config, junctions=junctions, key=k
-        )
-    )
-    result = run(
+    # one compiled program per controller, config and shapes (run_rollout): the mazes are
+    # arguments, not constants folded into the program
+    result = run_rollout(
         world,
-        junctions,
+        controller,
         state,
         jnp.asarray(all_poses, jnp.zeros(()).dtype),
         jnp.asarray(np.concatenate(index)),
-        key if config.noise.enabled else None,
+        config,
+        junctions=junctions,
+        key=key if config.noise.enabled else None,
     )
     stats = jax.tree.map(np.asarray, result.stats)  # sliced by group on the host
     verdicts = {

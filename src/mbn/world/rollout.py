@@ -77,6 +77,7 @@ __all__ = [
     "map_controller",
     "robot_steps",
     "rollout",
+    "run_rollout",
     "strip_shared",
 ]
 
@@ -599,4 +600,37 @@ def rollout(
     carry, trajectory = run_steps(scene, start_carry(scene, poses, controller_state))
     return RolloutResult(
         stats=finish(scene, carry), trajectory=trajectory, controller_state=carry.ctrl
+    )
+
+
+_compiled_rollout = jax.jit(rollout, static_argnames=("controller", "config"))
+
+
+def run_rollout(
+    world: World,
+    controller: Controller,
+    controller_state: Any,
+    poses: ArrayLike,
+    maze_index: ArrayLike,
+    config: RolloutConfig,
+    *,
+    junctions: Array | None = None,
+    key: Array | None = None,
+) -> RolloutResult:
+    """:func:`rollout` compiled, once per process for each controller, config and array shapes:
+    the world, the junction tables, the states and the poses are arguments, not constants, so
+    that one program serves any mazes and networks of the same shapes. The controller and the
+    config are its static arguments: give the same controller object for the same controller
+    (the factories of :mod:`mbn.control` are memoized for that, :mod:`mbn.memo`). Counts its
+    robot-steps (:func:`count_robot_steps`)."""
+    count_robot_steps(int(np.shape(poses)[0]) * config.steps)
+    return _compiled_rollout(
+        world,
+        controller,
+        controller_state,
+        poses,
+        maze_index,
+        config,
+        junctions=junctions,
+        key=key,
     )

@@ -17,11 +17,11 @@ from mbn.controllers import (
 )
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
-from mbn.experiments.crossroads import CrossroadTask, episode_fitness, paper_terms
+from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import (
     Genome,
     crossroad_fitness,
-    evaluate_networks,
+    crossroad_scores,
     perturbations,
     robust_fitness,
 )
@@ -124,15 +124,13 @@ def score(
     :data:`SCORE_KEYS`)."""
     t = task(ctx, rule, variants, approaches)
     arrays = t.arrays()
-    tau = float(np.asarray(net.tau).reshape(-1)[0])
-    stats = evaluate_networks(jnp.asarray(net.W)[None], jnp.asarray(net.WE)[None], tau, arrays, t)
-    terms = paper_terms(stats)
+    scores = crossroad_scores(net, t, arrays)
     return {
-        "branch_fitness": float(jnp.sum(episode_fitness(stats, arrays, t))),
+        "branch_fitness": scores["branch_fitness"],
         "episodes": arrays.episodes,
-        "paper_F_M": float(jnp.sum(terms["F_M"])),
-        "paper_F_R": float(jnp.sum(terms["F_R"])),
-        "paper_F_L": float(jnp.sum(terms["F_L"])),
+        "paper_F_M": scores["paper_F_M"],
+        "paper_F_R": scores["paper_F_R"],
+        "paper_F_L": scores["paper_F_L"],
     }
 
 
