@@ -45,7 +45,7 @@ from mbn.networks.programmable import Connection
 from mbn.notation import connection_name
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
-__all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage"]
+__all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage", "good_enough"]
 
 #: What an LF candidate's validation records (:func:`candidate_rank` asks all to be met): LF
 #: alone, the interpreter with LF's program, with RF's, and the agreement of each pair.
@@ -90,6 +90,15 @@ def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:
     return (meets, worst, candidate["fitness"], -index)
 
 
+def good_enough(candidate: dict[str, Any], enough: float) -> bool:
+    """Whether an LF candidate meets every validation target with every figure at least
+    ``enough``: no finalist evolved after it could rank much higher (:func:`candidate_rank`
+    ranks by the worst figure first), so the round stops there (``[lf] enough``). With
+    ``enough`` 1 no candidate is enough: every finalist of a round is evolved, as before."""
+    meets, worst, _, _ = candidate_rank(candidate, 0)
+    return bool(enough < 1.0 and meets and worst >= enough)
+
+
 @dataclass(frozen=True)
 class LFSettings(Settings):
     """The left-follower (LF): 3 connections of RF re-evolved."""
@@ -125,6 +134,15 @@ class LFSettings(Settings):
         low=1,
         high=1000,
         source="docs/reproduce.md (a population's fittest is not its best in a maze)",
+    )
+    enough: float = setting(
+        0.99,
+        doc="a finalist that meets every validation target with every figure (successes and "
+        "agreements, as rates) at least this ends its round: the finalists after it are not "
+        "evolved (1: every finalist of the round is evolved)",
+        low=0.0,
+        high=1.0,
+        source="docs/speed.md (finalists evolved only while needed)",
     )
     variants: int = setting(
         4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
@@ -237,6 +255,8 @@ class LFStage(Stage):
                 )
                 cand["round"] = a
                 candidates.append(cand)
+                if good_enough(cand["data"], s.enough):
+                    break
             if any(candidate_rank(c["data"], i)[0] for i, c in enumerate(candidates)):
                 break
 

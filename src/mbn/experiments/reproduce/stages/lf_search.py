@@ -7,6 +7,7 @@ chosen: docs/reproduce.md)."""
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +35,7 @@ __all__ = [
     "LFSearchSettings",
     "LFSearchStage",
     "best_triple",
+    "rung_ends",
     "search_checkpoint",
     "search_triples",
 ]
@@ -53,7 +55,18 @@ class LFSearchSettings(Settings):
         "the paper's W_23); every triple is evolved",
         source="docs/reproduce.md (the connections into the turning neuron)",
     )
-    generations: int = setting(100, doc="DE generations per triple", low=0, high=100_000)
+    generations: int = setting(
+        100, doc="DE generations of the triples that go the whole way", low=0, high=100_000
+    )
+    halvings: int = setting(
+        2,
+        doc="successive halving: the triples are evolved in halvings + 1 rungs, ending at "
+        "generations / 2^halvings, ..., / 2, generations; after each rung but the last only "
+        "the better half (by best fitness then) goes on (0: every triple the whole way)",
+        low=0,
+        high=6,
+        source="docs/speed.md (half the search's robot-steps)",
+    )
     variants: int = setting(2, doc="starts per crossroad while searching", low=1, high=100)
 
     def __post_init__(self) -> None:
@@ -75,35 +88,54 @@ def search_triples(
     """Every triple of ``[lf_search] candidates`` of ``rf`` evolved briefly for the left rule
     (triple ``t`` from ``fold_in(key, t)``, checkpoint ``checkpoint(t)``), the triples' DE runs
     side by side (:meth:`StageContext.evolve_group`: one batch of every triple's genomes per
-    generation), each final population scored again with perturbed copies on the crossroads
-    entered round a corner too: a row per triple with its best plain and best robust genome and
-    fitness."""
+    generation) in rungs of successive halving (``[lf_search] halvings``: after each rung but
+    the last, only the better half goes on), each final population scored again with perturbed
+    copies on the crossroads entered round a corner too: a row per triple with the generations
+    it was evolved, its best plain and best robust genome and fitness."""
     s: LFSearchSettings = ctx.section("lf_search")
     followers = ctx.section("followers")
     approaches = ctx.section("lf").approaches
     cands = [Connection.parse(c) for c in s.candidates]
     triples = list(itertools.combinations(cands, 3))
-    search = connection_group_fitness(rf, task(ctx, "left", s.variants), triples)
+    search_task = task(ctx, "left", s.variants)
     noise = stage_perturbations(ctx, 3)
     config = de_config(ctx, 3, followers.weight_bound)
     runs = [DERun(checkpoint(t), config, jax.random.fold_in(key, t)) for t in range(len(triples))]
-    results = ctx.evolve_group(
-        runs, search, s.generations, f"LF search: {len(triples)} triples side by side"
-    )
+    alive = list(range(len(triples)))
+    results: dict[int, Any] = {}
+    ends = rung_ends(s.generations, s.halvings)
+    for rung, end in enumerate(ends):
+        if rung:
+            # the better half of the last rung's triples goes on, ranked by their best fitness
+            # at its end (from their histories: the same choice after a resume)
+            before = ends[rung - 1]
+            rank = sorted(alive, key=lambda t: (-results[t].data["history"]["best"][before], t))
+            alive = sorted(rank[: max(1, math.ceil(len(alive) / 2))])
+        group = [triples[t] for t in alive]
+        done = ctx.evolve_group(
+            [runs[t] for t in alive],
+            connection_group_fitness(rf, search_task, group),
+            end,
+            f"LF search: {len(alive)} triples side by side"
+            + (f" (rung {rung + 1}/{len(ends)})" if len(ends) > 1 else ""),
+        )
+        results.update(zip(alive, done, strict=True))
     # The final populations scored with perturbed copies too, on the crossroads entered round a
     # corner as in a maze: an LF that keeps its behaviour when its weights move is one the
     # interpreter can emulate. One batch of every triple's, in parts as DE's.
     choose = connection_group_fitness(rf, task(ctx, "left", s.variants, approaches), triples)
-    final = jnp.concatenate([r.state.population for r in results])
+    final = jnp.concatenate([results[t].state.population for t in range(len(triples))])
     owner = jnp.repeat(jnp.arange(len(triples)), config.popsize)
     robust_all = np.asarray(split_fitness(robust_fitness(choose, noise), ctx.workers)(final, owner))
     rows = []
-    for t, (trip, de) in enumerate(zip(triples, results, strict=True)):
+    for t, trip in enumerate(triples):
+        de = results[t]
         robust = robust_all[t * config.popsize : (t + 1) * config.popsize]
         i = int(np.argmax(robust))
         rows.append(
             {
                 "connections": [str(c) for c in trip],
+                "generations": int(de.state.generation),
                 "best_fitness": de.data["best_fitness"],
                 "best_genome": de.data["best_genome"],
                 "robust_fitness": float(robust[i]),
@@ -111,6 +143,13 @@ def search_triples(
             }
         )
     return rows
+
+
+def rung_ends(generations: int, halvings: int) -> list[int]:
+    """The generations at which the rungs of a successive halving end: ``generations / 2^h``,
+    ..., ``generations / 2``, ``generations`` (rounded; repeated ends merged)."""
+    ends = [round(generations / 2**h) for h in range(halvings, -1, -1)]
+    return sorted(set(ends))
 
 
 def best_triple(rows: list[dict[str, Any]]) -> int:

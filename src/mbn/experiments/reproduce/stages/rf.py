@@ -31,11 +31,12 @@ class RFSettings(Settings):
         source="docs/experiments.md (the paper: one start per crossroad)",
     )
     restarts: int = setting(
-        2,
-        doc="independent DE runs; the fittest of those that pass the validation maze is kept",
+        1,
+        doc="independent DE runs, evolved until this many pass the validation maze; the "
+        "fittest of those is kept (the LF stage evolves another RF when a round needs one)",
         low=1,
         high=100,
-        source="docs/reproduce.md",
+        source="docs/speed.md (restarts evolved only while needed; 2 before)",
     )
 
 
