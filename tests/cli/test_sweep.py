@@ -234,3 +234,54 @@ def test_run_with_a_reuse_folder_that_holds_no_run_is_one_line(capsys, tmp_path)
     err = capsys.readouterr().err.strip()
     assert code == 2 and err == f"mbn: error: --reuse {tmp_path}: no run there (no run.json)"
     assert not (tmp_path / "q").exists()
+
+
+#: What each seed of the fake sweep records in its timings.json: seconds and robot-steps.
+FAKE_TIMINGS = {
+    0: ({"rf": 100.0, "lf": 10.0}, {"rf": 400_000_000, "lf": 0}),
+    1: ({"rf": 300.0, "lf": 30.0}, {"rf": 1_200_000_000, "lf": 50_000_000}),
+}
+
+
+def _fake_seed(out, seed, config, resume, *rest):
+    """A Ray task's stand-in: a finished seed folder (no simulation) with a timings.json."""
+    from pathlib import Path
+
+    from mbn.experiments.pipeline import RunDir
+    from tests.experiments.sweep.conftest import fake_run
+
+    folder = fake_run(Path(out), seed, config.to_dict(), {}, {}, {"claim A": True}, [0.0, 1.0])
+    RunDir(folder).write_timings(*FAKE_TIMINGS[seed])
+    return {"seed": seed, "state": "done", "error": None, "seconds": 1.0}
+
+
+def test_the_sweep_prints_its_stage_times_at_the_end_and_not_with_quiet(
+    capsys, tmp_path, monkeypatch
+):
+    import mbn.experiments.sweep.run as sweep_run
+
+    monkeypatch.setattr(
+        sweep_run, "RayExecutor", lambda address, cpus: sweep_run.InlineExecutor(_fake_seed)
+    )
+    out = tmp_path / "s"
+    assert main(["sweep", "--seeds", "0-1", "--quick", "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    start = lines.index(f"time and robot-steps per stage over the seeds ({out}):")
+    table = [line.split() for line in lines[start + 1 :]]
+    assert table[0] == ["stage", "seeds", "median", "s", "max", "s", "robot-steps/s"]
+    assert table[1] == ["rf", "2", "200.00", "300.00", "4.00", "M/s"]  # 1.6e9 over 400 s
+    assert table[2] == ["lf", "2", "20.00", "30.00", "1.25", "M/s"]  # 5e7 over 40 s
+    assert table[4] == ["all", "stages", "2", "220.00", "330.00", "3.75", "M/s"]
+    wall = json.loads((out / "sweep.json").read_text())["seconds"]
+    assert lines[start + 6].startswith("sweep wall time: ")
+    assert lines[start + 6].endswith(f" ({wall:.1f} s)")
+    assert lines[-1].startswith("sweep: 2/2 seeds meet every target")
+    # --summarize prints it too, from the folders; --quiet leaves only the summary line
+    assert main(["sweep", "--summarize", "--out", str(out)]) == 0
+    assert f"time and robot-steps per stage over the seeds ({out}):" in capsys.readouterr().out
+    assert main(["sweep", "--summarize", "--out", str(out), "--quiet"]) == 0
+    assert capsys.readouterr().out.splitlines() == [lines[-1]]
+    quiet = tmp_path / "q"
+    assert main(["sweep", "--seeds", "0-1", "--quick", "--out", str(quiet), "--quiet"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert len(printed) == 1 and printed[0].startswith("sweep: 2/2 seeds meet every target")

@@ -37,7 +37,8 @@ effective config is recorded in run.json and results.json; --resume refuses anot
 
 outputs in DIR: results.json, report.md, report.html (self-contained), controllers/ (rf.json,
 lf.json, im.json, mbn.json, multiplier.json: try them with `mbn evaluate`), figures/,
-timings.json, stages/, records/, checkpoints/, run.json
+timings.json (seconds and robot-steps per stage: the table printed at the end), stages/,
+records/, checkpoints/, run.json
 
 how long it takes: README, Set-up.
 
@@ -100,7 +101,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     rep.add_argument("--force", action="store_true", help="discard the run in --out and start anew")
     rep.add_argument("--reuse", type=Path, default=None, metavar="DIR", help=REUSE_HELP)
     rep.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
-    rep.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
+    rep.add_argument(
+        "--quiet", action="store_true", help="no progress bars, stage lines or table of times"
+    )
     rep.add_argument(
         "--threads",
         type=int_in(1, 256),
@@ -129,7 +132,9 @@ def effective_config(config_file: Path | None, quick: bool, retrain: bool = Fals
 
 
 def run_reproduce(args: argparse.Namespace) -> int:
+    from mbn.experiments.pipeline.rundir import RunDir
     from mbn.experiments.pipeline.runner import run_experiment
+    from mbn.experiments.pipeline.timings import print_run_timings
     from mbn.experiments.reproduce import REPRODUCE
 
     config = effective_config(args.config, args.quick, args.retrain)
@@ -157,6 +162,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
         allow_other_code=args.allow_other_code,
     )
     if not args.quiet:
+        print_run_timings(RunDir(args.out))
         held = sum(c["pass"] for c in results["claims"])
         print(f"{held} of {len(results['claims'])} claims hold; report: {args.out / 'report.html'}")
     return 0

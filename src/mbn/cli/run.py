@@ -48,6 +48,7 @@ experiments:
 
 Every DE generation is checkpointed in DIR/checkpoints: `mbn run EXPERIMENT --out DIR --resume`
 continues where a run stopped. Settings as in `mbn reproduce` (`--print-config`, `--config`).
+At the end, a table of each stage's seconds and robot-steps per second (DIR/timings.json).
 
 examples:
   mbn run new-behaviours --out runs/nb                 a full run
@@ -129,7 +130,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help=REUSE_HELP,
     )
     cmd.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
-    cmd.add_argument("--quiet", action="store_true", help="no progress bars or stage lines")
+    cmd.add_argument(
+        "--quiet", action="store_true", help="no progress bars, stage lines or table of times"
+    )
     cmd.add_argument(
         "--threads",
         type=int_in(1, 256),
@@ -142,7 +145,9 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from mbn.config import read_toml
+    from mbn.experiments.pipeline.rundir import RunDir
     from mbn.experiments.pipeline.runner import run_experiment
+    from mbn.experiments.pipeline.timings import print_run_timings
 
     exp = experiment(args.experiment)
     document = read_toml(args.config) if args.config is not None else None
@@ -165,5 +170,6 @@ def run(args: argparse.Namespace) -> int:
         allow_other_code=args.allow_other_code,
     )
     if not args.quiet:
+        print_run_timings(RunDir(out))
         print(f"results: {out / 'results.json'}")
     return 0

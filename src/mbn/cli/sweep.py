@@ -42,6 +42,9 @@ running them again (docs/reproduce.md).
 outputs in DIR: seed-K/ (one per seed), sweep.json (settings, each seed's state, the statistics),
 sweep.md, sweep.html (self-contained), figures/
 
+At the end (unless --quiet), a table of each stage's median and max seconds over the seeds and
+its robot-steps per second over all of them (each seed's timings.json), and the wall time.
+
 examples:
   mbn sweep --seeds 0-9 --out runs/sweep
   mbn sweep --seeds 0,2,5-7 --quick --out runs/q
@@ -127,12 +130,17 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="only rebuild sweep.json's statistics and the report from the folder (runs nothing)",
     )
     sw.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
-    sw.add_argument("--quiet", action="store_true", help="no progress table, only the summary")
+    sw.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress table or table of stage times, only the summary line",
+    )
     sw.set_defaults(func=run_sweep_command, precision=ROBOT)
 
 
 def run_sweep_command(args: argparse.Namespace) -> int:
     from mbn.experiments.sweep.report import summarize_folder, summary_line
+    from mbn.experiments.sweep.timings import print_sweep_timings
 
     if args.summarize:
         if (
@@ -147,6 +155,9 @@ def run_sweep_command(args: argparse.Namespace) -> int:
                 "--summarize reads the settings from DIR/sweep.json: pass --out alone"
             )
         data = summarize_folder(args.out)
+        if not args.quiet:
+            seeds = [int(s) for s in data["settings"].get("seeds", [])]
+            print_sweep_timings(args.out, seeds, data.get("seconds"))
         print(summary_line(data) + f"; report: {args.out / 'sweep.html'}")
         return 0
     if args.seeds is None:
@@ -179,6 +190,8 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         reuse=args.reuse,
         allow_other_code=args.allow_other_code,
     )
+    if not args.quiet:
+        print_sweep_timings(args.out, settings.seeds, data.get("seconds"))
     if data.get("skipped"):
         print(f"{len(data['skipped'])} of {len(settings.seeds)} seeds were finished before: kept")
     print(summary_line(data) + f"; report: {args.out / 'sweep.html'}")

@@ -9,7 +9,7 @@ Layout (every file written atomically)::
     controllers/      controller and multiplier files (docs/controllers.md)
     figures/          the report's pictures
     results.json      seeds, config, versions, per-stage metrics (and the experiment's extras)
-    timings.json      wall-clock seconds per stage (kept out of results.json)
+    timings.json      wall-clock seconds and robot-steps per stage (kept out of results.json)
 """
 
 from __future__ import annotations
@@ -128,16 +128,37 @@ class RunDir:
         write_json_atomic(self.stage_file(name), data)
 
     def read_timings(self) -> dict[str, float]:
+        """``timings.json``'s ``stages``: wall-clock seconds per stage (empty without the
+        file)."""
+        return {str(k): float(v) for k, v in self._timings_field("stages").items()}
+
+    def read_robot_steps(self) -> dict[str, int]:
+        """``timings.json``'s ``robot_steps``: the robot-steps each stage counted (empty
+        without the file, or for one written before the field existed)."""
+        return {str(k): int(v) for k, v in self._timings_field("robot_steps").items()}
+
+    def _timings_field(self, name: str) -> dict[str, Any]:
         if not self.timings.exists():
             return {}
         data = read_json(self.timings)
-        stages = data.get("stages", {}) if isinstance(data, dict) else {}
-        return {str(k): float(v) for k, v in stages.items()}
+        field = data.get(name, {}) if isinstance(data, dict) else {}
+        return field if isinstance(field, dict) else {}
 
-    def write_timings(self, timings: dict[str, float]) -> None:
+    def write_timings(
+        self, timings: dict[str, float], robot_steps: dict[str, int] | None = None
+    ) -> None:
+        """``timings.json``: ``stages`` (name -> wall-clock seconds), ``robot_steps`` (name ->
+        the robot-steps counted while it ran, :func:`mbn.world.rollout.robot_steps`; none
+        given: ``{}``), and their sums ``total_seconds`` and ``total_robot_steps``."""
+        steps = dict(robot_steps or {})
         write_json_atomic(
             self.timings,
-            {"stages": timings, "total_seconds": round(sum(timings.values()), 2)},
+            {
+                "stages": timings,
+                "robot_steps": steps,
+                "total_seconds": round(sum(timings.values()), 2),
+                "total_robot_steps": int(sum(steps.values())),
+            },
         )
 
     # -- checkpoints -----------------------------------------------------------------------------

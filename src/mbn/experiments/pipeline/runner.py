@@ -6,6 +6,16 @@ Seeds: the run's seed becomes one JAX key here (``jax.random.key(seed)``); stage
 and recorded in ``results.json``. A run's effective config (defaults, then the ``quick`` preset
 when asked, then a settings file) is written whole to ``run.json`` and ``results.json``;
 ``--resume`` refuses a config that differs from the run's.
+
+Timings: ``timings.json`` (:meth:`RunDir.write_timings`) records, for each stage the runner
+runs, its wall-clock seconds (``stages``) and the robot-steps counted in this process while it
+ran (``robot_steps``: :func:`mbn.world.rollout.robot_steps` after it less before; 0 for a stage
+that launches no rollout, or whose rollouts are not counted), and the same for the results and
+the report (``report``). A resumed run keeps the entries of the stages done before (both fields,
+as they were recorded; a file written before ``robot_steps`` existed has none for them); a stage
+taken from another run (``--reuse``) or not run (a partial run) has an entry in neither: its
+time was spent elsewhere, or not at all. :mod:`~mbn.experiments.pipeline.timings` prints them
+as a table.
 """
 
 from __future__ import annotations
@@ -30,6 +40,7 @@ from mbn.experiments.pipeline.rundir import RunDir
 from mbn.io import check_writable, write_json_atomic
 from mbn.precision import scope
 from mbn.provenance import code_difference, code_identity, environment
+from mbn.world.rollout import robot_steps
 
 __all__ = [
     "Experiment",
@@ -289,6 +300,7 @@ def run_experiment(
         else:
             log(f"notice: no stage to take from {reuse.root}")
     timings = rundir.read_timings()
+    steps = rundir.read_robot_steps()
     wanted = list(experiment.registry.names if stages is None else stages)
     for name in wanted:
         if name not in experiment.registry:
@@ -309,19 +321,20 @@ def run_experiment(
                     log(f"stage {stage.name}: done before, kept")
                     continue
                 log(f"notice: stage {stage.name}: {missing[0]} is missing; running it again")
-            t0 = time.perf_counter()
+            t0, n0 = time.perf_counter(), robot_steps()
             bars.stage(stage.name)
             data = stage.run(_context(experiment, rundir, seed, config, stage, bars, log, workers))
             bars.stage(None)
             rundir.write_stage(stage.name, data)
             timings[stage.name] = round(time.perf_counter() - t0, 2)
-            rundir.write_timings(timings)
+            steps[stage.name] = robot_steps() - n0
+            rundir.write_timings(timings, steps)
             ran[stage.name] = data
             log(f"stage {stage.name}: {stage.summary(data)}")
         if stages is not None:
             return ran
         bars.update(overall, completed=len(experiment.registry), info="report")
-        t0 = time.perf_counter()
+        t0, n0 = time.perf_counter(), robot_steps()
         results = collect_results(experiment, rundir, seed, config)
         write_json_atomic(rundir.results, results)
         if experiment.report is not None:
@@ -329,7 +342,8 @@ def run_experiment(
             experiment.report(rundir)
             bars.stage(None)
             timings["report"] = round(time.perf_counter() - t0, 2)
-            rundir.write_timings(timings)
+            steps["report"] = robot_steps() - n0
+            rundir.write_timings(timings, steps)
         bars.update(overall, completed=len(experiment.registry) + 1, info="done")
     return results
 
