@@ -33,21 +33,27 @@ TIMED = re.compile(r"^Finished (tracing|jaxpr to MLIR module conversion|XLA comp
 PHASES = {"tracing": "trace_s", "jaxpr to MLIR module conversion": "lower_s", "XLA compilation": "compile_s"}
 
 
-def _origin() -> str:
-    """The innermost frame in ``mbn`` (not this script) of the current stack."""
+def _origin(depth: int = 3) -> str:
+    """The innermost ``depth`` frames in ``mbn`` (not this script) of the current stack, the
+    innermost first: where an eager operation ran, and who asked for it."""
+    frames = []
     for frame in reversed(traceback.extract_stack()[:-3]):
         name = frame.filename.replace(os.sep, "/")
         if "/mbn/" in name and "/benchmarks/" not in name:
-            return f"{name.split('/mbn/', 1)[1]}:{frame.lineno} ({frame.name})"
-    return "(outside mbn)"
+            frames.append(f"{name.split('/mbn/', 1)[1]}:{frame.lineno} ({frame.name})")
+            if len(frames) == depth:
+                break
+    return " < ".join(frames) or "(outside mbn)"
 
 
 class Counter(logging.Handler):
-    def __init__(self) -> None:
+    def __init__(self, depth: int = 1) -> None:
         super().__init__(logging.DEBUG)
+        self.depth = depth
         self.count = 0
         self.by_name: collections.Counter[str] = collections.Counter()
         self.by_origin: collections.Counter[str] = collections.Counter()
+        self.by_both: collections.Counter[str] = collections.Counter()
         self.seconds: collections.Counter[str] = collections.Counter()
 
     def emit(self, record: logging.LogRecord) -> None:
@@ -56,7 +62,9 @@ class Counter(logging.Handler):
         if m:
             self.count += 1
             self.by_name[m.group(1)] += 1
-            self.by_origin[_origin()] += 1
+            origin = _origin(self.depth)
+            self.by_origin[origin] += 1
+            self.by_both[f"{m.group(1)} @ {origin}"] += 1
             return
         t = TIMED.match(message)
         if t:
@@ -66,6 +74,9 @@ class Counter(logging.Handler):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--top", type=int, default=15, help="sources listed (default 15)")
+    parser.add_argument(
+        "--depth", type=int, default=1, help="mbn frames named per source (default 1)"
+    )
     parser.add_argument("command", nargs="*", help="the mbn command (after --)")
     args = parser.parse_args()
     command = args.command or ["reproduce", "--quick", "--seed", "0"]
@@ -75,7 +86,7 @@ def main() -> None:
     import jax
 
     jax.config.update("jax_log_compiles", True)
-    counter = Counter()
+    counter = Counter(args.depth)
     for name in ("jax._src.dispatch", "jax._src.interpreters.pxla", "jax._src.compiler"):
         logger = logging.getLogger(name)
         logger.addHandler(counter)
@@ -104,6 +115,7 @@ def main() -> None:
         **{k: round(v, 2) for k, v in sorted(counter.seconds.items())},
         "by_origin": dict(counter.by_origin.most_common(args.top)),
         "by_name": dict(counter.by_name.most_common(args.top)),
+        "by_name_and_origin": dict(counter.by_both.most_common(args.top)),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores",
         "python": platform.python_version(),
         "jax": jax.__version__,

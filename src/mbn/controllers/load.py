@@ -31,6 +31,7 @@ from mbn.controllers.spec import (
     MBNControllerSpec,
 )
 from mbn.errors import MbnInputError
+from mbn.host import put
 from mbn.networks.ctrnn import Method, max_stable_dt
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import Shared
@@ -142,7 +143,7 @@ def _ctrnn_runner(
     )
 
     def initial(n: int) -> CTRNNState:
-        return CTRNNState(Shared(net), jnp.zeros((n, net.num_neurons), net.dtype))
+        return CTRNNState(Shared(net), put(np.zeros((n, net.num_neurons), net.dtype)))
 
     return control, initial
 
@@ -171,9 +172,9 @@ def _mbn_runner(
     def initial(n: int) -> MBNControllerState:
         return MBNControllerState(
             Shared(pm),
-            jnp.broadcast_to(pm_y0, (n, pm.num_neurons)),
+            put(np.broadcast_to(np.asarray(pm_y0), (n, pm.num_neurons))),
             Shared(im),
-            jnp.zeros((n, im.num_neurons), im.dtype),
+            put(np.zeros((n, im.num_neurons), im.dtype)),
         )
 
     return control, initial
@@ -201,8 +202,8 @@ def _interpreter_runner(
     def initial(n: int) -> ProgrammedState:
         return ProgrammedState(
             Shared(net),
-            jnp.zeros((n, net.num_neurons), net.dtype),
-            jnp.broadcast_to(values, (n, values.shape[0])),
+            put(np.zeros((n, net.num_neurons), net.dtype)),
+            put(np.broadcast_to(np.asarray(values), (n, values.shape[0]))),
         )
 
     return control, initial

@@ -33,6 +33,7 @@ from mbn.control.ctrnn import (
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, tell
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness, paper_terms
+from mbn.host import put
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.paper import DEFAULT_TAU
@@ -114,9 +115,14 @@ class Genome:
         return W, WE
 
     def network(self, genes: Array) -> CTRNN:
-        """The CTRNN of one genome (validated; for files and reports)."""
-        W, WE = self.weights(jnp.asarray(genes))
-        return make_ctrnn(np.asarray(W), np.asarray(WE), self.tau)
+        """The CTRNN of one genome (validated; for files and reports). Made on the host: the
+        same weights as :meth:`weights`, without an eager program to compile."""
+        genes = np.asarray(genes)
+        W = np.array(self.base_W, genes.dtype)
+        WE = np.array(self.base_WE, genes.dtype)
+        for g, c in enumerate(self.connections):
+            (W if c.kind == "W" else WE)[c.i, c.j] = genes[g]
+        return make_ctrnn(W, WE, self.tau)
 
     def genes_of(self, net: CTRNN) -> np.ndarray:
         """The genes that reproduce ``net``'s chosen connections."""
@@ -220,6 +226,24 @@ def _episode_arrays(task: CrossroadTask, arrays: TaskArrays) -> dict[str, Any]:
     }
 
 
+def _fitness_of(
+    population: Array,
+    base_W: Array,
+    base_WE: Array,
+    is_input: Array,
+    rows: Array,
+    cols: Array,
+    dynamic: dict[str, Any],
+    episodes: _Episodes,
+    tau: float,
+) -> Array:
+    task, arrays = episodes.rebuild(dynamic)
+    W, WE = set_connections(base_W, base_WE, population, is_input, rows, cols)
+    stats = evaluate_networks(W, WE, tau, arrays, task)
+    per_episode = tile_fitness(arrays)(stats, task)
+    return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+
+
 @partial(jax.jit, static_argnames=("episodes", "tau"))
 def _connections_fitness(
     population: Array,
@@ -236,11 +260,25 @@ def _connections_fitness(
     """Fitness ``(P,)`` of genomes that set connections ``(is_input, rows, cols)`` of a base
     network (:func:`set_connections`), summed over the task's episodes: one compiled program
     per task, time constant and shapes in a process."""
-    task, arrays = episodes.rebuild(dynamic)
-    W, WE = set_connections(base_W, base_WE, population, is_input, rows, cols)
-    stats = evaluate_networks(W, WE, tau, arrays, task)
-    per_episode = tile_fitness(arrays)(stats, task)
-    return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
+    return _fitness_of(population, base_W, base_WE, is_input, rows, cols, dynamic, episodes, tau)
+
+
+@partial(jax.jit, static_argnames=("episodes", "tau"))
+def _owned_fitness(
+    population: Array,
+    owner: Array,
+    base_W: Array,
+    base_WE: Array,
+    tables: tuple[Array, Array, Array],
+    dynamic: dict[str, Any],
+    *,
+    episodes: _Episodes,
+    tau: float,
+) -> Array:
+    """:func:`_connections_fitness` of genomes that each take the connections of their owner's
+    row of ``tables`` ``(is_input, rows, cols)`` of shape ``(R, G)``."""
+    is_input, rows, cols = (t[owner] for t in tables)
+    return _fitness_of(population, base_W, base_WE, is_input, rows, cols, dynamic, episodes, tau)
 
 
 def _counted(population: Array, arrays: TaskArrays, task: CrossroadTask) -> None:
@@ -337,15 +375,32 @@ def robust_fitness(fitness: Callable[..., Array], noise: Array) -> Callable[...,
         return fitness
 
     def averaged(population: Array, *per_genome: Array) -> Array:
-        p, d = population.shape
+        d = population.shape[1]
         if noise.shape[1] != d:
             raise MbnInputError(f"perturbations of {noise.shape[1]} genes for genomes of {d}")
-        shifted = (population[None] + noise[:, None].astype(population.dtype)).reshape(-1, d)
-        tiled = (jnp.tile(x, (copies + 1,) + (1,) * (x.ndim - 1)) for x in per_genome)
-        values = fitness(jnp.concatenate([population, shifted]), *tiled)
-        return values.reshape(copies + 1, p).mean(0)
+        tiled = (_tiled(jnp.asarray(x), copies + 1) for x in per_genome)
+        values = fitness(_with_copies(population, noise), *tiled)
+        return _mean_of_copies(values, copies + 1)
 
     return averaged
+
+
+@jax.jit
+def _with_copies(population: Array, noise: Array) -> Array:
+    """The genomes ``(P, d)`` and then their perturbed copies, copy by copy: ``((K+1) P, d)``."""
+    d = population.shape[1]
+    shifted = (population[None] + noise[:, None].astype(population.dtype)).reshape(-1, d)
+    return jnp.concatenate([population, shifted])
+
+
+@partial(jax.jit, static_argnames="times")
+def _tiled(x: Array, times: int) -> Array:
+    return jnp.tile(x, (times,) + (1,) * (x.ndim - 1))
+
+
+@partial(jax.jit, static_argnames="times")
+def _mean_of_copies(values: Array, times: int) -> Array:
+    return values.reshape(times, -1).mean(0)
 
 
 #: A population is always evaluated in this many parts (:func:`split_fitness`), however many
@@ -377,17 +432,29 @@ def split_fitness(
 
     def parted(population: Array, *per_genome: Array) -> Array:
         p = int(population.shape[0])
-        bounds = np.linspace(0, p, min(parts, p) + 1).round().astype(int)
-        pieces = [
-            (population[a:b], *(x[a:b] for x in per_genome)) for a, b in itertools.pairwise(bounds)
-        ]
+        bounds = tuple(int(b) for b in np.linspace(0, p, min(parts, p) + 1).round())
+        columns = [split_rows(jnp.asarray(x), bounds) for x in (population, *per_genome)]
+        pieces = list(zip(*columns, strict=True))
         if executor is None or threads == 1:
             values = [fitness(*x) for x in pieces]
         else:
             values = [f.result() for f in [executor.submit(fitness, *x) for x in pieces]]
-        return jnp.concatenate([jnp.asarray(v) for v in values])
+        return join_rows(tuple(jnp.asarray(v) for v in values))
 
     return parted
+
+
+def split_rows(x: Array, bounds: tuple[int, ...]) -> tuple[Array, ...]:
+    """``x`` cut along its first axis at ``bounds`` (``(0, ..., len)``): ``x[a:b]`` for each
+    pair, cut on the host (genes and fitness values: small arrays; an eager slice would compile
+    a program for each shape)."""
+    host = np.asarray(x)
+    return tuple(put(host[a:b]) for a, b in itertools.pairwise(bounds))
+
+
+def join_rows(parts: tuple[Array, ...]) -> Array:
+    """Arrays joined along their first axis, on the host (as :func:`split_rows`)."""
+    return put(np.concatenate([np.asarray(p) for p in parts]))
 
 
 def set_connections(
@@ -422,37 +489,38 @@ def _connection_tables(connections: Sequence[Connection], width: int) -> tuple[A
         if c.i >= 3 or c.j >= 3:
             raise MbnInputError(f"connection {c}: out of range for 3 neurons and 3 inputs")
     return (
-        jnp.asarray([c.kind == "WE" for c in connections]),
-        jnp.asarray([c.i for c in connections]),
-        jnp.asarray([c.j for c in connections]),
+        put([c.kind == "WE" for c in connections]),
+        put([c.i for c in connections], np.int32),
+        put([c.j for c in connections], np.int32),
     )
 
 
 def _connection_run(
     base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None
-) -> Callable[[Array, Array, Array, Array], Array]:
+) -> Callable[[Array], tuple[Array, dict[str, Any]]]:
+    """``prepare(population)``: the population as an array, counted, and the other arguments
+    of a compiled fitness of connections of ``base`` (:func:`_connections_fitness`,
+    :func:`_owned_fitness`) on the task: its base weights in the population's dtype, the
+    task's arrays, and the static settings."""
     arrays = arrays or task.arrays()
     episodes = _Episodes.of(task, arrays)
     dynamic = _episode_arrays(task, arrays)
     tau = float(np.asarray(base.tau).reshape(-1)[0])
     base_W, base_WE = np.asarray(base.W), np.asarray(base.WE)
 
-    def run(population: Array, is_input: Array, rows: Array, cols: Array) -> Array:
+    def prepare(population: Array) -> tuple[Array, dict[str, Any]]:
         population = jnp.asarray(population)
         _counted(population, arrays, task)
-        return _connections_fitness(
-            population,
-            base_W.astype(population.dtype),
-            base_WE.astype(population.dtype),
-            is_input,
-            rows,
-            cols,
-            dynamic,
-            episodes=episodes,
-            tau=tau,
-        )
+        dtype = population.dtype
+        return population, {
+            "base_W": base_W.astype(dtype),
+            "base_WE": base_WE.astype(dtype),
+            "dynamic": dynamic,
+            "episodes": episodes,
+            "tau": tau,
+        }
 
-    return run
+    return prepare
 
 
 def connection_search_fitness(
@@ -461,10 +529,12 @@ def connection_search_fitness(
     """Fitness of populations that re-evolve a few connections of ``base`` (as
     :func:`crossroad_fitness` with ``Genome.around(base, connections)``), compiled once for all
     choices of the same number of connections: ``fitness(population, connections)``."""
-    run = _connection_run(base, task, arrays)
+    prepare = _connection_run(base, task, arrays)
 
     def fitness(population: Array, connections: tuple[Connection, ...]) -> Array:
-        return run(population, *_connection_tables(connections, population.shape[1]))
+        population, kw = prepare(population)
+        is_input, rows, cols = _connection_tables(connections, population.shape[1])
+        return _connections_fitness(population, is_input=is_input, rows=rows, cols=cols, **kw)
 
     return fitness
 
@@ -478,16 +548,16 @@ def connection_group_fitness(
     """:func:`connection_search_fitness` of a group of populations, one per choice of
     connections, evaluated as one batch: ``fitness(population, owner)``, genome ``i`` re-evolving
     ``choices[owner[i]]`` (a group of DE runs, :meth:`StageContext.evolve_group`)."""
-    run = _connection_run(base, task, arrays)
+    prepare = _connection_run(base, task, arrays)
     widths = {len(c) for c in choices}
     if len(widths) != 1:
         raise MbnInputError(f"choices of {sorted(widths)} connections: one size expected")
     tables = [_connection_tables(c, len(c)) for c in choices]
-    is_input, rows, cols = (jnp.stack([t[k] for t in tables]) for k in range(3))
+    stacked = tuple(put(np.stack([np.asarray(t[k]) for t in tables])) for k in range(3))
 
     def fitness(population: Array, owner: Array) -> Array:
-        owner = jnp.asarray(owner)
-        return run(population, is_input[owner], rows[owner], cols[owner])
+        population, kw = prepare(population)
+        return _owned_fitness(population, owner=jnp.asarray(owner), tables=stacked, **kw)
 
     return fitness
 

@@ -22,12 +22,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
 from mbn.experiments.starts import JITTER, mark_starts
+from mbn.host import put
 from mbn.world.engine import CameraConfig, compile_mazes
 from mbn.world.junctions import rule_route
 from mbn.world.mazes.model import TILE_COLORS, Maze
@@ -445,8 +445,8 @@ def run_trial_groups(
         world,
         controller,
         state,
-        jnp.asarray(all_poses, jnp.zeros(()).dtype),
-        jnp.asarray(np.concatenate(index)),
+        put(all_poses),
+        put(np.concatenate(index)),
         config,
         junctions=junctions,
         key=key if config.noise.enabled else None,

@@ -33,6 +33,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError, UnstableStepError, UnstableStepWarning
+from mbn.host import put
 from mbn.io import check_fields, expect_object
 
 Method = Literal["euler", "rk4"]
@@ -204,11 +205,11 @@ def make_ctrnn(
     if np.any(tau_ <= 0):
         raise MbnInputError(f"{name}.tau: time constants must be > 0, got min {tau_.min()}")
     return CTRNN(
-        W=jnp.asarray(W_),
-        WE=jnp.asarray(WE_),
-        tau=jnp.asarray(tau_),
-        bias=jnp.asarray(vector(bias, "bias", 0.0)),
-        gain=jnp.asarray(vector(gain, "gain", 1.0)),
+        W=put(W_),
+        WE=put(WE_),
+        tau=put(tau_),
+        bias=put(vector(bias, "bias", 0.0)),
+        gain=put(vector(gain, "gain", 1.0)),
     )
 
 

@@ -34,6 +34,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError
+from mbn.host import put
 from mbn.io import (
     check_fields,
     expect_int,
@@ -47,6 +48,7 @@ from mbn.networks.ctrnn import (
     CTRNN,
     Method,
     firing_rate,
+    integrator,
     simulate,
 )
 from mbn.precision import NETWORKS, Precision, cast, dtype_of, scope
@@ -113,7 +115,7 @@ def training_pairs(num_per_axis: int = 10, dtype: Any = None) -> Array:
     """
     axis = (np.arange(1, num_per_axis + 1) - 0.5) / num_per_axis
     x1, x2 = np.meshgrid(axis, axis, indexing="ij")
-    return jnp.asarray(np.stack([x1.ravel(), x2.ravel()], axis=-1), dtype=dtype)
+    return put(np.stack([x1.ravel(), x2.ravel()], axis=-1), dtype)
 
 
 def validation_pairs(key: Array, num: int = 100, dtype: Any = None) -> Array:
@@ -133,7 +135,7 @@ def dense_grid(num_per_axis: int = 101, dtype: Any = None) -> Array:
     """
     axis = np.linspace(0.0, 1.0, num_per_axis)
     x1, x2 = np.meshgrid(axis, axis, indexing="ij")
-    return jnp.asarray(np.stack([x1.ravel(), x2.ravel()], axis=-1), dtype=dtype)
+    return put(np.stack([x1.ravel(), x2.ravel()], axis=-1), dtype)
 
 
 # --------------------------------------------------------------------------------------------
@@ -165,13 +167,25 @@ def multiply(
     """
     with scope(precision):
         net = cast(mul.net, precision)
-        pairs = jnp.asarray(pairs, dtype=net.dtype)
+        pairs = jax.device_put(np.asarray(pairs, dtype=net.dtype))
         h = mul.dt_over_tau if dt_over_tau is None else dt_over_tau
         num_steps = round(t_over_tau / h)
-        y0 = jnp.zeros((*pairs.shape[:-1], mul.num_neurons), dtype=pairs.dtype)
-        inputs = jnp.broadcast_to(pairs, (num_steps, *pairs.shape))
-        y, _ = simulate(net, y0, inputs, h, method=method or mul.method, record=False)
-        return firing_rate(net, y)[..., mul.output]
+        integrator(method or mul.method)  # refused here, not inside the compiled program
+        return _held_output(
+            net, pairs, h, num_steps=num_steps, method=method or mul.method, output=mul.output
+        )
+
+
+@functools.partial(jax.jit, static_argnames=("num_steps", "method", "output"))
+def _held_output(
+    net: CTRNN, pairs: Array, h: float, *, num_steps: int, method: Method, output: int
+) -> Array:
+    """The output neuron's rate after ``num_steps`` steps of ``h`` with ``pairs`` held from
+    rest: :func:`multiply`, compiled once per shape."""
+    y0 = jnp.zeros((*pairs.shape[:-1], net.num_neurons), dtype=pairs.dtype)
+    inputs = jnp.broadcast_to(pairs, (num_steps, *pairs.shape))
+    y, _ = simulate(net, y0, inputs, h, method=method, record=False)
+    return firing_rate(net, y)[..., output]
 
 
 def fixed_point_check(
@@ -186,8 +200,9 @@ def fixed_point_check(
     out_t = multiply(mul, pairs, precision=precision)
     out_2t = multiply(mul, pairs, t_over_tau=2 * T_OVER_TAU, precision=precision)
     out_fine = multiply(mul, pairs, dt_over_tau=mul.dt_over_tau / 10, precision=precision)
-    drift_2t = float(jnp.max(jnp.abs(out_2t - out_t)))
-    drift_step = float(jnp.max(jnp.abs(out_fine - out_t)))
+    out_t = np.asarray(out_t)
+    drift_2t = float(np.max(np.abs(np.asarray(out_2t) - out_t)))
+    drift_step = float(np.max(np.abs(np.asarray(out_fine) - out_t)))
     return {
         "max_abs_diff_2T": drift_2t,
         "max_abs_diff_fine_step": drift_step,
@@ -216,15 +231,16 @@ def evaluate(
 def _evaluate(
     mul: Multiplier, validation: ArrayLike, grid_points: int, precision: Precision
 ) -> dict[str, Any]:
-    dtype = dtype_of(precision)
-    validation = jnp.asarray(validation, dtype=dtype)
+    # the errors in NumPy (exactly rounded, as JAX's eager operations; none compiled)
+    dtype = np.dtype(dtype_of(precision))
+    validation = np.asarray(validation, dtype=dtype)
     target = validation[:, 0] * validation[:, 1]
-    out = multiply(mul, validation, precision=precision)
-    rel = np.asarray(jnp.abs(out - target) / target)
-    big = np.asarray(target) >= 0.05
-    grid = dense_grid(grid_points, dtype=dtype)
-    grid_err = np.asarray(
-        jnp.abs(multiply(mul, grid, precision=precision) - grid[:, 0] * grid[:, 1])
+    out = np.asarray(multiply(mul, validation, precision=precision))
+    rel = np.abs(out - target) / target
+    big = target >= 0.05
+    grid = np.asarray(dense_grid(grid_points, dtype=dtype))
+    grid_err = np.abs(
+        np.asarray(multiply(mul, grid, precision=precision)) - grid[:, 0] * grid[:, 1]
     )
     return {
         "num_validation_pairs": int(validation.shape[0]),
@@ -252,8 +268,7 @@ def relative_errors(
     ``pairs`` (counted), ``min_target``, ``fraction_within_5pct``, ``max_rel_error`` and the
     pair ``worst`` where it is largest."""
     with scope(precision):
-        dtype = dtype_of(precision)
-        pairs = jnp.asarray(pairs, dtype=dtype)
+        pairs = np.asarray(pairs, dtype=np.dtype(dtype_of(precision)))
         target = np.asarray(pairs[:, 0] * pairs[:, 1], np.float64)
         out = np.asarray(multiply(mul, pairs, precision=precision), np.float64)
     keep = target >= floor

@@ -114,9 +114,14 @@ def _jitted_geometry() -> tuple[Callable[..., Any], Callable[..., Any]]:
 
 
 def _body(poses: np.ndarray) -> np.ndarray:
-    """World-frame body octagons ``(n, 8, 2)`` at ``poses (n, 3)``."""
-    body_polygon, _ = _jitted_geometry()
-    return np.asarray(body_polygon(poses, BODY), dtype=np.float64)
+    """World-frame body octagons ``(n, 8, 2)`` at ``poses (n, 3)``: the arithmetic of
+    :func:`~mbn.world.geometry.body_polygon` in NumPy (a picture needs no compiled program
+    for each number of poses)."""
+    p = np.asarray(poses, np.float64)
+    b = np.asarray(BODY, np.float64)
+    x, y, th = p[..., 0:1], p[..., 1:2], p[..., 2:3]
+    c, s = np.cos(th), np.sin(th)
+    return np.stack([x + c * b[:, 0] - s * b[:, 1], y + s * b[:, 0] + c * b[:, 1]], -1)
 
 
 def _ray_segments(

@@ -34,6 +34,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.host import put
 from mbn.world.geometry import rect_segments
 from mbn.world.mazes.model import Maze
 from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
@@ -361,27 +362,29 @@ def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         table = _pack_windows(occ, half, n_words, bool(maze.outside_is_wall))
         tables.append(table)
         offset += table.shape[0]
-    dtype = jnp.zeros(()).dtype  # float32, or float64 under jax_enable_x64
+    # float32, or float64 under jax_enable_x64; the arrays are made in NumPy and put on the
+    # device as they are (no eager operation to compile)
+    dtype = np.dtype(jnp.zeros(()).dtype)
     tiles, colors = _tile_arrays(mazes)
     return World(
-        origin=jnp.asarray(np.array(origins), dtype),
-        cell=jnp.asarray(np.array([g for g, _ in lattices]), dtype),
-        shape=jnp.asarray(np.array(shapes), jnp.int32),
-        half=jnp.asarray(np.array(halves), jnp.int32),
-        offset=jnp.asarray(np.array(offsets), jnp.int32),
-        windows=jnp.asarray(np.concatenate(tables, axis=0)),
-        tiles=jnp.asarray(tiles, dtype),
-        tile_colors=jnp.asarray(colors),
-        outside_is_wall=jnp.asarray(np.array([m.outside_is_wall for m in mazes])),
-        segments=jnp.zeros((1, 4), dtype),
-        seg_start=jnp.zeros((1,), jnp.int32),
-        seg_count=jnp.zeros((1,), jnp.int32),
-        seg_flat=jnp.zeros((1,), jnp.int32),
-        rects=jnp.zeros((1, 4), dtype),
-        rect_start=jnp.zeros((1,), jnp.int32),
-        rect_count=jnp.zeros((1,), jnp.int32),
-        rect_flat=jnp.zeros((1,), jnp.int32),
-        row_solid=jnp.zeros((1,), bool),
+        origin=put(origins, dtype),
+        cell=put([g for g, _ in lattices], dtype),
+        shape=put(shapes, np.int32),
+        half=put(halves, np.int32),
+        offset=put(offsets, np.int32),
+        windows=put(np.concatenate(tables, axis=0)),
+        tiles=put(tiles, dtype),
+        tile_colors=put(colors),
+        outside_is_wall=put([m.outside_is_wall for m in mazes], bool),
+        segments=put(np.zeros((1, 4)), dtype),
+        seg_start=put(np.zeros((1,)), np.int32),
+        seg_count=put(np.zeros((1,)), np.int32),
+        seg_flat=put(np.zeros((1,)), np.int32),
+        rects=put(np.zeros((1, 4)), dtype),
+        rect_start=put(np.zeros((1,)), np.int32),
+        rect_count=put(np.zeros((1,)), np.int32),
+        rect_flat=put(np.zeros((1,)), np.int32),
+        row_solid=put(np.zeros((1,)), bool),
         n_words=n_words,
         n_march=n_march,
         n_body=n_body,
@@ -410,9 +413,9 @@ def _edge_grids(mazes: list[Maze] | tuple[Maze, ...], n_rows: int, dtype: Any) -
         offset[k] = row
         row += int(shape[k, 0] * shape[k, 1])
     return {
-        "grid_edges": jnp.asarray(edges, dtype),
-        "grid_shape": jnp.asarray(shape, jnp.int32),
-        "grid_offset": jnp.asarray(offset, jnp.int32),
+        "grid_edges": put(edges, np.dtype(dtype)),
+        "grid_shape": put(shape, np.int32),
+        "grid_offset": put(offset, np.int32),
         "n_grid_rows": row - n_rows,
     }
 
@@ -553,7 +556,7 @@ def _compile_segments(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         offset=jnp.asarray(np.array(offsets), jnp.int32),
         windows=jnp.zeros((1, 1), jnp.uint32),
         tiles=jnp.asarray(tiles, dtype),
-        tile_colors=jnp.asarray(colors),
+        tile_colors=put(colors),
         outside_is_wall=jnp.asarray(np.array([m.outside_is_wall for m in mazes])),
         segments=jnp.asarray(np.concatenate([*segs, np.zeros((1, 4))]), dtype),
         seg_start=jnp.asarray(seg_start),

@@ -41,6 +41,7 @@ from jax import Array, lax
 from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError
+from mbn.host import put
 from mbn.world.engine import CameraConfig, MazeConstants, World, maze_constants
 from mbn.world.robot import SONAR_MAX_RANGE
 from mbn.world.sensors import NoiseConfig, SensorConfig, normalize, paper_inputs
@@ -155,7 +156,7 @@ def concatenate_states(states: list[Any], sizes: list[int]) -> Any:
 
     def join(*parts: Any) -> Any:
         if not _is_shared(parts[0]):
-            return jnp.concatenate(parts, 0)
+            return _host_concatenate(parts)
         values = [p.value for p in parts]
         first = jax.tree.leaves(values[0])
         if all(
@@ -167,13 +168,25 @@ def concatenate_states(states: list[Any], sizes: list[int]) -> Any:
         ):
             return parts[0]
         return jax.tree.map(
-            lambda *a: jnp.concatenate(
-                [jnp.broadcast_to(x, (n, *x.shape)) for x, n in zip(a, sizes, strict=True)], 0
+            lambda *a: _host_concatenate(
+                [
+                    np.broadcast_to(np.asarray(x), (n, *np.shape(x)))
+                    for x, n in zip(a, sizes, strict=True)
+                ]
             ),
             *values,
         )
 
     return jax.tree.map(join, *states, is_leaf=_is_shared)
+
+
+def _host_concatenate(parts: Any) -> Array:
+    """Arrays joined along their first axis on the host and put on the device as one: the same
+    values as ``jnp.concatenate``, without an eager program compiled for each set of shapes (a
+    PRNG key array, which NumPy cannot hold, is joined by JAX)."""
+    if any(jax.dtypes.issubdtype(jnp.result_type(p), jax.dtypes.prng_key) for p in parts):
+        return jnp.concatenate(parts, 0)
+    return put(np.concatenate([np.asarray(p) for p in parts], 0))
 
 
 class Observation(NamedTuple):

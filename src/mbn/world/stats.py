@@ -20,6 +20,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.host import put
 from mbn.world.engine import MazeConstants, World
 
 __all__ = [
@@ -117,7 +118,7 @@ def junction_arrays(mazes: list[Any] | tuple[Any, ...], world: World) -> Array:
                 out[idx, :, 0] = right[r, c]
                 out[idx, :, 1] = left[r, c]
                 out[idx, :, 2] = mask[r, c]
-    return jnp.asarray(out)
+    return put(out)
 
 
 def junction_constants(world: World, mc: MazeConstants, maze_index: Array) -> MazeConstants:

@@ -178,7 +178,8 @@ def test_lf_evolves_the_searchs_best_triples_and_keeps_the_best_that_validates(q
     rundir, seed, config = _copy(quick_run, tmp_path)
     search = rundir.read_stage("lf_search")
     config = _with(config, "validation", target=0.0, agreement=0.0)
-    config = _with(config, "lf", finalists=2)
+    # enough = 1: the round evolves every finalist whatever the first one validates
+    config = _with(config, "lf", finalists=2, enough=1.0)
     data = run_stage(REPRODUCE, rundir, "lf", seed=seed, config=config)
     attempts = data["attempts"]
     assert len(attempts) == 2 and {a["round"] for a in attempts} == {0}
@@ -352,3 +353,55 @@ def test_candidates_that_validate_are_ranked_by_their_worst_validation_figure_th
     missing = _candidate(99.0, 80, 80, 80, 80, 80)
     missing["validation_im"]["meets_target"] = False
     assert candidate_rank(missing, 0) < candidate_rank(_candidate(1.0, 76, 76, 76, 76, 76), 1)
+
+
+def test_an_lf_round_stops_at_a_finalist_that_validates_well_enough(quick_run, tmp_path):
+    """``[lf] enough``: a finalist that meets every target with every figure at least
+    ``enough`` ends the round; the finalists after it are not evolved."""
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    config = _with(config, "validation", target=0.0, agreement=0.0)
+    config = _with(config, "lf", finalists=2, enough=0.0)
+    data = run_stage(REPRODUCE, rundir, "lf", seed=seed, config=config)
+    assert len(data["attempts"]) == 1 and data["chosen_attempt"] == 0
+    assert not (rundir.root / "checkpoints" / "lf_attempt0_1.npz").exists()
+
+
+def test_good_enough_asks_every_target_met_and_every_figure_at_least_enough():
+    from mbn.experiments.reproduce.stages.lf import good_enough
+
+    perfect = _candidate(30.0, 80, 80, 80, 80, 80)
+    near = _candidate(30.0, 80, 80, 80, 79, 80)  # agreement 79/80 = 0.9875
+    assert good_enough(perfect, 0.99) and not good_enough(near, 0.99)
+    assert good_enough(near, 0.98)
+    # 1 is never enough: every finalist of the round is evolved
+    assert not good_enough(perfect, 1.0)
+    missing = _candidate(30.0, 80, 80, 80, 80, 80)
+    missing["validation"]["meets_target"] = False
+    assert not good_enough(missing, 0.0)
+
+
+def test_rung_ends_of_successive_halving():
+    from mbn.experiments.reproduce.stages.lf_search import rung_ends
+
+    assert rung_ends(100, 2) == [25, 50, 100]
+    assert rung_ends(100, 0) == [100]
+    assert rung_ends(2, 2) == [0, 1, 2]
+    assert rung_ends(0, 2) == [0]
+
+
+def test_the_lf_search_halves_the_triples_by_their_best_fitness_at_each_rungs_end(quick_run):
+    """The quick run's search (2 generations, 2 halvings: rungs ending at 0, 1 and 2): all 20
+    triples reach generation 0, the better 10 by their best fitness there generation 1, the
+    better 5 of those generation 2 (the first of equals)."""
+    folder, _ = quick_run
+    rows = json.loads((folder / "stages" / "lf_search.json").read_text())["triples"]
+    gens = [r["generations"] for r in rows]
+    assert sorted(gens) == [0] * 10 + [1] * 5 + [2] * 5
+    checkpoints = {
+        t: np.load(folder / "checkpoints" / f"lf_search_{t:02d}.npz") for t in range(len(rows))
+    }
+    best = {t: cp["history"][:, 0] for t, cp in checkpoints.items()}
+    went_on = [t for t in range(20) if gens[t] >= 1]
+    assert went_on == sorted(sorted(range(20), key=lambda t: (-best[t][0], t))[:10])
+    last = [t for t in range(20) if gens[t] == 2]
+    assert last == sorted(sorted(went_on, key=lambda t: (-best[t][1], t))[:5])

@@ -17,6 +17,7 @@ from mbn.evolution.de import DEConfig, DEState
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.runconfig import RunConfig
 from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
+from mbn.host import put
 
 __all__ = ["DEResult", "DERun", "StageContext", "generation_stats"]
 
@@ -169,7 +170,7 @@ class StageContext:
         generation, after a resume, stands in with its population and its values are
         dropped), so its shape, and with it every float, is that of an uninterrupted run."""
         from mbn.evolution.de import ask, from_population, init, initialize_fitness, tell
-        from mbn.experiments.evolve import FITNESS_PARTS, split_fitness
+        from mbn.experiments.evolve import FITNESS_PARTS, join_rows, split_fitness, split_rows
 
         if not runs:
             return []
@@ -177,8 +178,8 @@ class StageContext:
         if len(configs) != 1:
             raise MbnInputError(f"a DE group needs one population shape, got {sorted(configs)}")
         ((popsize, _),) = configs
-        owner = jnp.asarray(np.repeat(np.arange(len(runs)), popsize))
-        cut = [slice(r * popsize, (r + 1) * popsize) for r in range(len(runs))]
+        owner = put(np.repeat(np.arange(len(runs)), popsize))
+        bounds = tuple(r * popsize for r in range(len(runs) + 1))
 
         def drawn(run: DERun) -> DEState:  # generation 0 before its fitness
             if run.population is None:
@@ -190,8 +191,10 @@ class StageContext:
             values_of = split_fitness(fitness, self.workers, pool)
 
             def evaluate(populations: list[jax.Array]) -> list[jax.Array]:
-                values = values_of(jnp.concatenate(populations), owner)
-                return [values[c] for c in cut]
+                if len(populations) == 1:  # one run: nothing to join or cut
+                    return [values_of(populations[0], owner)]
+                values = values_of(join_rows(tuple(populations)), owner)
+                return list(split_rows(values, bounds))
 
             checkpoints = [self._resumable(run.name, run.config) for run in runs]
             states = [

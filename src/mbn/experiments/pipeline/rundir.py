@@ -22,11 +22,11 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-import jax.numpy as jnp
 import numpy as np
 
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEState
+from mbn.host import put
 from mbn.io import atomic_open, expect_object, read_json, write_json_atomic
 
 __all__ = ["SUBFOLDERS", "Checkpoint", "RunDir"]
@@ -181,11 +181,11 @@ class RunDir:
         try:
             with np.load(path) as z:
                 state = DEState(
-                    population=jnp.asarray(z["population"]),
-                    fitness=jnp.asarray(z["fitness"]),
-                    best_genome=jnp.asarray(z["best_genome"]),
-                    best_fitness=jnp.asarray(z["best_fitness"]),
-                    generation=jnp.asarray(z["generation"]),
+                    population=put(z["population"]),
+                    fitness=put(z["fitness"]),
+                    best_genome=put(z["best_genome"]),
+                    best_fitness=put(z["best_fitness"]),
+                    generation=put(z["generation"]),
                 )
                 history = [(float(row[0]), float(row[1])) for row in z["history"]]
         except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:

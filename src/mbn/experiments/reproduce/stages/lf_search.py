@@ -13,12 +13,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from mbn.config import Settings, setting
 from mbn.errors import MbnInputError
-from mbn.experiments.evolve import connection_group_fitness, robust_fitness, split_fitness
+from mbn.experiments.evolve import (
+    connection_group_fitness,
+    join_rows,
+    robust_fitness,
+    split_fitness,
+)
 from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import DERun, Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
@@ -27,6 +31,7 @@ from mbn.experiments.reproduce.stages.common import (
     stage_perturbations,
     task,
 )
+from mbn.host import put
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name, connection_names
 
@@ -124,8 +129,8 @@ def search_triples(
     # corner as in a maze: an LF that keeps its behaviour when its weights move is one the
     # interpreter can emulate. One batch of every triple's, in parts as DE's.
     choose = connection_group_fitness(rf, task(ctx, "left", s.variants, approaches), triples)
-    final = jnp.concatenate([results[t].state.population for t in range(len(triples))])
-    owner = jnp.repeat(jnp.arange(len(triples)), config.popsize)
+    final = join_rows(tuple(results[t].state.population for t in range(len(triples))))
+    owner = put(np.repeat(np.arange(len(triples)), config.popsize))
     robust_all = np.asarray(split_fitness(robust_fitness(choose, noise), ctx.workers)(final, owner))
     rows = []
     for t, trip in enumerate(triples):

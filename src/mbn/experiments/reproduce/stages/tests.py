@@ -226,6 +226,9 @@ class TestsStage(Stage):
         return ", ".join(f"{n} {t[n]['successes']}/{t[n]['trials']}" for n, _ in TESTED)
 
 
+#: Firing rates, compiled (one program per network shape instead of eager operations).
+_rates = jax.jit(firing_rate)
+
 #: Folded into the tests' noise key for the recorded MBN episode (the batches take 0, 1, 2).
 RECORDING_KEY = 100
 
@@ -258,7 +261,7 @@ def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> in
     tile = np.asarray(traj.tile)
     changes = (np.diff(tile, axis=1) != 0).sum(1) + 100 * np.asarray(verdicts["mbn"]["success"])
     b = int(np.argmax(changes))
-    pick = lambda tree: jax.tree.map(lambda a: np.asarray(a[b]), tree)  # noqa: E731
+    pick = lambda tree: jax.tree.map(lambda a: np.asarray(a)[b], tree)  # noqa: E731
     # the networks are shared by the batch and not recorded: they are the file's
     pm_y, im_y = pick(traj.controller.pm_y), pick(traj.controller.im_y)
     pm, im = spec.program_module, spec.interpreter_spec.interpreter.net
@@ -267,15 +270,15 @@ def _record_mbn(ctx: StageContext, spec: Any, maze: Any, paper: TrialSpec) -> in
         "mbn_recording",
         {
             "t": np.asarray(traj.t),
-            "pose": np.asarray(traj.pose[b]),
-            "ranges": np.asarray(traj.ranges[b]),
-            "camera": np.asarray(traj.camera[b]),
-            "tile": np.asarray(traj.tile[b]),
-            "stalled": np.asarray(traj.stalled[b]),
-            "v": np.asarray(traj.v[b]),
-            "w": np.asarray(traj.w[b]),
-            "program": np.asarray(firing_rate(pm, pm_y))[:, list(spec.program_neurons)],
-            "rates": np.asarray(firing_rate(im, im_y))[:, :n0],
+            "pose": np.asarray(traj.pose)[b],
+            "ranges": np.asarray(traj.ranges)[b],
+            "camera": np.asarray(traj.camera)[b],
+            "tile": np.asarray(traj.tile)[b],
+            "stalled": np.asarray(traj.stalled)[b],
+            "v": np.asarray(traj.v)[b],
+            "w": np.asarray(traj.w)[b],
+            "program": np.asarray(_rates(pm, pm_y))[:, list(spec.program_neurons)],
+            "rates": np.asarray(_rates(im, im_y))[:, :n0],
             "start_mark": np.asarray(b),
         },
     )
