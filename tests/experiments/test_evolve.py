@@ -115,3 +115,56 @@ def test_a_population_evaluated_in_parts_gets_the_same_values_with_any_number_of
         np.testing.assert_array_equal(parted, by_hand)
     one = np.asarray(split_fitness(fitness, 4, parts=1)(population))
     np.testing.assert_array_equal(one, np.asarray(fitness(population)))
+
+
+def test_finalists_around_different_networks_share_one_compiled_fitness() -> None:
+    """The crossroads' fitness takes the base network and the task's arrays as arguments: the
+    genomes of two LF finalists around two RFs (other weights, other connections) run on one
+    compiled program, and give what each genome's own network gives."""
+    from mbn.experiments.crossroads import CrossroadTask
+    from mbn.experiments.evolve import (
+        Genome,
+        _connections_fitness,
+        crossroad_fitness,
+        evaluate_networks,
+        tile_fitness,
+    )
+    from mbn.networks.ctrnn import make_ctrnn
+    from mbn.networks.programmable import Connection
+
+    task = CrossroadTask(rule="left", variants=1, seconds=1.0)
+    rng = np.random.default_rng(1)
+    nets = [make_ctrnn(rng.normal(size=(3, 3)), np.diag(rng.normal(size=3)), 0.5) for _ in (0, 1)]
+    choices = [
+        (Connection("W", 1, 0), Connection("W", 1, 1), Connection("WE", 1, 1)),
+        (Connection("W", 1, 2), Connection("WE", 1, 0), Connection("WE", 1, 2)),
+    ]
+    population = jnp.asarray(rng.normal(size=(4, 3)))
+    values = []
+    before = None
+    for net, conns in zip(nets, choices, strict=True):
+        genome = Genome.around(net, conns)
+        values.append(np.asarray(crossroad_fitness(genome, task)(population)))
+        if before is None:
+            before = _connections_fitness._cache_size()
+    assert _connections_fitness._cache_size() == before
+    # each value is the fitness of the genome's own network
+    genome = Genome.around(nets[1], choices[1])
+    arrays = task.arrays()
+    W, WE = genome.weights(population)
+    stats = evaluate_networks(W, WE, genome.tau, arrays, task)
+    own = np.asarray(tile_fitness(arrays)(stats, task)).reshape(4, arrays.episodes).sum(-1)
+    np.testing.assert_allclose(values[1], own, rtol=1e-9, atol=1e-9)
+
+
+def test_rows_are_cut_and_joined_on_the_host_as_slices_and_concatenation_would() -> None:
+    from mbn.experiments.evolve import join_rows, split_rows
+    from mbn.host import put
+
+    x = jnp.arange(30.0).reshape(10, 3)
+    parts = split_rows(x, (0, 4, 10))
+    assert [p.shape for p in parts] == [(4, 3), (6, 3)]
+    np.testing.assert_array_equal(np.asarray(parts[1]), np.asarray(x[4:]))
+    np.testing.assert_array_equal(np.asarray(join_rows(parts)), np.asarray(x))
+    assert put(np.zeros(3, np.float32)).dtype == jnp.float32
+    assert put([1, 2], np.int32).dtype == jnp.int32

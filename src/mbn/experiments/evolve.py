@@ -357,7 +357,12 @@ def perturbations(key: Array, copies: int, size: int, sigma: float) -> Array:
         raise MbnInputError(
             f"perturbations: need copies >= 0 and sigma >= 0, got {copies}, {sigma}"
         )
-    return sigma * jax.random.normal(key, (copies, size))
+    return _scaled_normal(key, float(sigma), (copies, size))
+
+
+@partial(jax.jit, static_argnames="shape")
+def _scaled_normal(key: Array, sigma: float, shape: tuple[int, int]) -> Array:
+    return sigma * jax.random.normal(key, shape)
 
 
 def robust_fitness(fitness: Callable[..., Array], noise: Array) -> Callable[..., Array]:
