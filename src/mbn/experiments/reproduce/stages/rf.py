@@ -31,12 +31,13 @@ class RFSettings(Settings):
         source="docs/experiments.md (the paper: one start per crossroad)",
     )
     restarts: int = setting(
-        1,
+        2,
         doc="independent DE runs, evolved until this many pass the validation maze; the "
-        "fittest of those is kept (the LF stage evolves another RF when a round needs one)",
+        "fittest of those is kept",
         low=1,
         high=100,
-        source="docs/speed.md (restarts evolved only while needed; 2 before)",
+        source="docs/reproduce.md; docs/speed.md (1 was tried: it changed the RF of seeds 1 "
+        "and 3 and cost them rounds)",
     )
 
 
