@@ -96,8 +96,9 @@ def test_the_report_renders_from_the_folder_alone_without_simulating(
         raise AssertionError("the report simulated")
 
     monkeypatch.setattr(rollout, "rollout", forbidden)
+    monkeypatch.setattr(rollout, "run_rollout", forbidden)
     monkeypatch.setattr(trials, "run_trial_groups", forbidden)
-    monkeypatch.setattr(trials, "rollout", forbidden)
+    monkeypatch.setattr(trials, "run_rollout", forbidden)
     rundir, _, _ = _copy(quick_run, tmp_path)
     shutil.rmtree(rundir.root / "figures")
     (rundir.root / "figures").mkdir()
