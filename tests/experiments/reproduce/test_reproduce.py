@@ -85,6 +85,22 @@ def test_quick_run_writes_results_with_the_documented_schema(quick_run):
     assert "total_seconds" in json.loads((out / "timings.json").read_text())
 
 
+def test_the_run_records_the_robot_steps_of_each_stage_that_simulates(quick_run):
+    """``timings.json`` counts every stage's robot-steps: the quick preset's budgets fix RF's
+    exactly (2 restarts x 16 generations x 18 genomes x 2 (one perturbed copy) x 7 episodes x
+    300 steps, plus its validation and score rollouts), and every stage that runs robots counts
+    some; the multiplier and the interpreter's assembly count none."""
+    folder, _ = quick_run
+    timings = json.loads((folder / "timings.json").read_text())
+    steps = timings["robot_steps"]
+    assert steps["multiplier"] == 0 and steps["im"] == 0
+    for stage in ("rf", "lf_search", "lf", "pm", "tests"):
+        assert steps[stage] > 0, stage
+    evolution = 2 * 16 * 18 * 2 * 7 * 300
+    assert steps["rf"] > evolution
+    assert timings["total_robot_steps"] == sum(steps.values())
+
+
 def test_quick_run_controllers_load_and_evaluate(quick_run):
     out, _ = quick_run
     for name in CONTROLLERS:
