@@ -29,8 +29,14 @@ import traceback
 from pathlib import Path
 
 COMPILING = re.compile(r"^Compiling (?:jit\()?([^ )]+)\)?")
-TIMED = re.compile(r"^Finished (tracing|jaxpr to MLIR module conversion|XLA compilation)[^\d]*([\d.]+) sec")
-PHASES = {"tracing": "trace_s", "jaxpr to MLIR module conversion": "lower_s", "XLA compilation": "compile_s"}
+TIMED = re.compile(
+    r"^Finished (tracing|jaxpr to MLIR module conversion|XLA compilation)[^\d]*([\d.]+) sec"
+)
+PHASES = {
+    "tracing": "trace_s",
+    "jaxpr to MLIR module conversion": "lower_s",
+    "XLA compilation": "compile_s",
+}
 
 
 def _origin(depth: int = 3) -> str:
