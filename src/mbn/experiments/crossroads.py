@@ -182,15 +182,16 @@ class CrossroadTask:
 @dataclass(frozen=True)
 class TaskArrays:
     """A task's mazes and per-episode arrays: start ``poses (E, 3)``, ``maze_index (E,)``, the
-    unit vector of the rule's arm ``target (E, 2)`` and the junction centre ``centre (E, 2)``."""
+    unit vector of the rule's arm ``target (E, 2)`` and the junction centre ``centre (E, 2)``
+    (NumPy at the edge; device arrays, or traced ones, inside a compiled fitness)."""
 
     mazes: list[Maze]
     world: World
     junctions: Array
-    poses: np.ndarray
-    maze_index: np.ndarray
-    target: np.ndarray
-    centre: np.ndarray
+    poses: np.ndarray | Array
+    maze_index: np.ndarray | Array
+    target: np.ndarray | Array
+    centre: np.ndarray | Array
     cell: float
     arm_length: float
 

@@ -117,11 +117,11 @@ class Genome:
     def network(self, genes: Array) -> CTRNN:
         """The CTRNN of one genome (validated; for files and reports). Made on the host: the
         same weights as :meth:`weights`, without an eager program to compile."""
-        genes = np.asarray(genes)
-        W = np.array(self.base_W, genes.dtype)
-        WE = np.array(self.base_WE, genes.dtype)
+        values = np.asarray(genes)
+        W = np.array(self.base_W, values.dtype)
+        WE = np.array(self.base_WE, values.dtype)
         for g, c in enumerate(self.connections):
-            (W if c.kind == "W" else WE)[c.i, c.j] = genes[g]
+            (W if c.kind == "W" else WE)[c.i, c.j] = values[g]
         return make_ctrnn(W, WE, self.tau)
 
     def genes_of(self, net: CTRNN) -> np.ndarray:

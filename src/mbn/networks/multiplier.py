@@ -200,9 +200,9 @@ def fixed_point_check(
     out_t = multiply(mul, pairs, precision=precision)
     out_2t = multiply(mul, pairs, t_over_tau=2 * T_OVER_TAU, precision=precision)
     out_fine = multiply(mul, pairs, dt_over_tau=mul.dt_over_tau / 10, precision=precision)
-    out_t = np.asarray(out_t)
-    drift_2t = float(np.max(np.abs(np.asarray(out_2t) - out_t)))
-    drift_step = float(np.max(np.abs(np.asarray(out_fine) - out_t)))
+    at_t = np.asarray(out_t)
+    drift_2t = float(np.max(np.abs(np.asarray(out_2t) - at_t)))
+    drift_step = float(np.max(np.abs(np.asarray(out_fine) - at_t)))
     return {
         "max_abs_diff_2T": drift_2t,
         "max_abs_diff_fine_step": drift_step,

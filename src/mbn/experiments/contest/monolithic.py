@@ -124,7 +124,8 @@ def _with_switches(arrays: TaskArrays, priors: int, marks: int) -> TaskArrays:
     """The task's episodes followed by its first ``marks`` (the crossroads' start marks),
     ``priors`` times over: the episodes after another tile was shown."""
 
-    def more(a: np.ndarray) -> np.ndarray:
+    def more(a: np.ndarray | Array) -> np.ndarray:
+        a = np.asarray(a)
         return np.concatenate([a, *([a[:marks]] * priors)])
 
     return dataclasses.replace(
