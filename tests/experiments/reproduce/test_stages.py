@@ -169,6 +169,16 @@ def test_a_key_recorded_before_it_existed_reads_as_it_ran_and_the_others_as_reco
     assert recorded["interpreter"].tau_ratio == 0.1
 
 
+def test_a_run_recorded_before_the_lf_levers_reads_as_it_ran():
+    """A run.json without ``[lf] enough`` or ``[lf_search] halvings`` evolved every finalist
+    and every triple the whole way: it reads so (a resume continues it as it ran), and a new
+    run gets today's defaults."""
+    recorded = REPRODUCE.config_from_dict({"lf": {"generations": 5}}, "run.json")
+    assert recorded["lf"].enough == 1.0 and recorded["lf_search"].halvings == 0
+    fresh = REPRODUCE.config()
+    assert fresh["lf"].enough == 0.99 and fresh["lf_search"].halvings == 2
+
+
 @pytest.mark.slow  # 20 s; the ranking has a unit test, the LF stage the member test below
 def test_lf_evolves_the_searchs_best_triples_and_keeps_the_best_that_validates(quick_run, tmp_path):
     """With ``finalists`` = 2 and a target every candidate meets, the LF stage evolves the

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -104,6 +104,8 @@ class LFSettings(Settings):
     """The left-follower (LF): 3 connections of RF re-evolved."""
 
     section = "lf"
+    # runs recorded before ``enough`` existed evolved every finalist of a round
+    recorded_before: ClassVar[dict[str, Any]] = {"enough": 1.0}
     generations: int = setting(
         70,
         doc="DE generations of each finalist",

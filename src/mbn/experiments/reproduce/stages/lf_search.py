@@ -10,7 +10,7 @@ import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import numpy as np
@@ -54,6 +54,8 @@ class LFSearchSettings(Settings):
     """The search for the 3 connections of RF that LF re-evolves."""
 
     section = "lf_search"
+    # runs recorded before ``halvings`` existed evolved every triple the whole way
+    recorded_before: ClassVar[dict[str, Any]] = {"halvings": 0}
     candidates: tuple[str, ...] = setting(
         TURNING_CANDIDATES,
         doc="connections tried, in the code's 0-based form ('W[i,j]', 'WE[i,k]'; 'W[1,2]' is "
