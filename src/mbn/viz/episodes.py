@@ -103,14 +103,13 @@ def sonar_indices(k: int, sonars: Sequence[int] | None) -> tuple[int, ...]:
 
 
 @functools.cache
-def _jitted_geometry() -> tuple[Callable[..., Any], Callable[..., Any]]:
-    """:func:`~mbn.world.geometry.body_polygon` and :func:`~mbn.world.geometry.sonar_rays`,
-    jitted (an animation calls them once a frame)."""
+def _jitted_sonar_rays() -> Callable[..., Any]:
+    """:func:`~mbn.world.geometry.sonar_rays`, jitted (an animation calls it once a frame)."""
     import jax
 
-    from mbn.world.geometry import body_polygon, sonar_rays
+    from mbn.world.geometry import sonar_rays
 
-    return jax.jit(body_polygon), jax.jit(sonar_rays)
+    return jax.jit(sonar_rays)
 
 
 def _body(poses: np.ndarray) -> np.ndarray:
@@ -129,8 +128,7 @@ def _ray_segments(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Segments ``(k, 2, 2)`` from each sonar's origin to where its ray ends, and whether each
     ray met a wall within range ``(k,)``."""
-    _, sonar_rays = _jitted_geometry()
-    origins, angles = sonar_rays(pose, SONAR_POSES[list(sonars)])
+    origins, angles = _jitted_sonar_rays()(pose, SONAR_POSES[list(sonars)])
     o = np.asarray(origins, dtype=np.float64)
     a = np.asarray(angles, dtype=np.float64)
     r = np.asarray(ranges, dtype=np.float64)
