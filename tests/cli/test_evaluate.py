@@ -31,7 +31,7 @@ KEYS = {
 }
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def files(tmp_path_factory):
     """A controller that drives straight ahead (speed neuron biased on, turn neuron neutral), an
     interpreter file and an MBN file."""

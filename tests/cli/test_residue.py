@@ -193,7 +193,7 @@ def test_pnn_check_runs_at_the_smallest_tau_ratio(capsys):
 # -------------------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def interpreter_files(tmp_path_factory):
     """An interpreter file and an MBN file of the published RF/LF interpreter, each recording
     the sha256 of its weights in its metadata (as the runs write them)."""

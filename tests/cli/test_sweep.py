@@ -1,6 +1,6 @@
 """``mbn sweep`` on the command line: bad input is one line and exit status 2 with nothing
-touched, Ray missing says how to install it, and (CI) a tiny sweep of one quick seed on a local
-Ray, end to end, then rerun."""
+touched, Ray missing says how to install it, a sweep on a real local Ray (in CI its seeds do not
+simulate; ``-m slow`` runs two quick seeds end to end), then rerun."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -201,9 +202,44 @@ def _tiny_sweep(tmp_path, seeds: list[int]) -> None:
     assert {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in seeds} == results
 
 
+@pytest.mark.slow  # 5-10 min on 2 cores; CI drives a real Ray with seeds that do not simulate
 def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
-    """CI: 2 quick seeds side by side on a local Ray, end to end, then the same command."""
+    """2 quick seeds side by side on a local Ray, end to end, then the same command."""
     _tiny_sweep(tmp_path, [0, 1])
+
+
+def test_a_local_ray_runs_each_seed_in_a_pinned_worker_and_a_rerun_keeps_them(tmp_path):
+    """CI: ``mbn sweep`` on a real local Ray whose tasks write finished seed folders without
+    simulating (``tests/cli/sweep_tasks.py``; the seed's run itself is the quick reproduction's
+    tests): every seed ran in a Ray worker with its threads pinned, the sweep's files
+    are written, and the same command again keeps both seeds without starting Ray."""
+    pytest.importorskip("ray")
+    root = Path(__file__).resolve().parents[2]
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")])),
+    }
+    out = tmp_path / "sweep"
+    cmd = [sys.executable, "-m", "tests.cli.sweep_tasks", "sweep", "--seeds", "0-1", "--quick"]
+    cmd += ["--out", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env, cwd=root)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.splitlines()[-1].startswith("sweep: 2/2 seeds meet every target")
+    data = json.loads((out / "sweep.json").read_text())
+    for s in (0, 1):
+        run = data["runs"][str(s)]
+        assert run["state"] == "done"
+        env_seen = run["worker"]["env"]  # what the Ray worker saw: threads pinned to 1
+        assert env_seen["XLA_FLAGS"].split() == ["--xla_cpu_multi_thread_eigen=false"]
+        assert env_seen["OMP_NUM_THREADS"] == env_seen["OPENBLAS_NUM_THREADS"] == "1"
+        assert json.loads((out / f"seed-{s}" / "results.json").read_text())["seed"] == s
+    for f in ("sweep.json", "sweep.md", "sweep.html"):
+        assert (out / f).is_file()
+    results = {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in (0, 1)}
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=root)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "2 of 2 seeds were finished before: kept" in again.stdout
+    assert {s: (out / f"seed-{s}" / "results.json").read_bytes() for s in (0, 1)} == results
 
 
 def test_a_reuse_folder_that_is_no_sweep_is_one_line_before_any_work(capsys, tmp_path):

@@ -45,7 +45,7 @@ def _nets():
     return a, b
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def ctrnn_spec():
     net, _ = _nets()
     sensors = SensorConfig(sonars=(*PAPER_SONARS, 11), normalization="distance", far=3.0)
@@ -61,7 +61,7 @@ def ctrnn_spec():
     )
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def interpreter_spec():
     a, b = _nets()
     interp = build_interpreter(a, differing_connections(a, b), load_default())
@@ -83,7 +83,7 @@ def _pm_without_memory(programs, dt=0.1, pm_substeps=4):
     return make_ctrnn(np.zeros((K, K)), WE, dt / pm_substeps)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def mbn_spec(interpreter_spec):
     pm = _pm_without_memory(interpreter_spec.programs)
     return MBNControllerSpec(interpreter_spec, pm, (0, 1, 2), pm_substeps=4, metadata={"k": [1]})
@@ -483,7 +483,7 @@ def _latch_pm(programs):
     return make_ctrnn(W, WE, 0.2, bias=bias)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def started_mbn(interpreter_spec):
     """An MBN whose PM starts in the state it latches after a one-colour tile (rule right), and
     the same MBN without ``initial`` (a file written before the field)."""
@@ -573,7 +573,7 @@ def test_an_mbn_started_as_rf_drives_as_the_interpreter_with_rfs_program_before_
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def tiles_spec():
     """A 4-neuron CTRNN with I1..I3 and three tile inputs; tile k drives neuron 1 (the turning
     neuron) by +/-: one-colour tiles turn it left, two-colour ones right, three-colour none."""

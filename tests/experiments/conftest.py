@@ -1,12 +1,16 @@
-"""One quick run of ``mbn reproduce`` (seed 3) shared by the tests of this folder and below."""
+"""One quick run of ``mbn reproduce`` (seed 3) shared by the tests of this folder and below (made
+once per session, on whichever worker asks first: ``tests.conftest.once``)."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
+
+from tests.conftest import once
 
 
 def reproduce(*args: str, **kw) -> subprocess.CompletedProcess:
@@ -21,10 +25,16 @@ def reproduce(*args: str, **kw) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture(scope="session")
-def quick_run(tmp_path_factory):
-    """``(folder, seconds)`` of ``mbn reproduce --quick --seed 3``."""
-    out = tmp_path_factory.mktemp("quick") / "run"
-    t0 = time.perf_counter()
-    proc = reproduce("--quick", "--out", str(out), "--seed", "3")
-    assert proc.returncode == 0, proc.stderr
-    return out, time.perf_counter() - t0
+def quick_run(tmp_path_factory, worker_id):
+    """``(folder, seconds)`` of ``mbn reproduce --quick --seed 3`` (tests copy the folder before
+    they change anything in it)."""
+
+    def build(folder: Path) -> list:
+        out = folder / "run"
+        t0 = time.perf_counter()
+        proc = reproduce("--quick", "--out", str(out), "--seed", "3")
+        assert proc.returncode == 0, proc.stderr
+        return [str(out), time.perf_counter() - t0]
+
+    out, seconds = once(tmp_path_factory, worker_id, "quick", build)
+    return Path(out), seconds

@@ -120,11 +120,12 @@ def test_a_population_evaluated_in_parts_gets_the_same_values_with_any_number_of
 def test_finalists_around_different_networks_share_one_compiled_fitness() -> None:
     """The crossroads' fitness takes the base network and the task's arrays as arguments: the
     genomes of two LF finalists around two RFs (other weights, other connections) run on one
-    compiled program, and give what each genome's own network gives."""
+    compiled program, and give what each genome's own network gives. So do tasks of other
+    seeds (other jittered starts): the starts are arguments too."""
     from mbn.experiments.crossroads import CrossroadTask
     from mbn.experiments.evolve import (
         Genome,
-        _connections_fitness,
+        _owned_fitness,
         crossroad_fitness,
         evaluate_networks,
         tile_fitness,
@@ -146,8 +147,10 @@ def test_finalists_around_different_networks_share_one_compiled_fitness() -> Non
         genome = Genome.around(net, conns)
         values.append(np.asarray(crossroad_fitness(genome, task)(population)))
         if before is None:
-            before = _connections_fitness._cache_size()
-    assert _connections_fitness._cache_size() == before
+            before = _owned_fitness._cache_size()
+    other_seed = CrossroadTask(rule="left", variants=1, seconds=1.0, seed=7)
+    crossroad_fitness(Genome.around(nets[0], choices[0]), other_seed)(population)
+    assert _owned_fitness._cache_size() == before
     # each value is the fitness of the genome's own network
     genome = Genome.around(nets[1], choices[1])
     arrays = task.arrays()

@@ -26,7 +26,7 @@ from mbn.paper import W_RF, published_lf, published_rf
 from mbn.precision import scope
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def mul():
     return load_default()
 

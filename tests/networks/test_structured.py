@@ -45,7 +45,7 @@ def _random_follower(seed: int):
     return make_ctrnn(rng.uniform(-20, 20, (3, 3)), np.diag(rng.uniform(-20, 20, 3)), 0.5)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def full():
     """A fully programmable interpreter (the genome's 12 connections, 6-neuron multipliers)."""
     net = _random_follower(0)

@@ -25,7 +25,7 @@ def grid_maze(rows: list[str], name: str, **kw: object) -> Maze:
     )
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def tee() -> Maze:
     """A T junction: a corridor west-east on row 1, a stem going south from its middle."""
     return grid_maze(
@@ -36,7 +36,7 @@ def tee() -> Maze:
     )
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def corridor() -> Maze:
     """A corridor 1.2 m wide along x, from x = 1.2 to 7.2."""
     return grid_maze(["#######", "#.....#", "#######"], "corridor", starts=[[2.0, 1.8, 0.0]])

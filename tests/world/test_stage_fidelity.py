@@ -44,7 +44,7 @@ def read(name: str) -> dict[str, np.ndarray]:
     }
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def sonar_data():
     return read("sonar_res0.005.csv")
 

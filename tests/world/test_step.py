@@ -32,7 +32,7 @@ from mbn.world.step import (
 CELL = 1.2
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def corridor() -> Maze:
     """A corridor along x: free for x in [1.2, 14.4], y in [1.2, 2.4]; a two-colour tile across
     it at x = 6."""

@@ -73,7 +73,7 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="one reproduction per seed on Ray, and statistics over the seeds",
         description="Run `mbn reproduce` (or, with --experiment, another experiment) once per "
         "seed, each run a Ray task (local or on a "
-        "cluster), resumable; then a report over the seeds: per test how many seeds meet its "
+        "cluster) or, with --batched, a thread of this process, resumable; then a report over the seeds: per test how many seeds meet its "
         "target, the spread of success rates, Wilson intervals, DE curves and the claims.",
         epilog=_SWEEP_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -115,6 +115,13 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         metavar="N",
         help="CPUs Ray gives each run: its BLAS threads and DE evaluation parts, and one XLA "
         "thread for 1 (default 1; docs/sweep.md, Threads)",
+    )
+    sw.add_argument(
+        "--batched",
+        action="store_true",
+        help="run every seed in this process, side by side, their populations evaluated "
+        "together in one call per generation (for a GPU; each seed's results are those of "
+        "its run alone: docs/sweep.md, Batched); no Ray",
     )
     sw.add_argument(
         "--reuse",
@@ -162,9 +169,12 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         return 0
     if args.seeds is None:
         raise MbnInputError("--seeds is required (e.g. --seeds 0-9), unless --summarize")
+    if args.batched and (args.address is not None or args.cpus_per_run != 1):
+        flag = "--address" if args.address is not None else "--cpus-per-run"
+        raise MbnInputError(f"--batched runs every seed in this process: it takes no {flag}")
     from mbn.config import read_toml
     from mbn.experiments.sweep.monitor import SweepMonitor
-    from mbn.experiments.sweep.run import RayExecutor, SweepSettings, run_sweep
+    from mbn.experiments.sweep.run import BatchedExecutor, RayExecutor, SweepSettings, run_sweep
     from mbn.experiments.sweep.specs import sweep_spec
 
     spec = sweep_spec(args.experiment)
@@ -184,11 +194,14 @@ def run_sweep_command(args: argparse.Namespace) -> int:
     data = run_sweep(
         args.out,
         settings,
-        lambda: RayExecutor(args.address, args.cpus_per_run),
+        (lambda: BatchedExecutor())
+        if args.batched
+        else (lambda: RayExecutor(args.address, args.cpus_per_run)),
         monitor=monitor,
         finish=summarize_folder,
         reuse=args.reuse,
         allow_other_code=args.allow_other_code,
+        executor_name="batched" if args.batched else "ray",
     )
     if not args.quiet:
         print_sweep_timings(args.out, settings.seeds, data.get("seconds"))

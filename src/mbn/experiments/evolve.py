@@ -11,6 +11,7 @@ one would.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import itertools
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
@@ -37,12 +38,13 @@ from mbn.host import put
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.paper import DEFAULT_TAU
-from mbn.world.rollout import EpisodeStats, count_robot_steps, rollout
+from mbn.world.rollout import EpisodeStats, count_robot_steps, own_tally, rollout, tally_of
 
 __all__ = [
     "FITNESS_PARTS",
     "RF_CONNECTIONS",
     "Genome",
+    "OwnedFitness",
     "connection_group_fitness",
     "connection_search_fitness",
     "crossroad_fitness",
@@ -136,9 +138,11 @@ def evaluate_networks(
     arrays: TaskArrays,
     task: CrossroadTask,
     substeps: int = NETWORK_SUBSTEPS,
+    poses: Array | None = None,
 ) -> EpisodeStats:
     """Run every network ``(N, 3, 3)`` on every episode of the task (``substeps`` Euler steps per
-    robot step): stats of shape ``(N * E,)``, network-major."""
+    robot step): stats of shape ``(N * E,)``, network-major. ``poses`` ``(N * E, 3)``: each
+    robot's start (default the task's episodes' starts for every network)."""
     n, e = W.shape[0], arrays.episodes
     W = jnp.repeat(W, e, 0)
     WE = jnp.repeat(WE, e, 0)
@@ -152,7 +156,7 @@ def evaluate_networks(
     )
     controller = ctrnn_controller(dt=task.dt, substeps=substeps, noise=task.noise)
     state = CTRNNState(net, jnp.zeros((n * e, 3), dtype))
-    return _episodes(controller, state, n, dtype, arrays, task)
+    return _episodes(controller, state, n, dtype, arrays, task, poses)
 
 
 def _episodes(
@@ -162,13 +166,17 @@ def _episodes(
     dtype: Any,
     arrays: TaskArrays,
     task: CrossroadTask,
+    poses: Array | None = None,
 ) -> EpisodeStats:
-    """Run ``n`` controllers (batched ``state``, network-major) on every episode of the task."""
+    """Run ``n`` controllers (batched ``state``, network-major) on every episode of the task
+    (from ``poses`` ``(n * E, 3)`` where given, else from the task's starts)."""
+    if poses is None:
+        poses = jnp.tile(jnp.asarray(arrays.poses, dtype), (n, 1))
     return rollout(
         arrays.world,
         controller,
         state,
-        jnp.tile(jnp.asarray(arrays.poses, dtype), (n, 1)),
+        jnp.asarray(poses, dtype),
         jnp.tile(jnp.asarray(arrays.maze_index), n),
         task.rollout_config(),
         junctions=arrays.junctions,
@@ -176,12 +184,19 @@ def _episodes(
     ).stats
 
 
+#: Task fields a compiled fitness takes as arrays, not as static settings: the noise key, and
+#: the seed of the jittered starts (the starts themselves are arrays), so that the seeds of a
+#: sweep share one program.
+_ARRAY_FIELDS = ("noise_key", "seed")
+
+
 @dataclass(frozen=True)
 class _Episodes:
     """The static part of a crossroad task's episodes, as a compiled fitness takes it: the
-    task's settings without its noise key (a (name, value) tuple, hashable) and the arrays'
+    task's settings but :data:`_ARRAY_FIELDS` (a (name, value) tuple, hashable) and the arrays'
     scalars. The arrays themselves (:func:`_episode_arrays`) are arguments, so that one program
-    serves every base network, every choice of connections and every noise key."""
+    serves every base network, every choice of connections, every noise key and every seed's
+    starts."""
 
     task: tuple[tuple[str, Any], ...]
     cell: float
@@ -192,12 +207,13 @@ class _Episodes:
         fields = tuple(
             (f.name, getattr(task, f.name))
             for f in dataclasses.fields(task)
-            if f.name != "noise_key"
+            if f.name not in _ARRAY_FIELDS
         )
         return cls(fields, float(arrays.cell), float(arrays.arm_length))
 
     def rebuild(self, dynamic: dict[str, Any]) -> tuple[CrossroadTask, TaskArrays]:
-        """The task (with the noise key of ``dynamic``) and its arrays, inside a trace."""
+        """The task (with the noise key of ``dynamic``; its start seed the default, unused: the
+        starts are ``dynamic``'s) and its arrays, inside a trace."""
         task = CrossroadTask(**dict(self.task), noise_key=dynamic["key"])
         arrays = TaskArrays(
             mazes=[],
@@ -236,31 +252,13 @@ def _fitness_of(
     dynamic: dict[str, Any],
     episodes: _Episodes,
     tau: float,
+    poses: Array | None = None,
 ) -> Array:
     task, arrays = episodes.rebuild(dynamic)
     W, WE = set_connections(base_W, base_WE, population, is_input, rows, cols)
-    stats = evaluate_networks(W, WE, tau, arrays, task)
+    stats = evaluate_networks(W, WE, tau, arrays, task, poses=poses)
     per_episode = tile_fitness(arrays)(stats, task)
     return per_episode.reshape(population.shape[0], arrays.episodes).sum(-1)
-
-
-@partial(jax.jit, static_argnames=("episodes", "tau"))
-def _connections_fitness(
-    population: Array,
-    base_W: Array,
-    base_WE: Array,
-    is_input: Array,
-    rows: Array,
-    cols: Array,
-    dynamic: dict[str, Any],
-    *,
-    episodes: _Episodes,
-    tau: float,
-) -> Array:
-    """Fitness ``(P,)`` of genomes that set connections ``(is_input, rows, cols)`` of a base
-    network (:func:`set_connections`), summed over the task's episodes: one compiled program
-    per task, time constant and shapes in a process."""
-    return _fitness_of(population, base_W, base_WE, is_input, rows, cols, dynamic, episodes, tau)
 
 
 @partial(jax.jit, static_argnames=("episodes", "tau"))
@@ -269,50 +267,209 @@ def _owned_fitness(
     owner: Array,
     base_W: Array,
     base_WE: Array,
-    tables: tuple[Array, Array, Array],
+    is_input: Array,
+    rows: Array,
+    cols: Array,
+    noise: Array,
+    poses: Array,
     dynamic: dict[str, Any],
     *,
     episodes: _Episodes,
     tau: float,
 ) -> Array:
-    """:func:`_connections_fitness` of genomes that each take the connections of their owner's
-    row of ``tables`` ``(is_input, rows, cols)`` of shape ``(R, G)``."""
-    is_input, rows, cols = (t[owner] for t in tables)
-    return _fitness_of(population, base_W, base_WE, is_input, rows, cols, dynamic, episodes, tau)
+    """Fitness ``(P,)`` of genomes that each belong to an owner ``owner[i]`` (a DE run of a
+    group, or a seed of a batched sweep) and set its connections (row ``owner[i]`` of
+    ``is_input, rows, cols``, ``(R, G)``) of its base network (``base_W, base_WE``,
+    ``(R, 3, 3)``, :func:`set_connections`), started from its episodes' poses (``(R, E, 3)``),
+    summed over the task's episodes and averaged over the genome and its perturbed copies
+    ``genome + noise[owner[i], k]`` (``noise`` ``(R, K, G)``; ``K = 0``: the genome alone). One
+    compiled program per task, time constant and shapes in a process. Each genome's value
+    depends on its own row only: evaluated in any batch, whole or in parts, it is the same bit
+    for bit (``tests/experiments/test_evolve.py``), which lets a sweep batch its seeds."""
+    copies = noise.shape[1]
+    if copies:
+        d = population.shape[1]
+        shifted = population[None] + jnp.swapaxes(noise[owner], 0, 1).astype(population.dtype)
+        population = jnp.concatenate([population, shifted.reshape(-1, d)])
+        owner = jnp.tile(owner, copies + 1)
+    start = poses[owner].reshape(-1, 3)
+    dynamic = {**dynamic, "poses": poses[0]}  # the episodes' count and layout
+    values = _fitness_of(
+        population,
+        base_W[owner],
+        base_WE[owner],
+        is_input[owner],
+        rows[owner],
+        cols[owner],
+        dynamic,
+        episodes,
+        tau,
+        start,
+    )
+    return values.reshape(copies + 1, -1).mean(0) if copies else values
 
 
 def _counted(population: Array, arrays: TaskArrays, task: CrossroadTask) -> None:
     count_robot_steps(int(population.shape[0]) * arrays.episodes * task.steps)
 
 
-def crossroad_fitness(
-    genome: Genome, task: CrossroadTask, arrays: TaskArrays | None = None
-) -> Callable[[Array], Array]:
-    """A compiled map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
-    task's episodes). The genome's base weights and the task's arrays are arguments of one
-    program per task and shapes (:func:`_connections_fitness`): every genome of the same
-    length, around any base network, reuses it."""
-    arrays = arrays or task.arrays()
-    episodes = _Episodes.of(task, arrays)
-    dynamic = _episode_arrays(task, arrays)
-    base_W = np.asarray(genome.base_W, np.float64)
-    base_WE = np.asarray(genome.base_WE, np.float64)
-    tables = _connection_tables(genome.connections, genome.size)
+def _fingerprint(tree: Any) -> str:
+    """A digest of the arrays of a pytree (shapes, dtypes and bytes), to tell equal tasks."""
+    digest = hashlib.sha256()
+    for leaf in jax.tree.leaves(tree):
+        if jnp.issubdtype(jnp.asarray(leaf).dtype, jax.dtypes.prng_key):
+            leaf = jax.random.key_data(leaf)
+        a = np.asarray(leaf)
+        digest.update(f"{a.shape}{a.dtype}".encode())
+        digest.update(np.ascontiguousarray(a).tobytes())
+    return digest.hexdigest()
 
-    def fitness(population: Array) -> Array:
-        population = jnp.asarray(population)
-        _counted(population, arrays, task)
-        return _connections_fitness(
-            population,
-            base_W.astype(population.dtype),
-            base_WE.astype(population.dtype),
-            *tables,
-            dynamic,
+
+@dataclass(frozen=True, eq=False)
+class OwnedFitness:
+    """A population fitness on the crossroads whose genomes each belong to an owner:
+    ``fitness(population, owner=None)`` (``owner`` ``(P,)``, default all 0) is
+    :func:`_owned_fitness` with the owners' rows of :attr:`owned` (base weights, connections,
+    perturbations, starts) and the task's other arrays. Made by :func:`crossroad_fitness`,
+    :func:`connection_group_fitness` and :func:`robust_fitness`.
+
+    Fitnesses of equal :attr:`signature` (the same task but for its starts, the same time
+    constant and shapes) are one program: :meth:`merged` evaluates the populations of several
+    (the seeds of a batched sweep, ``mbn.experiments.batching``) in one call, each genome with
+    its own owner's rows, and gives each the values it would get alone."""
+
+    owned: tuple[np.ndarray, ...]  # base_W, base_WE, is_input, rows, cols, noise, poses: (R, ...)
+    dynamic: dict[str, Any]  # the task's arrays but its starts
+    episodes: _Episodes
+    tau: float
+    steps_per_genome: int  # robot-steps of one genome and its copies
+    signature: tuple[Any, ...]
+
+    @classmethod
+    def make(
+        cls,
+        base_W: np.ndarray,
+        base_WE: np.ndarray,
+        tables: Sequence[np.ndarray],
+        noise: np.ndarray,
+        task: CrossroadTask,
+        arrays: TaskArrays,
+        tau: float,
+    ) -> OwnedFitness:
+        dynamic = _episode_arrays(task, arrays)
+        poses = dynamic.pop("poses")
+        r = base_W.shape[0]
+        owned = (
+            np.asarray(base_W, np.float64),
+            np.asarray(base_WE, np.float64),
+            *(np.asarray(t) for t in tables),
+            np.asarray(noise),
+            np.broadcast_to(poses, (r, *poses.shape)).copy(),
+        )
+        episodes = _Episodes.of(task, arrays)
+        shapes = tuple((a.shape[1:], str(a.dtype)) for a in owned)
+        return cls(
+            owned=owned,
+            dynamic=dynamic,
             episodes=episodes,
-            tau=genome.tau,
+            tau=float(tau),
+            steps_per_genome=(noise.shape[1] + 1) * arrays.episodes * task.steps,
+            signature=(episodes, float(tau), shapes, _fingerprint(dynamic)),
         )
 
-    return fitness
+    @property
+    def owners(self) -> int:
+        return int(self.owned[0].shape[0])
+
+    def with_noise(self, noise: np.ndarray) -> OwnedFitness:
+        """The same fitness averaged over each genome and its copies ``genome + noise[k]``
+        (``noise`` ``(K, G)``, the same for every owner)."""
+        noise = np.asarray(noise)
+        if noise.ndim != 2 or noise.shape[1] != self.owned[5].shape[2]:
+            raise MbnInputError(
+                f"perturbations of shape {noise.shape} for genomes of {self.owned[5].shape[2]}"
+            )
+        if self.owned[5].shape[1]:
+            raise MbnInputError("this fitness already averages over perturbed copies")
+        stacked = np.broadcast_to(noise, (self.owners, *noise.shape)).copy()
+        return self.make_like(stacked, copies=noise.shape[0])
+
+    def make_like(self, noise: np.ndarray, copies: int) -> OwnedFitness:
+        owned = (*self.owned[:5], noise, self.owned[6])
+        shapes = tuple((a.shape[1:], str(a.dtype)) for a in owned)
+        per_copy = self.steps_per_genome // (self.owned[5].shape[1] + 1)
+        return dataclasses.replace(
+            self,
+            owned=owned,
+            steps_per_genome=(copies + 1) * per_copy,
+            signature=(*self.signature[:2], shapes, self.signature[3]),
+        )
+
+    def count(self, genomes: int) -> None:
+        """Count the robot-steps of evaluating ``genomes`` genomes (on this thread's tally)."""
+        count_robot_steps(genomes * self.steps_per_genome)
+
+    def __call__(self, population: Array, owner: Any = None) -> Array:
+        population = jnp.asarray(population)
+        self.count(int(population.shape[0]))
+        if owner is None:
+            owner = np.zeros(population.shape[0], np.int32)
+        return self.evaluate(population, owner, self.owned)
+
+    def evaluate(self, population: Any, owner: Any, owned: tuple[Any, ...]) -> Array:
+        """The values of ``population`` whose genomes take rows ``owner`` of ``owned`` (this
+        fitness's, or those of several merged, :meth:`merged`); nothing is counted."""
+        population = jnp.asarray(population)
+        dtype = population.dtype
+        base_W, base_WE, is_input, rows, cols, noise, poses = owned
+        return _owned_fitness(
+            population,
+            put(owner, np.int32),
+            put(base_W, dtype),
+            put(base_WE, dtype),
+            put(is_input),
+            put(rows, np.int32),
+            put(cols, np.int32),
+            put(noise, dtype),
+            put(poses, dtype),
+            self.dynamic,
+            episodes=self.episodes,
+            tau=self.tau,
+        )
+
+    @staticmethod
+    def merged(
+        requests: Sequence[tuple[OwnedFitness, np.ndarray, np.ndarray]],
+    ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """``(population, owner, owned)`` of several fitnesses of one signature and their
+        populations and owners, joined: the owners of request k are renumbered after those of
+        the requests before it."""
+        signatures = {f.signature for f, _, _ in requests}
+        if len(signatures) != 1:
+            raise MbnInputError("fitnesses of different tasks or shapes cannot be merged")
+        offsets = np.cumsum([0] + [f.owners for f, _, _ in requests])
+        population = np.concatenate([np.asarray(p) for _, p, _ in requests])
+        owner = np.concatenate([np.asarray(o) + offsets[k] for k, (_, _, o) in enumerate(requests)])
+        owned = tuple(
+            np.concatenate([f.owned[i] for f, _, _ in requests])
+            for i in range(len(requests[0][0].owned))
+        )
+        return population, owner, owned
+
+
+def crossroad_fitness(
+    genome: Genome, task: CrossroadTask, arrays: TaskArrays | None = None
+) -> OwnedFitness:
+    """A compiled map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
+    task's episodes). The genome's base weights and the task's arrays are arguments of one
+    program per task and shapes (:func:`_owned_fitness`): every genome of the same length,
+    around any base network, reuses it."""
+    arrays = arrays or task.arrays()
+    base_W = np.asarray(genome.base_W, np.float64)[None]
+    base_WE = np.asarray(genome.base_WE, np.float64)[None]
+    tables = [np.asarray(t)[None] for t in _connection_tables(genome.connections, genome.size)]
+    noise = np.zeros((1, 0, genome.size))
+    return OwnedFitness.make(base_W, base_WE, tables, noise, task, arrays, genome.tau)
 
 
 @partial(jax.jit, static_argnames=("episodes", "tau"))
@@ -374,6 +531,8 @@ def robust_fitness(fitness: Callable[..., Array], noise: Array) -> Callable[...,
     (``noise`` of shape ``(0, size)``) it is ``fitness`` itself. One call evaluates all copies
     in one batch. Arrays after the population (one row per genome) go with each copy.
     """
+    if isinstance(fitness, OwnedFitness):
+        return fitness if np.shape(noise)[0] == 0 else fitness.with_noise(np.asarray(noise))
     noise = jnp.asarray(noise)
     copies = noise.shape[0]
     if copies == 0:
@@ -431,9 +590,7 @@ def split_fitness(
     if parts <= 1:
         return fitness
     threads = max(1, min(workers, parts))
-    executor = pool or (
-        ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") if threads > 1 else None
-    )
+    executor = pool or (fitness_pool(threads) if threads > 1 else None)
 
     def parted(population: Array, *per_genome: Array) -> Array:
         p = int(population.shape[0])
@@ -447,6 +604,14 @@ def split_fitness(
         return join_rows(tuple(jnp.asarray(v) for v in values))
 
     return parted
+
+
+def fitness_pool(threads: int) -> ThreadPoolExecutor:
+    """Threads that evaluate parts of a population for this thread: they count their
+    robot-steps on its tally (:func:`~mbn.world.rollout.own_tally`)."""
+    return ThreadPoolExecutor(
+        threads, thread_name_prefix="mbn-fitness", initializer=own_tally, initargs=(tally_of(),)
+    )
 
 
 def split_rows(x: Array, bounds: tuple[int, ...]) -> tuple[Array, ...]:
@@ -500,46 +665,17 @@ def _connection_tables(connections: Sequence[Connection], width: int) -> tuple[A
     )
 
 
-def _connection_run(
-    base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None
-) -> Callable[[Array], tuple[Array, dict[str, Any]]]:
-    """``prepare(population)``: the population as an array, counted, and the other arguments
-    of a compiled fitness of connections of ``base`` (:func:`_connections_fitness`,
-    :func:`_owned_fitness`) on the task: its base weights in the population's dtype, the
-    task's arrays, and the static settings."""
-    arrays = arrays or task.arrays()
-    episodes = _Episodes.of(task, arrays)
-    dynamic = _episode_arrays(task, arrays)
-    tau = float(np.asarray(base.tau).reshape(-1)[0])
-    base_W, base_WE = np.asarray(base.W), np.asarray(base.WE)
-
-    def prepare(population: Array) -> tuple[Array, dict[str, Any]]:
-        population = jnp.asarray(population)
-        _counted(population, arrays, task)
-        dtype = population.dtype
-        return population, {
-            "base_W": base_W.astype(dtype),
-            "base_WE": base_WE.astype(dtype),
-            "dynamic": dynamic,
-            "episodes": episodes,
-            "tau": tau,
-        }
-
-    return prepare
-
-
 def connection_search_fitness(
     base: CTRNN, task: CrossroadTask, arrays: TaskArrays | None = None
 ) -> Callable[[Array, tuple[Connection, ...]], Array]:
     """Fitness of populations that re-evolve a few connections of ``base`` (as
     :func:`crossroad_fitness` with ``Genome.around(base, connections)``), compiled once for all
     choices of the same number of connections: ``fitness(population, connections)``."""
-    prepare = _connection_run(base, task, arrays)
+    arrays = arrays or task.arrays()
 
     def fitness(population: Array, connections: tuple[Connection, ...]) -> Array:
-        population, kw = prepare(population)
-        is_input, rows, cols = _connection_tables(connections, population.shape[1])
-        return _connections_fitness(population, is_input=is_input, rows=rows, cols=cols, **kw)
+        _connection_tables(connections, int(np.shape(population)[1]))  # one line if they differ
+        return connection_group_fitness(base, task, [connections], arrays)(population)
 
     return fitness
 
@@ -549,22 +685,23 @@ def connection_group_fitness(
     task: CrossroadTask,
     choices: Sequence[tuple[Connection, ...]],
     arrays: TaskArrays | None = None,
-) -> Callable[[Array, Array], Array]:
+) -> OwnedFitness:
     """:func:`connection_search_fitness` of a group of populations, one per choice of
     connections, evaluated as one batch: ``fitness(population, owner)``, genome ``i`` re-evolving
     ``choices[owner[i]]`` (a group of DE runs, :meth:`StageContext.evolve_group`)."""
-    prepare = _connection_run(base, task, arrays)
+    arrays = arrays or task.arrays()
     widths = {len(c) for c in choices}
     if len(widths) != 1:
         raise MbnInputError(f"choices of {sorted(widths)} connections: one size expected")
-    tables = [_connection_tables(c, len(c)) for c in choices]
-    stacked = tuple(put(np.stack([np.asarray(t[k]) for t in tables])) for k in range(3))
-
-    def fitness(population: Array, owner: Array) -> Array:
-        population, kw = prepare(population)
-        return _owned_fitness(population, owner=jnp.asarray(owner), tables=stacked, **kw)
-
-    return fitness
+    ((width,),) = (tuple(widths),)
+    tables = [_connection_tables(c, width) for c in choices]
+    stacked = [np.stack([np.asarray(t[k]) for t in tables]) for k in range(3)]
+    r = len(choices)
+    base_W = np.broadcast_to(np.asarray(base.W, np.float64), (r, 3, 3)).copy()
+    base_WE = np.broadcast_to(np.asarray(base.WE, np.float64), (r, 3, 3)).copy()
+    tau = float(np.asarray(base.tau).reshape(-1)[0])
+    noise = np.zeros((r, 0, width))
+    return OwnedFitness.make(base_W, base_WE, stacked, noise, task, arrays, tau)
 
 
 def tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, CrossroadTask], Array]:

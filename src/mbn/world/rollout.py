@@ -76,30 +76,55 @@ __all__ = [
     "input_reach",
     "junction_arrays",
     "map_controller",
+    "own_tally",
     "robot_steps",
     "rollout",
     "run_rollout",
     "strip_shared",
+    "tally_of",
 ]
 
 Controller = Callable[[Any, "Observation"], tuple[Any, tuple[Array, Array]]]
 
 _steps_lock = threading.Lock()
+#: The process's tally; a thread may count on a tally of its own (:func:`own_tally`).
 _steps_done = [0]
+_tally = threading.local()
+
+
+def _current() -> list[int]:
+    return getattr(_tally, "counter", _steps_done)
 
 
 def count_robot_steps(n: int) -> None:
-    """Add ``n`` robot-steps (robots x steps of a rollout) to this process's tally: the host
-    code that launches a compiled rollout counts it here (a traced rollout cannot), so that a
-    run can report the robot-steps per second each stage reached."""
+    """Add ``n`` robot-steps (robots x steps of a rollout) to this thread's tally (the
+    process's, unless the thread counts on its own, :func:`own_tally`): the host code that
+    launches a compiled rollout counts it here (a traced rollout cannot), so that a run can
+    report the robot-steps per second each stage reached."""
+    counter = _current()
     with _steps_lock:
-        _steps_done[0] += int(n)
+        counter[0] += int(n)
 
 
 def robot_steps() -> int:
-    """Robot-steps counted so far in this process (:func:`count_robot_steps`)."""
+    """Robot-steps counted so far on this thread's tally (:func:`count_robot_steps`)."""
+    counter = _current()
     with _steps_lock:
-        return _steps_done[0]
+        return counter[0]
+
+
+def own_tally(counter: list[int] | None = None) -> list[int]:
+    """Make this thread count robot-steps on ``counter`` (a one-element list; a fresh one when
+    ``None``) instead of the process's tally, and return it: seeds run in threads of one
+    process (``mbn sweep --batched``) each count their own, and a thread that works for another
+    (a pool's, evaluating part of its population) counts on that one's (:func:`tally_of`)."""
+    _tally.counter = [0] if counter is None else counter
+    return _tally.counter
+
+
+def tally_of() -> list[int]:
+    """This thread's tally, to hand to the threads that work for it (:func:`own_tally`)."""
+    return _current()
 
 
 @jax.tree_util.register_dataclass

@@ -33,7 +33,7 @@ def _ablations(quick_run, folder, variants):
     return rundir, run_stage(ABLATIONS, rundir, "ablations", seed=3, config=config)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def ablations(quick_run, tmp_path_factory):
     return _ablations(quick_run, tmp_path_factory.mktemp("ablations") / "run", CI_VARIANTS)
 

@@ -4,6 +4,7 @@ it, shared by the tests of this folder."""
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -13,14 +14,22 @@ from mbn.experiments.behaviours.stages.im_full import FULL_CONNECTIONS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
 from mbn.networks.programmable import differing_connections
+from tests.conftest import once
 
 
 @pytest.fixture(scope="session")
-def im_full_run(quick_run, tmp_path_factory):
+def im_full_run(quick_run, tmp_path_factory, worker_id):
     """The quick reproduction's folder with the ``im_full`` stage run on it (quick settings;
-    the stages before it are the reproduction's)."""
+    the stages before it are the reproduction's), made once per session (``once``)."""
+    root, data, conns = once(
+        tmp_path_factory, worker_id, "im_full", lambda folder: _im_full(quick_run, folder)
+    )
+    return RunDir(Path(root)), data, conns
+
+
+def _im_full(quick_run, parent: Path) -> list:
     out, _ = quick_run
-    folder = tmp_path_factory.mktemp("nb") / "run"
+    folder = parent / "run"
     shutil.copytree(out, folder)
     rundir = RunDir(folder)
     rf = read_controller_spec(rundir.controller_file("rf")).net
@@ -38,7 +47,7 @@ def im_full_run(quick_run, tmp_path_factory):
     search = config["lf_search"].replace(candidates=(*extra, *differ))
     config = replace_section(replace_section(config, section), search)
     data = run_stage(NEW_BEHAVIOURS, rundir, "im_full", seed=3, config=config)
-    return rundir, data, [*extra, *differ]
+    return [str(folder), data, [*extra, *differ]]
 
 
 @pytest.fixture

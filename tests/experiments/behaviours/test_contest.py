@@ -44,7 +44,7 @@ def _run(rundir: RunDir):
     return run_stage(PROGRAMS_VS_DYNAMICS, rundir, "contest", seed=3, config=_config())
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def contest_run(im_full_run, tmp_path_factory):
     rundir, _, _ = im_full_run
     folder = tmp_path_factory.mktemp("contest") / "run"

@@ -23,7 +23,7 @@ from mbn.experiments.pipeline.runner import replace_section, run_stage
 from mbn.world.mazes.builtin import CROSSROAD_KINDS
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def contest3_run(im_full_run, tmp_path_factory):
     rundir, _, _ = im_full_run
     folder = tmp_path_factory.mktemp("contest3") / "run"

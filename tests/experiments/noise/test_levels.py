@@ -16,7 +16,7 @@ from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def levels(quick_run, tmp_path_factory):
     out, _ = quick_run
     folder = tmp_path_factory.mktemp("noise") / "run"

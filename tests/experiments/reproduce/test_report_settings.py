@@ -19,9 +19,6 @@ import pytest
 
 from mbn.experiments.reproduce import REPRODUCE
 
-# one run for the module: its tests on one worker (``--dist loadgroup``), not the run on each
-pytestmark = pytest.mark.xdist_group("report_settings")
-
 #: The run's settings file: every value differs from the default and from the quick preset.
 SETTINGS = """\
 [de]
@@ -113,7 +110,7 @@ def _value(config: dict[str, Any], path: str) -> Any:
     return config[section][key]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def settings_run(tmp_path_factory):
     """``(folder, stdout)`` of ``mbn reproduce --quick --config SETTINGS`` (stage lines on)."""
     folder = tmp_path_factory.mktemp("settings")

@@ -185,7 +185,7 @@ def _evaluate(capsys, controller: Path, maze: str, *, text: bool = False) -> dic
     return out.splitlines() if text else json.loads(out)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def straight(tmp_path_factory) -> Path:
     """A controller that drives straight ahead (it crosses junctions, and stalls at walls)."""
     path = tmp_path_factory.mktemp("controllers") / "c.json"

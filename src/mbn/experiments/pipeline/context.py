@@ -3,8 +3,8 @@ it needs, progress bars, and DE checkpointed after every generation."""
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -147,10 +147,13 @@ class StageContext:
         ``fold_in(key, g)``. Populations are evaluated in
         :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts, ``workers`` of them at once. A
         group of one run (:meth:`evolve_group`)."""
+        from mbn.experiments.evolve import OwnedFitness
+
         run = DERun(name, config, key, population)
-        return self.evolve_group([run], lambda pop, _owner: fitness(pop), generations, description)[
-            0
-        ]
+        # a fitness of owners is the group's as it is (every genome's owner is 0): a batched
+        # sweep can merge it with the other seeds'
+        group = fitness if isinstance(fitness, OwnedFitness) else lambda pop, _owner: fitness(pop)
+        return self.evolve_group([run], group, generations, description)[0]
 
     def evolve_group(
         self,
@@ -170,7 +173,15 @@ class StageContext:
         generation, after a resume, stands in with its population and its values are
         dropped), so its shape, and with it every float, is that of an uninterrupted run."""
         from mbn.evolution.de import ask, from_population, init, initialize_fitness, tell
-        from mbn.experiments.evolve import FITNESS_PARTS, join_rows, split_fitness, split_rows
+        from mbn.experiments import batching
+        from mbn.experiments.evolve import (
+            FITNESS_PARTS,
+            OwnedFitness,
+            fitness_pool,
+            join_rows,
+            split_fitness,
+            split_rows,
+        )
 
         if not runs:
             return []
@@ -187,13 +198,23 @@ class StageContext:
             return from_population(jnp.asarray(run.population), run.config)
 
         threads = max(1, min(self.workers, FITNESS_PARTS))
-        with ThreadPoolExecutor(threads, thread_name_prefix="mbn-fitness") as pool:
+        batcher = batching.current() if isinstance(fitness, OwnedFitness) else None
+        with contextlib.ExitStack() as stack:
+            pool = stack.enter_context(fitness_pool(threads))
             values_of = split_fitness(fitness, self.workers, pool)
+            # a batched sweep's other seeds wait for this group's populations while it evolves
+            if batcher is not None:
+                stack.enter_context(batcher.evolving())
 
             def evaluate(populations: list[jax.Array]) -> list[jax.Array]:
-                if len(populations) == 1:  # one run: nothing to join or cut
-                    return [values_of(populations[0], owner)]
-                values = values_of(join_rows(tuple(populations)), owner)
+                joined = populations[0] if len(populations) == 1 else join_rows(tuple(populations))
+                if batcher is not None:  # merged with the other seeds of a batched sweep
+                    assert isinstance(fitness, OwnedFitness)
+                    values = put(batcher.evaluate(fitness, joined, owner))
+                else:
+                    values = values_of(joined, owner)
+                if len(populations) == 1:  # one run: nothing to cut
+                    return [values]
                 return list(split_rows(values, bounds))
 
             checkpoints = [self._resumable(run.name, run.config) for run in runs]

@@ -24,8 +24,11 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future
+from concurrent.futures import wait as wait_for
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -44,6 +47,7 @@ __all__ = [
     "INSTALL_HINT",
     "SWEEP_FILE",
     "SWEEP_KIND",
+    "BatchedExecutor",
     "InlineExecutor",
     "RayExecutor",
     "SweepSettings",
@@ -445,6 +449,55 @@ class InlineExecutor:
         pass
 
 
+class BatchedExecutor:
+    """Every seed in a thread of this process, side by side, their population evaluations
+    merged into one call each (:mod:`mbn.experiments.batching`; ``mbn sweep --batched``): a
+    seed's results are those of its run alone, bit for bit. ``workers``: threads evaluating
+    parts of a merged batch (default every core); each seed counts its own robot-steps."""
+
+    def __init__(
+        self, task: Callable[..., dict[str, Any]] = run_seed, workers: int | None = None
+    ) -> None:
+        from mbn.experiments.batching import Batcher
+
+        self.task = task
+        self.batcher = Batcher(workers or os.cpu_count() or 1)
+
+    def _run(self, future: Future[dict[str, Any]], membership: Any, args: tuple[Any, ...]) -> None:
+        from mbn.world.rollout import own_tally
+
+        own_tally()  # this seed's robot-steps, not the process's
+        try:
+            with membership:
+                future.set_result(self.task(*args))
+        except BaseException as exc:  # run_seed returns its errors; anything else is reported
+            future.set_exception(exc)
+
+    def submit(self, seed: int, args: tuple[Any, ...]) -> Any:
+        future: Future[dict[str, Any]] = Future()
+        future.set_running_or_notify_cancel()
+        # a daemon: an interrupted sweep ends without waiting for its seeds (they resume)
+        # enrolled now, before the next seed starts: the first do not go on without the others
+        membership = self.batcher.enrol()
+        threading.Thread(
+            target=self._run,
+            args=(future, membership, args),
+            name=f"mbn-seed-{seed}",
+            daemon=True,
+        ).start()
+        return future
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> list[Any]:
+        done, _ = wait_for(list(handles), timeout=timeout, return_when=FIRST_COMPLETED)
+        return [h for h in handles if h in done]
+
+    def result(self, handle: Any) -> dict[str, Any]:
+        return handle.result()
+
+    def close(self) -> None:
+        pass
+
+
 def _probe(address: str, timeout: float) -> None:
     """Fail fast on an address nothing answers at (one line)."""
     if address == "auto":
@@ -645,6 +698,7 @@ def run_sweep(
     finish: Callable[[Path], Any] | None = None,
     reuse: Path | None = None,
     allow_other_code: bool = False,
+    executor_name: str = "ray",
 ) -> dict[str, Any]:
     """Run every seed of ``settings`` not yet done into ``out``; returns ``sweep.json``.
 
@@ -656,8 +710,9 @@ def run_sweep(
     ``reuse/seed-K`` where that holds a run (:mod:`~mbn.experiments.pipeline.reuse`).
 
     ``executor`` makes the executor (called only when some seed is left to run, after the folder
-    was checked: Ray is neither needed nor started for a finished sweep); ``finish`` (the
-    summary and report) runs at the end on the folder.
+    was checked: Ray is neither needed nor started for a finished sweep), ``executor_name``
+    says which in ``sweep.json`` (``ray``, ``batched``: the last that ran seeds); ``finish``
+    (the summary and report) runs at the end on the folder.
     """
     out = Path(out)
     t0 = time.perf_counter()
@@ -696,6 +751,7 @@ def run_sweep(
         "versions": dict(environment()),
         **({"other_code": other_code} if other_code else {}),
         "settings": settings.to_dict(),
+        "executor": executor_name if todo else old.get("executor", executor_name),
         "runs": runs,
         "skipped": [s for s in settings.seeds if states[s] == "done"],
     }
