@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import threading
 import time
 
@@ -141,3 +142,20 @@ def test_a_member_doing_other_work_holds_up_nobody_and_an_evolving_one_its_patie
         np.testing.assert_array_equal(got["values"], np.asarray(f(_population(1), OWNER)))
         assert batcher.calls == 1 and batcher.populations == 1
         assert got["waited"] >= least, evolving
+
+
+@pytest.mark.parametrize("sizes", [(9, 9), (7, 11), (1,) * 18])
+def test_a_genomes_value_is_the_same_in_any_batch_bit_for_bit(sizes):
+    """What batching rests on: each row is computed alike whatever the batch around it (the
+    robust RF fitness of 18 genomes, whole and cut into parts)."""
+    genome = Genome()
+    task = CrossroadTask(rule="right", variants=1, seconds=2.0, seed=1)
+    f = robust_fitness(
+        crossroad_fitness(genome, task), perturbations(jax.random.key(0), 2, genome.size, 0.3)
+    )
+    population = np.random.default_rng(0).uniform(-20, 20, (18, genome.size)).astype(np.float32)
+    whole = np.asarray(f(population))
+    bounds = np.cumsum((0, *sizes))
+    parts = np.concatenate([np.asarray(f(population[a:b])) for a, b in itertools.pairwise(bounds)])
+    assert np.unique(whole).size > 9
+    np.testing.assert_array_equal(parts, whole)

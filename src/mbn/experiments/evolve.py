@@ -568,9 +568,11 @@ def _mean_of_copies(values: Array, times: int) -> Array:
 
 
 #: A population is always evaluated in this many parts (:func:`split_fitness`), however many
-#: threads evaluate them: XLA's float sums depend on the shape they run on (a population of 18
-#: evaluated whole and in two halves differs in the sixth digit for some genomes), so the parts,
-#: not the machine, must fix the shapes for a seed to give the same run everywhere.
+#: threads evaluate them, so that the parts, not the machine, fix the shapes a seed runs on. (An
+#: earlier version found a population of 18 evaluated whole and in two halves to differ in the
+#: sixth digit; with today's fitness program and XLA the rows come out alike in any batch, bit
+#: for bit, which ``mbn sweep --batched`` relies on and ``tests/experiments/test_batching.py``
+#: checks; the fixed parts are kept, as they cost nothing.)
 FITNESS_PARTS = 2
 
 
