@@ -1,16 +1,15 @@
-"""One quick run of ``mbn reproduce`` (seed 3) shared by the tests of this folder and below (made
-once per session, on whichever worker asks first: ``tests.conftest.once``)."""
+"""One quick run of ``mbn reproduce`` (seed 3) shared by the tests of this folder and below: run
+once per session, started in the background as soon as the tests that read it are collected
+(``tests.conftest.start_early``)."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
-import time
-from pathlib import Path
 
 import pytest
 
-from tests.conftest import once
+from tests.conftest import start_early, wait_early
 
 
 def reproduce(*args: str, **kw) -> subprocess.CompletedProcess:
@@ -24,17 +23,20 @@ def reproduce(*args: str, **kw) -> subprocess.CompletedProcess:
     )
 
 
+#: The session's quick run, started early (``tests.conftest.start_early``).
+QUICK = [sys.executable, "-m", "mbn", "reproduce", "--quiet", "--quick", "--out", "{out}",
+         "--seed", "3"]  # fmt: skip
+
+
+def pytest_collection_modifyitems(config, items):
+    # the quick run starts as soon as tests that read it are collected, beside the first tests
+    if any("quick_run" in getattr(item, "fixturenames", ()) for item in items):
+        start_early("quick", QUICK)
+
+
 @pytest.fixture(scope="session")
-def quick_run(tmp_path_factory, worker_id):
-    """``(folder, seconds)`` of ``mbn reproduce --quick --seed 3`` (tests copy the folder before
-    they change anything in it)."""
-
-    def build(folder: Path) -> list:
-        out = folder / "run"
-        t0 = time.perf_counter()
-        proc = reproduce("--quick", "--out", str(out), "--seed", "3")
-        assert proc.returncode == 0, proc.stderr
-        return [str(out), time.perf_counter() - t0]
-
-    out, seconds = once(tmp_path_factory, worker_id, "quick", build)
-    return Path(out), seconds
+def quick_run():
+    """``(folder, seconds)`` of ``mbn reproduce --quick --seed 3``, started when the tests were
+    collected (tests copy the folder before they change anything in it)."""
+    start_early("quick", QUICK)  # a test selected without the others' collection hook
+    return wait_early("quick")

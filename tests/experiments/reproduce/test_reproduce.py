@@ -277,7 +277,8 @@ def test_quick_run_report_is_self_contained(quick_run):
 
     with Image.open(out / "figures" / "mbn.gif") as gif:
         assert gif.n_frames > 10
-    assert seconds < 300  # the target is < 2 min on 2 cores; this only catches a runaway
+    # about 2 min alone on 2 cores, up to twice that beside the test workers: a runaway only
+    assert seconds < 600
 
 
 @pytest.mark.slow  # 1.5 min; resuming is tested on small pipelines too (tests/experiments/pipeline)
