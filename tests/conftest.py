@@ -10,11 +10,12 @@ creates (the workers inherit its variable) and removes at the end.
 A run that several workers' tests read is made once per session: the session's quick
 reproduction (``quick_run``) starts in the background when the tests are collected
 (:func:`start_early`), and the ``im_full`` stage on it is made by whichever worker asks first
-(:func:`once`); the others wait for it and read the same folder. The workers take whole modules (``--dist
-loadscope``), so that a fixture that only one module reads (an ablation or noise stage on that
-run, a contest) is made once too. (``--dist loadgroup`` with ``xdist_group`` marks would group
-finer, but under pytest 9 with pytest-xdist 3.8 it groups nothing: the group suffix it gives a
-test's id is lost, and the marked tests went to both workers, each making the fixture.)"""
+(:func:`once`); the others wait for it and read the same folder. The workers take whole modules
+(``--dist loadscope``), so that a fixture that only one module reads (an ablation or noise stage
+on that run, a contest) is made once too. (``--dist loadgroup`` with ``xdist_group`` marks
+would group finer, but under pytest 9 with pytest-xdist 3.8 it groups nothing: the group suffix
+it gives a test's id is lost, and the marked tests went to both workers, each making the
+fixture.)"""
 
 import contextlib
 import fcntl

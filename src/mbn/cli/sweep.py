@@ -72,8 +72,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "sweep",
         help="one reproduction per seed on Ray, and statistics over the seeds",
         description="Run `mbn reproduce` (or, with --experiment, another experiment) once per "
-        "seed, each run a Ray task (local or on a "
-        "cluster) or, with --batched, a thread of this process, resumable; then a report over the seeds: per test how many seeds meet its "
+        "seed, each run a Ray task (local or on a cluster) or, with --batched, a thread of this "
+        "process, resumable; then a report over the seeds: per test how many seeds meet its "
         "target, the spread of success rates, Wilson intervals, DE curves and the claims.",
         epilog=_SWEEP_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
