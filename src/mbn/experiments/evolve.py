@@ -285,7 +285,7 @@ def _owned_fitness(
     ``genome + noise[owner[i], k]`` (``noise`` ``(R, K, G)``; ``K = 0``: the genome alone). One
     compiled program per task, time constant and shapes in a process. Each genome's value
     depends on its own row only: evaluated in any batch, whole or in parts, it is the same bit
-    for bit (``tests/experiments/test_evolve.py``), which lets a sweep batch its seeds."""
+    for bit (``tests/experiments/test_batching.py``), which lets a sweep batch its seeds."""
     copies = noise.shape[1]
     if copies:
         d = population.shape[1]
@@ -392,9 +392,9 @@ class OwnedFitness:
         if self.owned[5].shape[1]:
             raise MbnInputError("this fitness already averages over perturbed copies")
         stacked = np.broadcast_to(noise, (self.owners, *noise.shape)).copy()
-        return self.make_like(stacked, copies=noise.shape[0])
+        return self._with_noise_rows(stacked, copies=noise.shape[0])
 
-    def make_like(self, noise: np.ndarray, copies: int) -> OwnedFitness:
+    def _with_noise_rows(self, noise: np.ndarray, copies: int) -> OwnedFitness:
         owned = (*self.owned[:5], noise, self.owned[6])
         shapes = tuple((a.shape[1:], str(a.dtype)) for a in owned)
         per_copy = self.steps_per_genome // (self.owned[5].shape[1] + 1)
