@@ -99,6 +99,26 @@ def wait_early(name: str, timeout: float = 1800.0) -> tuple[Path, float]:
     return folder / "out", done["seconds"]
 
 
+def kill_when_written(
+    argv: list[str], files: list[Path], timeout: float, settle: float = 0.3
+) -> None:
+    """Start ``argv`` in a process group of its own, wait until every one of ``files`` exists
+    (a checkpoint: the run is in the middle of a stage), then SIGKILL the group; fails if the
+    command ended first."""
+    proc = subprocess.Popen(
+        argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if all(f.exists() for f in files):
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, "the command ended before it could be interrupted"
+    time.sleep(settle)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
 def once(tmp_path_factory, worker_id: str, name: str, build: Callable[[Path], Any]) -> Any:
     """``build(folder)`` run once per session, whichever worker asks first, and its value (JSON)
     for every worker: the others wait on a lock in the session's temporary folder, which the

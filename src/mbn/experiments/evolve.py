@@ -342,8 +342,21 @@ class OwnedFitness:
     dynamic: dict[str, Any]  # the task's arrays but its starts
     episodes: _Episodes
     tau: float
-    steps_per_genome: int  # robot-steps of one genome and its copies
-    signature: tuple[Any, ...]
+    steps_per_episode: int  # robot-steps of one episode
+    fingerprint: str  # of ``dynamic`` (:func:`_fingerprint`)
+
+    @property
+    def signature(self) -> tuple[Any, ...]:
+        """What fitnesses merged into one call share: the task but its starts, the time
+        constant, and the owned arrays' shapes but the owners'."""
+        shapes = tuple((a.shape[1:], str(a.dtype)) for a in self.owned)
+        return (self.episodes, self.tau, shapes, self.fingerprint)
+
+    @property
+    def steps_per_genome(self) -> int:
+        """Robot-steps of one genome and its perturbed copies."""
+        episodes = self.owned[6].shape[1]
+        return (self.owned[5].shape[1] + 1) * episodes * self.steps_per_episode
 
     @classmethod
     def make(
@@ -366,15 +379,13 @@ class OwnedFitness:
             np.asarray(noise),
             np.broadcast_to(poses, (r, *poses.shape)).copy(),
         )
-        episodes = _Episodes.of(task, arrays)
-        shapes = tuple((a.shape[1:], str(a.dtype)) for a in owned)
         return cls(
             owned=owned,
             dynamic=dynamic,
-            episodes=episodes,
+            episodes=_Episodes.of(task, arrays),
             tau=float(tau),
-            steps_per_genome=(noise.shape[1] + 1) * arrays.episodes * task.steps,
-            signature=(episodes, float(tau), shapes, _fingerprint(dynamic)),
+            steps_per_episode=task.steps,
+            fingerprint=_fingerprint(dynamic),
         )
 
     @property
@@ -392,18 +403,7 @@ class OwnedFitness:
         if self.owned[5].shape[1]:
             raise MbnInputError("this fitness already averages over perturbed copies")
         stacked = np.broadcast_to(noise, (self.owners, *noise.shape)).copy()
-        return self._with_noise_rows(stacked, copies=noise.shape[0])
-
-    def _with_noise_rows(self, noise: np.ndarray, copies: int) -> OwnedFitness:
-        owned = (*self.owned[:5], noise, self.owned[6])
-        shapes = tuple((a.shape[1:], str(a.dtype)) for a in owned)
-        per_copy = self.steps_per_genome // (self.owned[5].shape[1] + 1)
-        return dataclasses.replace(
-            self,
-            owned=owned,
-            steps_per_genome=(copies + 1) * per_copy,
-            signature=(*self.signature[:2], shapes, self.signature[3]),
-        )
+        return dataclasses.replace(self, owned=(*self.owned[:5], stacked, self.owned[6]))
 
     def count(self, genomes: int) -> None:
         """Count the robot-steps of evaluating ``genomes`` genomes (on this thread's tally)."""

@@ -4,12 +4,9 @@ the refusals of a bad ``--out``."""
 from __future__ import annotations
 
 import json
-import os
 import re
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -20,6 +17,7 @@ from mbn.controllers import load_controller
 from mbn.experiments.reproduce import RUN_KIND
 from mbn.experiments.reproduce.protocol import TEST_NAMES
 from mbn.experiments.reproduce.settings import INTERPRETER_SUBSTEPS
+from tests.conftest import kill_when_written
 
 from .conftest import reproduce as _reproduce
 
@@ -288,21 +286,8 @@ def test_resume_after_kill_gives_the_same_results(quick_run, tmp_path):
     reference, _ = quick_run
     out = tmp_path / "run"
     command = ["reproduce", "--quiet", "--quick", "--out", str(out), "--seed", "3"]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "mbn", *command],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
     target = out / "checkpoints" / "lf.npz"
-    deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        if target.exists():
-            break
-        time.sleep(0.05)
-    assert proc.poll() is None, "the run ended before it could be interrupted"
-    time.sleep(0.3)
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
+    kill_when_written([sys.executable, "-m", "mbn", *command], [target], timeout=300)
     assert not (out / "results.json").exists()
     assert not (out / "stages" / "lf.json").exists()
     done = _reproduce("--quick", "--out", str(out), "--seed", "3", "--resume")

@@ -5,17 +5,14 @@ SIGKILL resumes to the same files."""
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from mbn.cli.main import main
-from tests.conftest import once
+from tests.conftest import kill_when_written, once
 
 SEEDS = "3-4"
 
@@ -78,19 +75,8 @@ def test_a_batched_sweep_killed_resumes_to_the_same_files(batched, quick_run, tm
     alone."""
     reference, _ = batched
     out = tmp_path / "sweep"
-    proc = subprocess.Popen(
-        _sweep(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-    )
     targets = [out / f"seed-{s}" / "checkpoints" / "lf_search_00.npz" for s in (3, 4)]
-    deadline = time.monotonic() + 900
-    while time.monotonic() < deadline and proc.poll() is None:
-        if all(t.exists() for t in targets):
-            break
-        time.sleep(0.05)
-    assert proc.poll() is None, "the sweep ended before it could be interrupted"
-    time.sleep(0.5)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    kill_when_written(_sweep(out), targets, timeout=900, settle=0.5)
     assert not any((out / f"seed-{s}" / "results.json").exists() for s in (3, 4))
     again = subprocess.run(_sweep(out), capture_output=True, text=True, timeout=1200)
     assert again.returncode == 0, again.stderr[-3000:]
