@@ -48,6 +48,7 @@ def write_json(path: Path, data: dict) -> Path:
 # -------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_1000_neuron_controller_is_checked_and_evaluated(tmp_path, capsys):
     """A 1000-neuron controller (weakly coupled: its 5 ms step is far within the stability
     limit) is checked and runs: exit 0 and the trials of fig4's 10 start marks (the check once
@@ -168,6 +169,7 @@ def test_pnn_check_refuses_a_tau_ratio_outside_its_range(capsys, ratio):
     )
 
 
+@pytest.mark.slow
 def test_pnn_check_runs_at_the_smallest_tau_ratio(capsys):
     """0.001, the bottom of the range, runs (a step of 5e-5 s)."""
     status, out, err = run(

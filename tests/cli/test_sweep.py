@@ -208,6 +208,7 @@ def test_tiny_sweep_on_local_ray_then_rerun_skips_both(tmp_path):
     _tiny_sweep(tmp_path, [0, 1])
 
 
+@pytest.mark.slow
 def test_a_local_ray_runs_each_seed_in_a_pinned_worker_and_a_rerun_keeps_them(tmp_path):
     """CI: ``mbn sweep`` on a real local Ray whose tasks write finished seed folders without
     simulating (``tests/cli/sweep_tasks.py``; the seed's run itself is the quick reproduction's

@@ -539,7 +539,7 @@ def test_an_mbn_started_as_rf_drives_as_the_interpreter_with_rfs_program_before_
 
     started, at_rest = started_mbn
     maze = builtin_maze("fig4")
-    spec = TrialSpec(behavior="tiles", seconds=20.0)
+    spec = TrialSpec(behavior="tiles", seconds=12.0)
 
     def drive(loaded):
         _, result, _ = run_trials(
@@ -560,7 +560,7 @@ def test_an_mbn_started_as_rf_drives_as_the_interpreter_with_rfs_program_before_
     v_rest, w_rest, camera_rest = drive(make_controller(at_rest))
     seen = np.where(camera.any(1), camera.argmax(1), camera.shape[1])  # first step with a tile
     before = np.arange(camera.shape[1])[None, :] < seen[:, None]
-    assert before.sum() >= 1000  # robot-steps before a tile is in view
+    assert before.sum() >= 900  # robot-steps before a tile is in view (of 10 x 120)
     motor = lambda a, b, c, d: np.maximum(np.abs(a - b), np.abs(c - d))[before]  # noqa: E731
     assert motor(v, v_im, w, w_im).max() <= 1e-3
     seen_rest = np.where(camera_rest.any(1), camera_rest.argmax(1), camera_rest.shape[1])

@@ -610,12 +610,14 @@ def _scipy_median(name: str, updating: str) -> float:
     return float(np.median(best))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["sphere", "rastrigin"])
 def test_final_best_within_twice_scipy_best1bin_median(name: str) -> None:
     ours, theirs = _our_median(name), _scipy_median(name, "immediate")
     assert ours <= 2.0 * theirs, f"{name}: ours {ours:.3g} vs scipy (immediate) {theirs:.3g}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["sphere", "rastrigin"])
 def test_scipy_deferred_comparison(name: str) -> None:
     ours, theirs = _our_median(name), _scipy_median(name, "deferred")

@@ -144,7 +144,9 @@ def test_a_member_doing_other_work_holds_up_nobody_and_an_evolving_one_its_patie
         assert got["waited"] >= least, evolving
 
 
-@pytest.mark.parametrize("sizes", [(9, 9), (7, 11), (1,) * 18])
+@pytest.mark.parametrize(
+    "sizes", [(9, 9), pytest.param((7, 11), marks=pytest.mark.slow), (1,) * 18]
+)
 def test_a_genomes_value_is_the_same_in_any_batch_bit_for_bit(sizes):
     """What batching rests on: each row is computed alike whatever the batch around it (the
     robust RF fitness of 18 genomes, whole and cut into parts)."""

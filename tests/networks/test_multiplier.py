@@ -131,6 +131,7 @@ def test_minimax_fine_tuning_lowers_the_largest_grid_error():
     assert after["fixed_point"]["passed"]
 
 
+@pytest.mark.slow
 def test_count_fine_tuning_brings_more_of_the_grid_within_5_percent():
     # The soft count of grid points outside 5 % is the paper's criterion made differentiable.
     def within(mul: Multiplier) -> float:
@@ -161,6 +162,7 @@ def test_unknown_training_objective_is_refused():
         TrainConfig(objective="median")
 
 
+@pytest.mark.slow
 def test_bptt_training_reduces_the_error():
     # 4 restarts of 150 iterations bring the grid error to 0.23 of the untrained one (8 of 300:
     # 0.09, at 3 times the cost)

@@ -123,6 +123,7 @@ def test_trained_multipliers_through_the_blocks_equal_the_dense_run():
         run(interp, y0, data, program, 0.005, simulation="sparse")
 
 
+@pytest.mark.slow
 def test_a_controller_file_simulated_by_blocks_drives_the_robot_as_the_dense_one(full):
     """``simulation = "blocks"`` in an interpreter file: the same trajectories in the robot."""
     net, interp = full

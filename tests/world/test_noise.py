@@ -169,6 +169,7 @@ def test_program_noise_is_clipped_and_leaves_the_stored_program():
     np.testing.assert_allclose((u[:, 1] > 1.0 - 1e-9).mean(), 0.5, atol=0.04)
 
 
+@pytest.mark.slow
 def test_rollout_noise_off_changes_nothing_and_on_is_seeded():
     mazes = [crossroad("SR")]
     world = compile_mazes(mazes)

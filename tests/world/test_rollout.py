@@ -418,7 +418,7 @@ def _interpreter_net():
     return build_interpreter(rf, differing_connections(rf, lf, margin=0.0), load_default(6)).net
 
 
-@pytest.mark.parametrize("kind", ["follower", "interpreter"])
+@pytest.mark.parametrize("kind", [pytest.param("follower", marks=pytest.mark.slow), "interpreter"])
 def test_a_shared_network_drives_as_a_batched_copy_of_it(kind):
     """A network held once for the batch (:class:`Shared`) gives the episodes that a copy of it
     per robot gives (float64: the same up to the order of the sums)."""

@@ -89,7 +89,9 @@ def _sonars_free(maze: Maze, poses: np.ndarray) -> np.ndarray:
     return np.array([all(maze.is_free(float(x), float(y)) for x, y in o) for o in origins])
 
 
-@pytest.mark.parametrize("name", list(NON_GRID))
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.slow) if n == "fine_0.05" else n for n in NON_GRID]
+)
 def test_segment_path_equals_the_exact_caster_and_collision(name):
     maze = NON_GRID[name]
     assert not E.uses_lattice([maze])
@@ -177,6 +179,7 @@ def test_rollout_on_the_segment_path_equals_the_lattice(monkeypatch):
     assert np.asarray(a.camera).max() > 0
 
 
+@pytest.mark.slow
 def test_grid_maze_on_the_segment_path_keeps_its_junctions():
     mazes = [crossroad("LSR"), NON_GRID["fine_0.01"]]
     world = E.compile_mazes(mazes)

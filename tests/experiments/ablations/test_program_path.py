@@ -1,7 +1,10 @@
 """The ``ablations`` stage of ``mbn run ablations`` on the session's quick reproduction: every
 ablation's row, the unchanged MBN equal to the reproduction's own tests, and the rebuilt
 interpreters' settings. CI leaves out the two slowest ablations (τ/20 and τ/50: 40 and 100
-multiplier sub-steps, the code path of τ/5 and τ/10); a slow test runs τ/50."""
+multiplier sub-steps, the code path of τ/5 and τ/10); a slow test runs τ/50.
+
+The tests that read the stage's run are slow (about 1.5 min on 2 cores each: left out of CI, run
+with ``pytest -m slow``); the checks of its settings run in CI."""
 
 from __future__ import annotations
 
@@ -38,6 +41,7 @@ def ablations(quick_run, tmp_path_factory):
     return _ablations(quick_run, tmp_path_factory.mktemp("ablations") / "run", CI_VARIANTS)
 
 
+@pytest.mark.slow
 def test_every_ablation_has_its_row(ablations):
     _, data = ablations
     rows = data["variants"]
@@ -55,6 +59,7 @@ def test_every_ablation_has_its_row(ablations):
             assert all(0.0 <= v <= 1.0 for v in row["agreement"].values())
 
 
+@pytest.mark.slow
 def test_the_ablations_are_tests_a_sweep_tabulates(ablations):
     """``results.json`` records every ablation's trials as tests (``mbn sweep --experiment
     ablations`` compares them over seeds): the MBN's, and the interpreter's where it changes;
@@ -89,6 +94,7 @@ def test_the_ablations_are_tests_a_sweep_tabulates(ablations):
     assert s["tests"]["tau_50_mbn_jitter"]["rates"] == []  # not run here: no rate, no crash
 
 
+@pytest.mark.slow
 def test_the_unchanged_mbn_is_the_reproductions_tests(ablations):
     rundir, data = ablations
     stage = rundir.read_stage("tests")
@@ -103,6 +109,7 @@ def test_the_unchanged_mbn_is_the_reproductions_tests(ablations):
     assert data["networks"]["rf_jitter"]["successes"] == tests["rf_jitter"]["successes"]
 
 
+@pytest.mark.slow
 def test_the_rebuilt_interpreters_keep_the_multipliers_training_step(ablations):
     _, data = ablations
     rows = data["variants"]

@@ -1,7 +1,10 @@
 """The ``contest`` stage of ``mbn run programs-vs-dynamics`` on the quick ``im_full`` run: the
 same budget for every contender, evaluations to success read off the checks, the neighbour
 starting at RF, the interpreter untouched, the report, and a run interrupted mid-contest
-resuming to the same data."""
+resuming to the same data.
+
+The tests that read the stage's run are slow (about 1.5 min on 2 cores each: left out of CI, run
+with ``pytest -m slow``); the checks of its settings run in CI."""
 
 from __future__ import annotations
 
@@ -53,6 +56,7 @@ def contest_run(im_full_run, tmp_path_factory):
     return copy, _run(copy)
 
 
+@pytest.mark.slow
 def test_every_contender_gets_the_same_budget_and_checks(contest_run):
     _, data = contest_run
     s = _config()["contest"]
@@ -92,6 +96,7 @@ def read_im_connections(rundir: RunDir):
     return read_controller_spec(rundir.controller_file("im_full")).interpreter.connections
 
 
+@pytest.mark.slow
 def test_final_tests_and_the_programs_through_the_interpreter(contest_run):
     rundir, data = contest_run
     short = RULE.replace("-", "_")
@@ -106,6 +111,7 @@ def test_final_tests_and_the_programs_through_the_interpreter(contest_run):
     assert data["sha256"] == rundir.read_stage("im_full")["sha256"]
 
 
+@pytest.mark.slow
 def test_a_final_network_beyond_its_step_stability_limit_is_tested_and_recorded(contest_run):
     # The checks run every candidate at the robot's network step, stable or not; the final
     # tests run the final best the same way (a network from scratch once left the worst-case
@@ -126,6 +132,7 @@ def test_a_final_network_beyond_its_step_stability_limit_is_tested_and_recorded(
         make_controller(beyond, None)
 
 
+@pytest.mark.slow
 def test_program_search_is_checked_through_the_interpreter(contest_run):
     """By default (``[contest] program_checks = "interpreter"``) program search's best so far is
     checked as the fixed interpreter runs it: the last check's start marks are those of the
@@ -173,6 +180,7 @@ def test_settings_refuse_unknown_contenders_and_repeated_rules():
         ContestSettings(rules=("straight-right", "SR"))
 
 
+@pytest.mark.slow
 def test_the_report_draws_the_checks(contest_run, tmp_path):
     from mbn.experiments.contest.report import write_report
 
@@ -215,6 +223,7 @@ def test_a_contest_interrupted_mid_run_resumes_to_the_same_data(im_full_run, tmp
     assert json.dumps(again, sort_keys=True) == json.dumps(whole, sort_keys=True)
 
 
+@pytest.mark.slow
 def test_the_sweep_finds_every_test_it_tabulates(contest_run):
     from mbn.experiments.sweep.specs import CONTEST_SPEC
 

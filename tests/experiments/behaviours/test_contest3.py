@@ -1,6 +1,9 @@
 """The ``contest3`` stage of ``mbn run programs-vs-dynamics`` on the quick ``im_full`` run: the
 three-behaviour task, the MBN's route (one new program, RF's and LF's kept, the interpreter
-untouched) against a monolithic CTRNN, with the same budget and checks."""
+untouched) against a monolithic CTRNN, with the same budget and checks.
+
+The tests that read the stage's run are slow (about 1.5 min on 2 cores each: left out of CI, run
+with ``pytest -m slow``); the checks of its settings run in CI."""
 
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ def contest3_run(im_full_run, tmp_path_factory):
     return copy, config, run_stage(PROGRAMS_VS_DYNAMICS, copy, "contest3", seed=3, config=config)
 
 
+@pytest.mark.slow
 def test_both_contenders_get_the_same_budget_and_checks(contest3_run):
     _, config, data = contest3_run
     s, c = config["contest3"], config["contest"]
@@ -67,6 +71,7 @@ def test_both_contenders_get_the_same_budget_and_checks(contest3_run):
     assert by["programs"]["pm_evaluations"] == popsize * (s.pm_generations + 1)
 
 
+@pytest.mark.slow
 def test_the_mbn_keeps_rf_lf_and_the_interpreter_and_adds_one_program(contest3_run):
     rundir, _, data = contest3_run
     im = read_controller_spec(rundir.controller_file("im_full"))
@@ -81,6 +86,7 @@ def test_the_mbn_keeps_rf_lf_and_the_interpreter_and_adds_one_program(contest3_r
     assert np.all((readout >= 0) & (readout <= 1))
 
 
+@pytest.mark.slow
 def test_the_monolithic_file_reads_the_tiles_itself(contest3_run):
     rundir, config, _ = contest3_run
     path = rundir.controller_file(f"contest_{TASK}_monolithic")

@@ -75,6 +75,7 @@ def test_a_follower_inside_the_genome_scores_as_the_follower_on_the_tile_crossro
     assert got == pytest.approx(want, rel=1e-4, abs=1e-4)
 
 
+@pytest.mark.slow
 def test_the_rest_episodes_score_the_crossroads_without_a_tile_by_the_first_rule():
     g, genes, follower = _follower_like(neurons=4, kinds=1)
     tiled = CrossroadTask(rule="right", tile=1, variants=1, seconds=8.0)
@@ -90,6 +91,7 @@ def test_the_rest_episodes_score_the_crossroads_without_a_tile_by_the_first_rule
         monolithic_fitness(g, [tiled], CAMERA, rest=tiled)
 
 
+@pytest.mark.slow
 def test_switch_episodes_start_each_crossroad_again_after_the_other_tiles():
     # without recurrent weights a network primed in open space stays at rest, so each switch
     # episode repeats its crossroad's start-mark episode: with one start per crossroad the

@@ -1,6 +1,9 @@
 """The ``noise_levels`` stage of ``mbn run noise`` on the session's quick reproduction: each
 channel's levels, the controllers that read it, the noiseless point equal to the reproduction's
-own tests, and a channel at its extreme breaking the controllers."""
+own tests, and a channel at its extreme breaking the controllers.
+
+The tests that read the stage's run are slow (about 1.5 min on 2 cores each: left out of CI, run
+with ``pytest -m slow``); the checks of its settings run in CI."""
 
 from __future__ import annotations
 
@@ -37,6 +40,7 @@ def levels(quick_run, tmp_path_factory):
     return rundir, data
 
 
+@pytest.mark.slow
 def test_every_controller_gets_the_channels_it_reads(levels):
     _, data = levels
     curves = data["curves"]
@@ -62,6 +66,7 @@ def test_every_controller_gets_the_channels_it_reads(levels):
     )
 
 
+@pytest.mark.slow
 def test_without_noise_the_trials_are_the_reproductions_tests(levels):
     rundir, data = levels
     tests = rundir.read_stage("tests")["tests"]
@@ -73,6 +78,7 @@ def test_without_noise_the_trials_are_the_reproductions_tests(levels):
             assert base[test]["trials"] == tests[f"{name}_{test}"]["trials"]
 
 
+@pytest.mark.slow
 def test_sonar_dropout_at_its_extreme_breaks_every_controller(levels):
     _, data = levels
     for name in CONTROLLERS:  # every sonar reads 5 m: no wall is followed
@@ -90,6 +96,7 @@ def test_levels_must_start_at_zero_and_increase():
         NoiseLevelsSettings(sonar_dropout=(0.0, 2.0))
 
 
+@pytest.mark.slow
 def test_the_levels_over_runs(levels, tmp_path):
     """``mbn sweep --experiment noise``: each run's trials become tests (``noise_tests``), the
     sweep's spec names the ones it tabulates, and over runs each channel's points carry the

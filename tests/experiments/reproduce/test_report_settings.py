@@ -3,7 +3,10 @@ run's own (its recorded config or stage data), never a default: one quick run wi
 file that changes them (the interpreter's time constant and steps, DE, the followers' evolution,
 the multiplier, every stage's generations, the tests), its ``report.md``, ``report.html``,
 claims and stage lines checked against the file, and against the defaults and the quick
-preset, which must appear nowhere in their place."""
+preset, which must appear nowhere in their place.
+
+The tests on the run are slow (a quick run of its own, about 1.5 min on 2 cores: left out of
+CI, run with ``pytest -m slow``)."""
 
 from __future__ import annotations
 
@@ -137,6 +140,7 @@ def _texts(out) -> dict[str, str]:
     }
 
 
+@pytest.mark.slow
 def test_the_run_recorded_the_settings_file(settings_run):
     out, _ = settings_run
     recorded = json.loads((out / "results.json").read_text())["config"]
@@ -145,6 +149,7 @@ def test_the_run_recorded_the_settings_file(settings_run):
     assert json.loads((out / "run.json").read_text())["config"] == recorded
 
 
+@pytest.mark.slow
 def test_every_setting_the_report_states_is_the_runs_and_no_default_stands_in(settings_run):
     out, _ = settings_run
     recorded = json.loads((out / "results.json").read_text())["config"]
@@ -169,6 +174,7 @@ def test_every_setting_the_report_states_is_the_runs_and_no_default_stands_in(se
             assert wrong not in text, f"{file}: {wrong!r}"
 
 
+@pytest.mark.slow
 def test_the_claims_state_the_runs_multiplier(settings_run):
     out, _ = settings_run
     claims = json.loads((out / "results.json").read_text())["claims"]
@@ -178,6 +184,7 @@ def test_the_claims_state_the_runs_multiplier(settings_run):
     assert row["measured"].startswith("3-neuron multiplier")
 
 
+@pytest.mark.slow
 def test_the_stage_lines_state_the_runs_generations(settings_run):
     _, stdout = settings_run
     lines = {line.split(":")[0]: line for line in stdout.splitlines() if line.startswith("stage ")}

@@ -186,6 +186,7 @@ def _evaluate(*args):
     return json.loads(proc.stdout)
 
 
+@pytest.mark.slow
 def test_the_default_time_limit_serves_a_maze_of_long_corridors(quick_run, tmp_path):
     """The former fixed 60 s ended trials of the run's RF in long corridors before their third
     junction (timed out, not failed); the limit derived from the maze lets them finish."""

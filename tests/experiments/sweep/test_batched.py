@@ -1,6 +1,10 @@
 """``mbn sweep --batched``: every seed in one process, their populations evaluated together; each
 seed's ``results.json`` is byte for byte that of its run alone, and a batched sweep killed with
-SIGKILL resumes to the same files."""
+SIGKILL resumes to the same files.
+
+They are slow (left out of CI, run with ``pytest -m slow``): a batched quick sweep of two seeds
+takes about 2 min on 2 cores; ``tests/experiments/test_batching.py`` checks the batching itself
+in CI."""
 
 from __future__ import annotations
 
@@ -36,6 +40,7 @@ def batched(tmp_path_factory, worker_id):
     return Path(out), stdout
 
 
+@pytest.mark.slow
 def test_a_batched_seed_gives_the_results_of_its_run_alone_byte_for_byte(batched, quick_run):
     """Seed 3 batched with seed 4 against ``mbn reproduce --quick --seed 3`` (the session's
     quick run): the same results.json, byte for byte; both seeds ran and were summarized."""

@@ -208,6 +208,7 @@ def test_mbn_evaluate_gives_fig4_and_its_moved_twins_the_same_verdicts(tmp_path,
     assert lines[1].startswith("  start  1 at (-4.80, 4.80) facing E:")  # fig4's (4.2, 11.4)
 
 
+@pytest.mark.slow
 def test_mbn_evaluate_gives_a_maze_of_1_8_m_blocks_the_same_verdicts_wherever_it_lies(
     tmp_path, capsys, straight
 ):
