@@ -34,6 +34,12 @@ examples:
   mbn evaluate --controller rf.json --maze fig4 --behavior right
   mbn evaluate --controller im.json --maze fig4 --behavior left --repeats 5 --json
   mbn evaluate --controller mbn.json --maze fig4 --behavior tiles --initial right --json
+  mbn evaluate --controller rf.json --maze grid/validation:0-9 --behavior right
+
+a split (FAMILY/SPLIT, docs/generalization.md) runs every maze's trials in one batch under one
+time limit (the longest of the mazes' own) and prints one line per maze and the pooled figures;
+--json: {"split", "mazes": [{"maze", ...the fields above}], "pooled", "mazes_at_95",
+"fraction_of_mazes_at_95", "seconds"}.
 
 --json prints one object: {"trials", "successes", "success_rate", "timed_out", "junctions",
 "correct_junctions", "mean_stall_fraction", "seconds"}; timed_out counts the trials that ended
@@ -69,7 +75,12 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ev.add_argument("--controller", type=Path, required=True, help="controller JSON file")
-    ev.add_argument("--maze", required=True, help="built-in name or maze file")
+    ev.add_argument(
+        "--maze",
+        required=True,
+        help="built-in name, maze file, generated maze (FAMILY:SEED) or a family's split "
+        "(FAMILY/SPLIT, FAMILY/SPLIT:A-B: every maze, one line each)",
+    )
     ev.add_argument(
         "--behavior",
         type=_behavior,
@@ -236,14 +247,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from mbn.controllers import check_trial_length, make_controller, read_controller_spec
     from mbn.experiments.trials import TrialSpec, route_seconds, run_loaded_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
-    from mbn.world.mazes.load import load_maze
+    from mbn.world.mazes.load import load_mazes
     from mbn.world.sensors import NoiseConfig, parse_noise
 
-    maze = as_grid_maze(load_maze(args.maze))  # TOML and Stage mazes on a lattice of corridors
+    mazes, split = load_mazes(args.maze)
+    maze = as_grid_maze(mazes[0])  # TOML and Stage mazes on a lattice of corridors
     controller_spec = read_controller_spec(args.controller)
     # the rule each tile kind puts in force: the mbn file's (the paper's: right, left)
     tile_rules = getattr(controller_spec, "tile_rules", None) or ("right", "left")
-    TrialSpec(behavior=args.behavior, tile_rules=tile_rules).check_maze(maze)
+    for each in mazes:
+        TrialSpec(behavior=args.behavior, tile_rules=tile_rules).check_maze(each)
     noise = parse_noise(args.noise) if args.noise is not None else NoiseConfig()
     loaded = make_controller(
         controller_spec,
@@ -266,6 +279,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         tile_rules=tile_rules,
     )
     spec.check_maze(maze)
+    if split is not None:
+        return _evaluate_split(args, split, mazes, spec, loaded, noise)
     seconds = args.seconds if args.seconds is not None else route_seconds(maze, spec)
     # a bounded number of robot and network steps (a tiny dt or many substeps: hours)
     check_trial_length(loaded, seconds, str(args.controller), limit_name="--seconds")
@@ -307,5 +322,80 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         + ", "
         f"{result['correct_junctions']}/{result['junctions']} "
         f"correct junctions, mean stall fraction {result['mean_stall_fraction']:.4f}"
+    )
+    return 0
+
+
+def _evaluate_split(
+    args: argparse.Namespace, split: str, mazes: list[Any], spec: Any, loaded: Any, noise: Any
+) -> int:
+    """``mbn evaluate`` over a split of a maze family: every maze's trials in one rollout, one
+    line per maze and the pooled figures."""
+    import jax
+
+    from mbn.controllers import check_trial_length
+    from mbn.experiments.trials import TrialGroup, route_seconds, run_trial_groups, summary
+
+    # one time limit for the batch: the longest of the mazes' own (docs/generalization.md)
+    seconds = (
+        args.seconds
+        if args.seconds is not None
+        else max(route_seconds(m, spec) for m in mazes)
+    )
+    check_trial_length(loaded, seconds, str(args.controller), limit_name="--seconds")
+    spec = dataclasses.replace(spec, seconds=seconds)
+    key = jax.random.fold_in(jax.random.key(args.seed), NOISE_STREAM) if noise.enabled else None
+    camera = loaded.camera
+    if camera is None and spec.behavior == "tiles":
+        from mbn.world.engine import CameraConfig
+
+        camera = CameraConfig()
+    verdicts, _, _, _ = run_trial_groups(
+        mazes,
+        [TrialGroup(m.name, i, spec, loaded.initial_state) for i, m in enumerate(mazes)],
+        loaded.controller,
+        seconds=seconds,
+        dt=loaded.dt,
+        sensors=loaded.sensors,
+        camera=camera,
+        noise=loaded.noise,
+        key=key,
+    )
+    rows = [{"maze": m.name, **summary(verdicts[m.name])} for m in mazes]
+    pooled = {k: sum(r[k] for r in rows) for k in ("trials", "successes", "timed_out")}
+    pooled["success_rate"] = pooled["successes"] / pooled["trials"]
+    at_95 = sum(r["success_rate"] >= 0.95 for r in rows)
+    result = {
+        "split": split,
+        "mazes": rows,
+        "pooled": pooled,
+        "mazes_at_95": at_95,
+        "fraction_of_mazes_at_95": at_95 / len(rows),
+        "seconds": seconds,
+    }
+    if noise.enabled:
+        result["noise"] = noise.as_dict()
+    if args.json:
+        print(json_text(result))
+        return 0
+    what = loaded.kind + (f", program {loaded.program}" if loaded.program else "")
+    print(
+        f"{args.controller} ({what}) on {split} ({len(mazes)} mazes): behavior "
+        f"{args.behavior}" + (f" (initial {spec.initial})" if args.behavior == "tiles" else "")
+        + f", start marks x {args.repeats}, {args.junctions} junctions, {seconds:g} s"
+        + ("" if args.seconds is not None else " (the longest maze's)")
+        + (f", noise {_noise_text(noise)}" if noise.enabled else "")
+    )
+    width = max(len(r["maze"]) for r in rows)
+    for r in rows:
+        print(
+            f"  {r['maze']:<{width}}  {r['successes']:>3}/{r['trials']:<3} "
+            f"{r['success_rate']:6.1%}"
+            + (f"  {r['timed_out']} timed out" if r["timed_out"] else "")
+        )
+    print(
+        f"  pooled: {pooled['successes']}/{pooled['trials']} successes "
+        f"({pooled['success_rate']:.1%}), {pooled['timed_out']} timed out; "
+        f"{at_95}/{len(rows)} mazes at >= 95 %"
     )
     return 0

@@ -17,6 +17,7 @@ __all__ = ["EPILOG", "add_commands"]
 
 EPILOG = """\
   mbn mazes                                   the built-in mazes
+  mbn mazes generate grid --seed 7 --out g.maze   a generated maze (also named grid:7)
   mbn show-maze fig4 --out fig4.png           draw a maze: walls, tiles, junctions, starts
   mbn sonar --maze stage_arena --poses poses.csv --out ranges.csv
   mbn drive --start 0,0,0 --cmd 0.3,0.5 --seconds 5 --out drive.csv
@@ -54,6 +55,37 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         formatter_class=raw,
     )
     mazes.add_argument("--json", action="store_true", help="print one JSON object")
+    mazes_sub = mazes.add_subparsers(dest="mazes_action", metavar="{generate,families}")
+    generate = mazes_sub.add_parser(
+        "generate",
+        help="write a generated maze of a family as a .maze file",
+        description="Write the maze a family's generator makes for a seed (docs/generalization.md)."
+        " The same family, parameters and seed give the same maze; a seed belongs to one split "
+        "(train, validation, test: `mbn mazes families`). A generated maze is also named "
+        "FAMILY:SEED wherever a maze is asked for.",
+        epilog="examples:\n"
+        "  mbn mazes generate tiles2 --seed 2000000 --out t.maze   the first test maze\n"
+        "  mbn mazes generate grid --seed 7 --set size=25,31 --out big.maze     a larger one",
+        formatter_class=raw,
+    )
+    generate.add_argument("family", help="grid, tiles2 or tiles3")
+    generate.add_argument("--seed", type=int, required=True, help="generator seed")
+    generate.add_argument("--out", type=Path, required=True, help="output .maze file")
+    generate.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="change a generator parameter (repeatable; a pair or list as 2,6)",
+    )
+    families = mazes_sub.add_parser(
+        "families",
+        help="the maze families, their parameters and splits",
+        description="The maze families, their parameters, and the generator seeds of the splits.",
+    )
+    families.add_argument("--json", action="store_true", help="print one JSON object")
+    generate.set_defaults(func=_cmd_mazes_generate, precision=NETWORKS, writes="file")
+    families.set_defaults(func=_cmd_mazes_families, precision=NETWORKS)
 
     show = sub.add_parser(
         "show-maze",
@@ -109,6 +141,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
 def _cmd_mazes(args: argparse.Namespace) -> int:
     from mbn.world.mazes.builtin import describe_builtins
 
+    if getattr(args, "mazes_action", None) is not None:
+        return int(args.func(args))
     items = describe_builtins()
     if args.json:
         print(json_text({name: text for name, text in items}))
@@ -116,6 +150,77 @@ def _cmd_mazes(args: argparse.Namespace) -> int:
     width = max(len(name) for name, _ in items)
     for name, text in items:
         print(f"{name:<{width}}  {text}")
+    return 0
+
+
+def _parameter(fam: Any, key: str, text: str) -> Any:
+    """A ``--set`` value, typed as the family's parameter ``key``."""
+    from mbn.world.mazes.families import parameter_names
+
+    if key not in parameter_names():
+        raise MbnInputError(
+            f"--set {key}: unknown parameter (known: {', '.join(parameter_names())})"
+        )
+    current = getattr(fam, key)
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    try:
+        if isinstance(current, tuple):
+            kind = type(current[0]) if current else (str if key.endswith("rules") else int)
+            return tuple(kind(p) for p in parts)
+        return type(current)(text)
+    except ValueError:
+        raise MbnInputError(f"--set {key}={text}: not a valid {key}") from None
+
+
+def _cmd_mazes_generate(args: argparse.Namespace) -> int:
+    from mbn.io import atomic_open
+    from mbn.world.mazes import families
+
+    fam = families.family(args.family)
+    changes = {}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise MbnInputError(f"--set {item}: expected KEY=VALUE")
+        changes[key.strip()] = _parameter(fam, key.strip(), value)
+    if changes:
+        fam = fam.replace(name=f"{fam.name}-custom", **changes)
+    text = families.generate_text(fam, args.seed)
+    if changes:
+        text = "".join(
+            f"; --set {k}={','.join(map(str, v)) if isinstance(v, tuple) else v}\n"
+            for k, v in changes.items()
+        ) + text
+    with atomic_open(args.out) as handle:
+        handle.write(text)
+    maze = families.generate(fam, args.seed)
+    info = families.describe(maze)
+    print(
+        f"{args.out}: {maze.name} ({families.split_of(args.seed)} split), "
+        f"{info['shape'][0]} x {info['shape'][1]} cells, {info['plus_crossings']} plus, "
+        f"{info['t_junctions']} T, {info['corners']} corners, {info['dead_ends']} dead ends, "
+        f"{info['loops']} loops, {len(maze.tiles)} tiles, {info['starts']} starts"
+    )
+    return 0
+
+
+def _cmd_mazes_families(args: argparse.Namespace) -> int:
+    from mbn.world.mazes import families
+
+    data = {
+        "families": {name: f.to_dict() for name, f in families.FAMILIES.items()},
+        "splits": {k: [r.start, r.stop - 1] for k, r in families.SPLITS.items()},
+    }
+    if args.json:
+        print(json_text(data))
+        return 0
+    for name, fam in families.FAMILIES.items():
+        print(f"{name}: {fam.doc}")
+        for key, value in fam.to_dict().items():
+            if key not in ("name", "doc"):
+                print(f"    {key} = {value}")
+    for split, (a, b) in data["splits"].items():
+        print(f"split {split}: seeds {a}-{b}")
     return 0
 
 

@@ -389,6 +389,23 @@ def program_swaps_caught(
     return caught
 
 
+#: The last few mazes' grid, free neighbours and decision cells (:func:`_walk_tables`).
+_WALK_TABLES: list[tuple[Maze, tuple[np.ndarray, np.ndarray, np.ndarray]]] = []
+
+
+def _walk_tables(maze: Maze) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(grid, free_neighbours, decision_cells)`` of ``maze``, kept for the last 8 mazes (a
+    maze is frozen: the same object has the same tables), so that the many walks from one
+    maze's starts compute them once."""
+    for held, tables in _WALK_TABLES:
+        if held is maze:
+            return tables
+    tables = (_grid(maze), free_neighbours(maze), decision_cells(maze))
+    _WALK_TABLES.insert(0, (maze, tables))
+    del _WALK_TABLES[8:]
+    return tables
+
+
 def _walk(
     maze: Maze,
     start: tuple[float, float, float],
@@ -401,9 +418,7 @@ def _walk(
     """:func:`rule_route`'s walk: its length and the decision cells it counts."""
     if junctions < 1:
         raise MbnInputError(f"junctions must be >= 1, got {junctions!r}")
-    grid = _grid(maze)
-    nb = free_neighbours(maze)
-    decision = decision_cells(maze)
+    grid, nb, decision = _walk_tables(maze)
     rows, cols = grid.shape
     # each cell's extent along the north-south axis (h % 2 == 0) and the east-west axis
     if maze.cell is not None:
@@ -436,6 +451,7 @@ def _walk(
     passes: list[RoutePass] = []
     length = 0.0
     visited: set[tuple[int, int, int, str, int, int, bool]] = set()
+    parsed: dict[str, Rule] = {}
     while True:
         key = (r, c, h, current, source, len(passes), seen_tile)
         if key in visited:
@@ -449,7 +465,9 @@ def _walk(
         if length == 0 and open_dirs[h]:
             exit_name = "straight"  # the start faces along its corridor
         else:
-            exit_name = _rule_exit_from(open_dirs, h, current)
+            if current not in parsed:
+                parsed[current] = parse_rule(current)
+            exit_name = parsed[current].exit(_open_exits(open_dirs, h))
         h = (h + _TURN[exit_name]) % 4
         if not open_dirs[h]:  # a closed cell
             return None

@@ -1,0 +1,809 @@
+"""Maze families: seeded generators of grid mazes, and the train / validation / test splits of
+their seeds (``docs/generalization.md``).
+
+A **family** (:class:`Family`) is a generator with its parameters: a maze of the family is
+``generate(family, seed)``, the same for the same parameters and seed. :data:`FAMILIES` holds
+the named ones:
+
+* ``grid`` — no tiles: the wall followers and the rules beyond them (every start judgeable under
+  right, left, straight-right and straight-left);
+* ``tiles2`` — the paper's two tile kinds (one colour: right, two colours: left);
+* ``tiles3`` — three tile kinds (one, two, three colours: right, left, straight-right).
+
+**The generator** (:func:`lattice_grid`) lays corridors one cell wide along a lattice of lines
+``gap`` cells apart (the gaps drawn, so corridors between junctions run 1 to ``gap - 1`` cells),
+then knocks out lattice segments at random while every free cell stays connected: what is left
+has plus crossings, T junctions, corners (with junctions right after some of them, where two
+lines are 2 cells apart), straight corridors through former crossings (long corridors), dead
+ends and loops. Tiles (:func:`place_tiles`) lie across straight corridor cells ``0 .. reach``
+cells before a T or plus crossing (``d`` free cells between the tile's cell and the junction's),
+and in the middle of corridors (at least :data:`MID_CORRIDOR` cells from either end); start
+marks on straight corridor cells, facing either way along the corridor.
+
+**Every maze returned is checked** (:func:`check`): connected; one-cell corridors; the junction
+kinds the family asks for present (corners, T junctions, plus crossings, and dead ends and loops
+where its parameters make them); every start mark judgeable under every rule in use (the
+followed route passes ``junctions`` decision cells; with tiles, for each first rule, a tile and
+then ``junctions`` decision cells, :func:`mbn.world.junctions.rule_route`); every tile kind
+present at every distance asked for; and, with tiles, each tile kind's program judged (a
+swapped program takes a wrong exit from some start, :func:`mbn.world.junctions.
+program_swaps_caught`). An attempt that fails a check is drawn again from the same generator,
+so the result still depends on the seed alone; parameters that cannot produce a valid maze are
+refused in one line naming the check that failed.
+
+**Splits** (:data:`SPLITS`): three disjoint ranges of generator seeds, the same for every
+family: ``train`` (what evolution draws its episodes from), ``validation`` (the choice among
+candidates and restarts) and ``test`` (:data:`TEST_SIZE` mazes, used by no selection of any
+stage, setting or default: only ever a test). :func:`check_use` refuses a test seed for
+training or validation.
+
+**Names** (:func:`parse_name`): ``FAMILY:SEED`` is one maze (``tiles2:2000007``);
+``FAMILY/SPLIT`` a whole split (``grid/test``), ``FAMILY/SPLIT:A-B`` the split's mazes ``A`` to
+``B`` (0-based, inclusive: ``grid/validation:0-9``). :func:`mbn.world.mazes.load.load_maze`
+takes a single maze's name; ``mbn evaluate --maze`` takes a split too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mbn.errors import MbnInputError
+from mbn.world.junctions import (
+    decision_cells,
+    free_neighbours,
+    program_swaps_caught,
+    rule_route,
+)
+from mbn.world.mazes.grid_text import parse_maze_text
+from mbn.world.mazes.model import DEFAULT_CELL, Maze
+from mbn.world.rules import parse_rule
+
+__all__ = [
+    "FAMILIES",
+    "MID_CORRIDOR",
+    "SPLITS",
+    "TEST_SIZE",
+    "Family",
+    "MazeName",
+    "check",
+    "check_use",
+    "describe",
+    "family",
+    "generate",
+    "generate_text",
+    "lattice_grid",
+    "parse_name",
+    "place_tiles",
+    "split_seeds",
+    "tile_places",
+]
+
+#: A mid-corridor tile lies at least this many cells from the decision cells (or dead ends) at
+#: both ends of its corridor.
+MID_CORRIDOR = 2
+#: How many attempts :func:`generate` makes before it refuses the parameters.
+ATTEMPTS = 200
+#: The number of mazes in each family's test split.
+TEST_SIZE = 100
+#: The generator seeds of each split, the same for every family (disjoint ranges). ``train`` is
+#: as large as any schedule of episodes needs; ``validation`` and ``test`` are fixed lists.
+SPLITS: dict[str, range] = {
+    "train": range(0, 1_000_000),
+    "validation": range(1_000_000, 1_000_000 + 100),
+    "test": range(2_000_000, 2_000_000 + TEST_SIZE),
+}
+#: What each split may be used for (:func:`check_use`).
+_USES = {"train": ("train", "validation"), "validation": ("validation",), "test": ("test",)}
+
+_N, _E, _S, _W = range(4)
+_STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))  # (d_row, d_col) of N E S W; row 0 is north
+_MARK = {_N: "^", _E: ">", _S: "v", _W: "<"}
+
+
+@dataclass(frozen=True)
+class Family:
+    """A maze generator and its parameters (see the module docstring).
+
+    Attributes:
+        name: the family's name.
+        doc: one line: what the family is for.
+        size: the grid's extent in cells (outer wall included), each side drawn in this range
+            (inclusive).
+        gap: the distance in cells between neighbouring parallel lattice lines, drawn per line
+            in this range (inclusive; 2 leaves one wall cell between two corridors).
+        remove: the fraction of lattice segments knocked out (each kept where removing it
+            would cut the maze in two).
+        dead_ends: the chance that a removal that leaves a dead end is made (0: no dead ends).
+        tile_kinds: the tile kinds placed (colours: 1, 2, 3); empty: no tiles.
+        reach: tiles lie 0 .. ``reach`` cells before a T or plus crossing.
+        near_tiles: tiles of each kind before junctions, their distances taking 0 .. ``reach``
+            in turn (so ``reach + 1`` of them give every distance once).
+        mid_tiles: tiles of each kind in the middle of a corridor.
+        starts: start marks (the paper's test: 10 positions).
+        rules: every start is judgeable under each of these rules.
+        first_rules: with tiles, every start is judgeable from each of these first rules,
+            following the tiles (a tile, then ``junctions`` decision cells).
+        tile_rules: with tiles, the rule each tile kind puts in force.
+        junctions: the decision cells a trial judges (the paper: 3).
+        cell: the side of a cell (metres).
+    """
+
+    name: str
+    doc: str
+    size: tuple[int, int] = (13, 19)
+    gap: tuple[int, int] = (2, 6)
+    remove: float = 0.35
+    dead_ends: float = 0.25
+    tile_kinds: tuple[int, ...] = ()
+    reach: int = 3
+    near_tiles: int = 4
+    mid_tiles: int = 1
+    starts: int = 10
+    rules: tuple[str, ...] = ("right", "left", "straight-right", "straight-left")
+    first_rules: tuple[str, ...] = ()
+    tile_rules: tuple[str, ...] = ()
+    junctions: int = 3
+    cell: float = DEFAULT_CELL
+
+    def __post_init__(self) -> None:
+        where = f"maze family {self.name!r}"
+
+        def pair(key: str, low: int) -> None:
+            value = getattr(self, key)
+            ok = (
+                isinstance(value, tuple)
+                and len(value) == 2
+                and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+                and low <= value[0] <= value[1]
+            )
+            if not ok:
+                raise MbnInputError(
+                    f"{where}: {key} must be two integers low <= high, low >= {low}, got {value!r}"
+                )
+
+        pair("size", 5)
+        pair("gap", 2)
+        for key in ("remove", "dead_ends"):
+            value = getattr(self, key)
+            if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
+                raise MbnInputError(f"{where}: {key} must be in [0, 1], got {value!r}")
+        for key, low in (("reach", 0), ("near_tiles", 0), ("mid_tiles", 0), ("starts", 1)):
+            value = getattr(self, key)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value >= low):
+                raise MbnInputError(f"{where}: {key} must be an integer >= {low}, got {value!r}")
+        if not (isinstance(self.junctions, int) and 1 <= self.junctions <= 32):
+            raise MbnInputError(f"{where}: junctions must be an integer in 1..32")
+        if any(k not in (1, 2, 3) for k in self.tile_kinds) or len(set(self.tile_kinds)) != len(
+            self.tile_kinds
+        ):
+            raise MbnInputError(
+                f"{where}: tile_kinds must be distinct colours among 1, 2, 3, got "
+                f"{self.tile_kinds!r}"
+            )
+        for key in ("rules", "first_rules", "tile_rules"):
+            for rule in getattr(self, key):
+                try:
+                    parse_rule(rule)
+                except MbnInputError as exc:
+                    raise MbnInputError(f"{where}: {key}: {exc}") from None
+        if self.tile_kinds:
+            if len(self.tile_rules) < max(self.tile_kinds):
+                raise MbnInputError(
+                    f"{where}: tile_rules must name a rule for every tile kind up to "
+                    f"{max(self.tile_kinds)} colours, got {self.tile_rules!r}"
+                )
+            if not self.first_rules:
+                raise MbnInputError(f"{where}: a family with tiles needs first_rules")
+            if self.near_tiles + self.mid_tiles < 1:
+                raise MbnInputError(f"{where}: a family with tiles needs near_tiles or mid_tiles")
+        if not (self.cell > 0 and np.isfinite(self.cell)):
+            raise MbnInputError(f"{where}: cell must be a number of metres > 0")
+
+    def replace(self, **changes: Any) -> Family:
+        """This family with some parameters changed (checked as a new family)."""
+        unknown = sorted(set(changes) - {"name", "doc", *parameter_names()})
+        if unknown:
+            raise MbnInputError(
+                f"maze family {self.name!r}: unknown parameter {unknown[0]!r} (known: "
+                f"{', '.join(parameter_names())})"
+            )
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The parameters as JSON-ready values (recorded with every maze the family gives)."""
+        out = dataclasses.asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+
+
+def parameter_names() -> list[str]:
+    """The parameters a family takes (besides its name and doc)."""
+    return [f.name for f in dataclasses.fields(Family) if f.name not in ("name", "doc")]
+
+
+#: The named families.
+FAMILIES: dict[str, Family] = {
+    f.name: f
+    for f in (
+        Family(
+            "grid",
+            "no tiles: the wall followers and the rules beyond them",
+        ),
+        Family(
+            "tiles2",
+            "the paper's two tile kinds: one colour right, two colours left",
+            size=(15, 21),
+            tile_kinds=(1, 2),
+            rules=("right", "left"),
+            first_rules=("right", "left"),
+            tile_rules=("right", "left"),
+        ),
+        Family(
+            "tiles3",
+            "three tile kinds: one colour right, two left, three straight-right",
+            size=(15, 23),
+            tile_kinds=(1, 2, 3),
+            rules=("right", "left", "straight-right", "straight-left"),
+            first_rules=("right", "left"),
+            tile_rules=("right", "left", "straight-right"),
+        ),
+    )
+}
+
+
+def family(name: str) -> Family:
+    """The named family, or one line listing the names."""
+    try:
+        return FAMILIES[name]
+    except KeyError:
+        raise MbnInputError(
+            f"unknown maze family {name!r} (known: {', '.join(FAMILIES)})"
+        ) from None
+
+
+# --------------------------------------------------------------------------------------------
+# Splits and names
+# --------------------------------------------------------------------------------------------
+
+
+def split_seeds(split: str, first: int | None = None, last: int | None = None) -> list[int]:
+    """The generator seeds of ``split``, or its members ``first`` .. ``last`` (0-based,
+    inclusive). The train split is open-ended: it needs both."""
+    if split not in SPLITS:
+        raise MbnInputError(f"unknown split {split!r} (known: {', '.join(SPLITS)})")
+    seeds = SPLITS[split]
+    if first is None:
+        if split == "train":
+            raise MbnInputError("the train split is open-ended: name a range (train:0-99)")
+        return list(seeds)
+    last = first if last is None else last
+    if not 0 <= first <= last < len(seeds):
+        raise MbnInputError(
+            f"split {split!r}: members {first}-{last} out of range (0-{len(seeds) - 1})"
+        )
+    return list(seeds[first : last + 1])
+
+
+def split_of(seed: int) -> str:
+    """The split a generator seed belongs to (one line if none)."""
+    for name, seeds in SPLITS.items():
+        if seed in seeds:
+            return name
+    raise MbnInputError(
+        f"maze seed {seed} is in no split (train {_span(SPLITS['train'])}, validation "
+        f"{_span(SPLITS['validation'])}, test {_span(SPLITS['test'])})"
+    )
+
+
+def _span(r: range) -> str:
+    return f"{r.start}-{r.stop - 1}"
+
+
+def check_use(seeds: Iterable[int], use: str, where: str = "") -> None:
+    """Refuse, in one line, a seed used for ``use`` (``train``, ``validation`` or ``test``)
+    outside the splits that allow it: a test seed is only ever a test, a validation seed never
+    trains."""
+    if use not in ("train", "validation", "test"):
+        raise ValueError(f"use must be train, validation or test, got {use!r}")
+    prefix = f"{where}: " if where else ""
+    for seed in seeds:
+        split = split_of(int(seed))
+        if use not in _USES[split]:
+            raise MbnInputError(
+                f"{prefix}maze seed {seed} is in the {split} split, and {use} may not use it"
+                + (" (a test maze is only ever a test)" if split == "test" else "")
+            )
+
+
+@dataclass(frozen=True)
+class MazeName:
+    """A parsed generated-maze name: one maze (``seeds`` of length 1, ``split`` None) or a split
+    (or part of one)."""
+
+    family: str
+    seeds: tuple[int, ...]
+    split: str | None
+
+    @property
+    def text(self) -> str:
+        """The name, written back (``grid:7``, ``grid/test``, ``grid/validation:0-9``)."""
+        if self.split is None:
+            return f"{self.family}:{self.seeds[0]}"
+        seeds = SPLITS[self.split]
+        if len(self.seeds) == len(seeds):
+            return f"{self.family}/{self.split}"
+        first, last = self.seeds[0] - seeds.start, self.seeds[-1] - seeds.start
+        return f"{self.family}/{self.split}:{first}-{last}"
+
+
+_ONE = re.compile(r"^([a-z][a-z0-9_]*):(\d+)$")
+_SPLIT = re.compile(r"^([a-z][a-z0-9_]*)/([a-z]+)(?::(\d+)(?:-(\d+))?)?$")
+
+
+def parse_name(text: str) -> MazeName | None:
+    """The generated maze(s) ``text`` names (``FAMILY:SEED``, ``FAMILY/SPLIT``,
+    ``FAMILY/SPLIT:A-B``), None when it has neither form (a file or a built-in name), or one
+    line saying what is wrong (an unknown family or split, a range out of the split)."""
+    one, many = _ONE.match(text), _SPLIT.match(text)
+    if one is None and many is None:
+        return None
+    name = (one or many).group(1)  # type: ignore[union-attr]
+    family(name)  # refuses an unknown family
+    if one is not None:
+        seed = int(one.group(2))
+        split_of(seed)  # refuses a seed outside every split
+        return MazeName(name, (seed,), None)
+    assert many is not None
+    split = many.group(2)
+    first = None if many.group(3) is None else int(many.group(3))
+    last = None if many.group(4) is None else int(many.group(4))
+    return MazeName(name, tuple(split_seeds(split, first, last)), split)
+
+
+# --------------------------------------------------------------------------------------------
+# The generator
+# --------------------------------------------------------------------------------------------
+
+
+def _lines(rng: np.random.Generator, extent: int, gap: tuple[int, int]) -> list[int]:
+    """Lattice line positions 1 .. extent - 2 with drawn gaps (the last line at the last
+    position the gaps reach)."""
+    lines = [1]
+    while True:
+        step = int(rng.integers(gap[0], gap[1] + 1))
+        if lines[-1] + step > extent - 2:
+            return lines
+        lines.append(lines[-1] + step)
+
+
+def lattice_grid(fam: Family, rng: np.random.Generator) -> np.ndarray:
+    """A free-cell mask ``(R, C)`` (row 0 north) of corridors along a lattice with segments
+    knocked out (see the module docstring); connected."""
+    cols = int(rng.integers(fam.size[0], fam.size[1] + 1))
+    rows = int(rng.integers(fam.size[0], fam.size[1] + 1))
+    xs, ys = _lines(rng, cols, fam.gap), _lines(rng, rows, fam.gap)
+    if len(xs) < 2 or len(ys) < 2:
+        raise _RetryError("the lattice has fewer than two lines each way")
+    cols, rows = xs[-1] + 2, ys[-1] + 2
+    # nodes (i, j) at (ys[i], xs[j]); segments between neighbouring nodes
+    segments = [((i, j), (i, j + 1)) for i in range(len(ys)) for j in range(len(xs) - 1)]
+    segments += [((i, j), (i + 1, j)) for i in range(len(ys) - 1) for j in range(len(xs))]
+    kept = set(range(len(segments)))
+    degree: dict[tuple[int, int], int] = {}
+    for a, b in segments:
+        degree[a] = degree.get(a, 0) + 1
+        degree[b] = degree.get(b, 0) + 1
+    for k in rng.permutation(len(segments)):
+        if rng.random() >= fam.remove:
+            continue
+        a, b = segments[int(k)]
+        if degree[a] == 1 or degree[b] == 1:
+            continue  # it would leave a node cut off
+        if (degree[a] == 2 or degree[b] == 2) and rng.random() >= fam.dead_ends:
+            continue  # it would leave a dead end
+        if not _connected_without(segments, kept - {int(k)}):
+            continue
+        kept.discard(int(k))
+        degree[a] -= 1
+        degree[b] -= 1
+    free = np.zeros((rows, cols), dtype=bool)
+    for k in kept:
+        (i0, j0), (i1, j1) = segments[k]
+        free[ys[i0] : ys[i1] + 1, xs[j0] : xs[j1] + 1] = True
+    return free
+
+
+def _connected_without(segments: list, kept: set[int]) -> bool:
+    """Whether the nodes stay connected by the ``kept`` segments."""
+    adjacency: dict[tuple[int, int], list[tuple[int, int]]] = {}
+    for k in kept:
+        a, b = segments[k]
+        adjacency.setdefault(a, []).append(b)
+        adjacency.setdefault(b, []).append(a)
+    nodes = {n for s in segments for n in s}
+    if set(adjacency) != nodes:
+        return False
+    start = next(iter(adjacency))
+    seen, stack = {start}, [start]
+    while stack:
+        for n in adjacency[stack.pop()]:
+            if n not in seen:
+                seen.add(n)
+                stack.append(n)
+    return len(seen) == len(nodes)
+
+
+class _RetryError(Exception):
+    """An attempt that failed a check (the reason); :func:`generate` draws again."""
+
+
+def _neighbours(free: np.ndarray) -> np.ndarray:
+    rows, cols = free.shape
+    padded = np.pad(free, 1, constant_values=False)
+    out = np.empty((rows, cols, 4), dtype=bool)
+    for h, (dr, dc) in enumerate(_STEP):
+        out[..., h] = padded[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
+    return out
+
+
+def _straight(free: np.ndarray) -> np.ndarray:
+    """Straight corridor cells: free, exactly two free neighbours, opposite."""
+    nb = _neighbours(free)
+    count = nb.sum(-1)
+    return free & (count == 2) & ((nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W]))
+
+
+def _run_to_end(free: np.ndarray, r: int, c: int, h: int) -> int:
+    """Straight corridor cells from ``(r, c)`` (excluded) in direction ``h`` up to the first cell
+    that is not one (the corridor's end: a decision cell or a dead end)."""
+    straight = _straight(free)
+    n = 0
+    dr, dc = _STEP[h]
+    r, c = r + dr, c + dc
+    while 0 <= r < free.shape[0] and 0 <= c < free.shape[1] and straight[r, c]:
+        n += 1
+        r, c = r + dr, c + dc
+    return n
+
+
+def place_tiles(
+    fam: Family, free: np.ndarray, rng: np.random.Generator
+) -> dict[tuple[int, int], tuple[int, str]]:
+    """Tile cells ``{(row, col): (colours, where)}``, ``where`` ``"d=K"`` (K cells before a T or
+    plus crossing) or ``"mid"`` (the middle of a corridor); no two tiles side by side."""
+    nb = _neighbours(free)
+    count = nb.sum(-1)
+    straight = _straight(free)
+    junction_cells = [tuple(map(int, rc)) for rc in np.argwhere(free & (count >= 3))]
+    tiles: dict[tuple[int, int], tuple[int, str]] = {}
+
+    def allowed(r: int, c: int) -> bool:
+        if not straight[r, c] or (r, c) in tiles:
+            return False
+        return all((r + dr, c + dc) not in tiles for dr, dc in _STEP)
+
+    for kind in fam.tile_kinds:
+        for k in range(fam.near_tiles):
+            d = k % (fam.reach + 1)
+            options = []
+            for r, c in junction_cells:
+                for h in range(4):
+                    if not nb[r, c, h]:
+                        continue
+                    dr, dc = _STEP[h]
+                    cells = [(r + dr * (i + 1), c + dc * (i + 1)) for i in range(d + 1)]
+                    if all(
+                        0 <= rr < free.shape[0] and 0 <= cc < free.shape[1] and straight[rr, cc]
+                        for rr, cc in cells
+                    ) and allowed(*cells[-1]):
+                        options.append(cells[-1])
+            if not options:
+                raise _RetryError(
+                    f"no corridor cell {d} cells before a junction for a {kind}-colour tile"
+                )
+            tiles[options[int(rng.integers(len(options)))]] = (kind, f"d={d}")
+        for _ in range(fam.mid_tiles):
+            options = [
+                (int(r), int(c))
+                for r, c in np.argwhere(straight)
+                if allowed(int(r), int(c))
+                and min(
+                    _run_to_end(free, int(r), int(c), h) for h in range(4) if nb[int(r), int(c), h]
+                )
+                >= MID_CORRIDOR
+            ]
+            if not options:
+                raise _RetryError(f"no corridor long enough for a mid-corridor {kind}-colour tile")
+            tiles[options[int(rng.integers(len(options)))]] = (kind, "mid")
+    return tiles
+
+
+def _grid_text(fam: Family, seed: int, chars: np.ndarray, notes: Sequence[str]) -> str:
+    head = [
+        f"; {fam.name}:{seed}: a generated maze of the family {fam.name!r} ({fam.doc}),",
+        f"; split {split_of(seed)}; made by mbn.world.mazes.families.generate.",
+        *[f"; {n}" for n in notes],
+        f"name = {fam.name}:{seed}",
+        f"cell = {fam.cell:g}",
+    ]
+    return "\n".join([*head, *("".join(row) for row in chars)]) + "\n"
+
+
+def _attempt(fam: Family, seed: int, rng: np.random.Generator) -> tuple[str, Maze]:
+    free = lattice_grid(fam, rng)
+    problems = _structure(free, fam)
+    if problems:
+        raise _RetryError(problems[0])
+    chars = np.where(free, ".", "#").astype("<U1")
+    tiles = place_tiles(fam, free, rng) if fam.tile_kinds else {}
+    for (r, c), (kind, _) in tiles.items():
+        chars[r, c] = str(kind)
+    straight = _straight(free)
+    nb = _neighbours(free)
+    candidates = [
+        (int(r), int(c), h)
+        for r, c in np.argwhere(straight)
+        if (int(r), int(c)) not in tiles
+        for h in range(4)
+        if nb[r, c, h]
+    ]
+    order = rng.permutation(len(candidates))
+    base = parse_maze_text(_grid_text(fam, seed, chars, ()), f"{fam.name}:{seed}")
+    marks: list[tuple[int, int, int]] = []
+    used: set[tuple[int, int]] = set()
+    for k in order:
+        r, c, h = candidates[int(k)]
+        if (r, c) in used:
+            continue
+        pose = ((c + 0.5) * fam.cell, (free.shape[0] - 1 - r + 0.5) * fam.cell, _heading(h))
+        if _judgeable(fam, base, pose):
+            marks.append((r, c, h))
+            used.add((r, c))
+            if len(marks) == fam.starts:
+                break
+    if len(marks) < fam.starts:
+        raise _RetryError(
+            f"only {len(marks)} of {fam.starts} start marks judgeable under every rule"
+        )
+    for r, c, h in marks:
+        chars[r, c] = _MARK[h]
+    notes = []
+    if tiles:
+        where = sorted({w for _, w in tiles.values()}, key=lambda w: (w == "mid", w))
+        notes.append(f"tiles: {len(tiles)} ({', '.join(where)})")
+    text = _grid_text(fam, seed, chars, notes)
+    maze = parse_maze_text(text, f"{fam.name}:{seed}", source=f"{fam.name}:{seed}")
+    problems = check(maze, fam)
+    if problems:
+        raise _RetryError(problems[0])
+    return text, maze
+
+
+def _heading(h: int) -> float:
+    return {_N: np.pi / 2, _E: 0.0, _S: -np.pi / 2, _W: np.pi}[h]
+
+
+def _judgeable(fam: Family, maze: Maze, pose: tuple[float, float, float]) -> bool:
+    for rule in fam.rules:
+        if rule_route(maze, pose, rule, fam.junctions) is None:
+            return False
+    for first in fam.first_rules if fam.tile_kinds else ():
+        route = rule_route(
+            maze,
+            pose,
+            first,
+            fam.junctions,
+            follow_tiles=True,
+            count_from_tile=True,
+            tile_rules=fam.tile_rules,
+        )
+        if route is None:
+            return False
+    return True
+
+
+def _structure(free: np.ndarray, fam: Family) -> list[str]:
+    """What the free-cell mask ``free`` lacks of the family's structure: one-cell corridors,
+    connected, corners, T junctions, plus crossings, and a junction right after a corner (where
+    lines can be 3 cells apart or less), dead ends and loops (where the parameters make them)."""
+    problems: list[str] = []
+    nb = _neighbours(free)
+    count = np.where(free, nb.sum(-1), 0)
+    straight = (nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W])
+    corners = free & (count == 2) & ~straight
+    if np.any(free[1:, 1:] & free[:-1, 1:] & free[1:, :-1] & free[:-1, :-1]):
+        problems.append("a corridor is more than one cell wide")
+    if not _all_connected(free):
+        problems.append("not every free cell is connected")
+    if not corners.any():
+        problems.append("no corner")
+    if not (count == 3).any():
+        problems.append("no T junction")
+    if not (count == 4).any():
+        problems.append("no plus crossing")
+    if fam.dead_ends > 0 and fam.remove > 0 and not (count == 1).any():
+        problems.append("no dead end")
+    if fam.remove < 1 and _loops(free) < 1:
+        problems.append("no loop")
+    if fam.gap[0] <= 3 and not _junction_after_corner(free, corners, count):
+        problems.append("no junction right after a corner (2 cells or fewer)")
+    return problems
+
+
+def _loops(free: np.ndarray) -> int:
+    """Independent loops of a connected free-cell mask: links between free neighbours minus
+    cells plus one."""
+    links = int((free[1:] & free[:-1]).sum() + (free[:, 1:] & free[:, :-1]).sum())
+    return links - int(free.sum()) + 1
+
+
+def check(maze: Maze, fam: Family) -> list[str]:
+    """What ``maze`` lacks to be a maze of ``fam`` (see the module docstring); empty when it is
+    one."""
+    problems = _structure(np.asarray(maze.grid) != "#", fam)
+    for k, start in enumerate(maze.starts, 1):
+        x, y, theta = (float(v) for v in start)
+        if not _judgeable(fam, maze, (x, y, theta)):
+            problems.append(f"start #{k} is not judgeable under every rule in use")
+            break
+    if len(maze.starts) < fam.starts:
+        problems.append(f"{len(maze.starts)} start marks, the family asks for {fam.starts}")
+    if fam.tile_kinds:
+        kinds = {t.colors for t in maze.tiles}
+        missing = sorted(set(fam.tile_kinds) - kinds)
+        if missing:
+            problems.append(f"no tile of {missing[0]} colours")
+        places = tile_places(maze)
+        for kind in fam.tile_kinds:
+            mine = [p for p in places if p["colors"] == kind]
+            for d in sorted({k % (fam.reach + 1) for k in range(fam.near_tiles)}):
+                if not any(d in p["before"] for p in mine):
+                    problems.append(f"no {kind}-colour tile {d} cells before a junction")
+            if sum(p["mid"] for p in mine) < fam.mid_tiles:
+                problems.append(f"fewer than {fam.mid_tiles} mid-corridor {kind}-colour tiles")
+        for first in fam.first_rules:
+            caught = program_swaps_caught(
+                maze, first, fam.junctions, tuple(fam.tile_rules[: max(fam.tile_kinds)])
+            )
+            blind = [key for key, n in caught.items() if n == 0 and key[0] in fam.tile_kinds]
+            if blind:
+                k, w = blind[0]
+                problems.append(
+                    f"from first rule {first}, no start catches the {k}-colour tile's program "
+                    f"swapped for {w}"
+                )
+                break
+    return problems
+
+
+def tile_places(maze: Maze) -> list[dict[str, Any]]:
+    """Where each tile of a grid maze lies, in the order of ``maze.tiles``: ``colors``;
+    ``before``, the distances (free cells between) to the T or plus crossings at the ends of its
+    corridor, one per end that is one; ``mid``, whether it lies at least :data:`MID_CORRIDOR`
+    cells from both ends of its corridor."""
+    from mbn.world.junctions import cell_of
+
+    free = np.asarray(maze.grid) != "#"
+    nb = _neighbours(free)
+    count = np.where(free, nb.sum(-1), 0)
+    out = []
+    for tile in maze.tiles:
+        r, c = cell_of(maze, tile.x, tile.y)
+        before, runs = [], []
+        for h in range(4):
+            if not nb[r, c, h]:
+                continue
+            n = _run_to_end(free, r, c, h)
+            runs.append(n)
+            dr, dc = _STEP[h]
+            end = (r + dr * (n + 1), c + dc * (n + 1))
+            if count[end] >= 3:
+                before.append(n)
+        out.append(
+            {
+                "colors": tile.colors,
+                "before": sorted(before),
+                "mid": bool(runs) and min(runs) >= MID_CORRIDOR and len(runs) == 2,
+            }
+        )
+    return out
+
+
+def _all_connected(free: np.ndarray) -> bool:
+    cells = np.argwhere(free)
+    if len(cells) == 0:
+        return False
+    seen = np.zeros_like(free)
+    stack = [tuple(map(int, cells[0]))]
+    seen[stack[0]] = True
+    while stack:
+        r, c = stack.pop()
+        for dr, dc in _STEP:
+            rr, cc = r + dr, c + dc
+            inside = 0 <= rr < free.shape[0] and 0 <= cc < free.shape[1]
+            if inside and free[rr, cc] and not seen[rr, cc]:
+                seen[rr, cc] = True
+                stack.append((rr, cc))
+    return bool(seen.sum() == free.sum())
+
+
+def _junction_after_corner(free: np.ndarray, corners: np.ndarray, count: np.ndarray) -> bool:
+    """Whether some corner has a T or plus crossing at most 2 cells along one of its arms."""
+    nb = _neighbours(free)
+    for r, c in np.argwhere(corners):
+        for h in range(4):
+            if not nb[r, c, h]:
+                continue
+            dr, dc = _STEP[h]
+            for i in (1, 2):
+                rr, cc = int(r) + dr * i, int(c) + dc * i
+                if not (0 <= rr < free.shape[0] and 0 <= cc < free.shape[1]) or not free[rr, cc]:
+                    break
+                if count[rr, cc] >= 3:
+                    return True
+                if count[rr, cc] != 2:
+                    break
+    return False
+
+
+@functools.lru_cache(maxsize=512)
+def _generate(fam: Family, seed: int) -> tuple[str, Maze]:
+    rng = np.random.default_rng([seed, _FAMILY_SALT.get(fam.name.split("-")[0], 0)])
+    last = ""
+    for _ in range(ATTEMPTS):
+        try:
+            return _attempt(fam, seed, rng)
+        except _RetryError as exc:
+            last = str(exc)
+    raise MbnInputError(
+        f"maze family {fam.name!r}: no valid maze for seed {seed} in {ATTEMPTS} attempts "
+        f"(the last: {last}); the parameters cannot produce one"
+    )
+
+
+#: Mixed into a family's generator seed, so that two families' mazes of one seed differ (a
+#: family with changed parameters, ``grid-custom``, keeps its family's).
+_FAMILY_SALT = {"grid": 1, "tiles2": 2, "tiles3": 3}
+
+
+def generate(fam: Family | str, seed: int) -> Maze:
+    """The maze of ``fam`` (a family or its name) for generator ``seed`` (checked; the same for
+    the same parameters and seed)."""
+    fam = family(fam) if isinstance(fam, str) else fam
+    split_of(seed)
+    return _generate(fam, int(seed))[1]
+
+
+def generate_text(fam: Family | str, seed: int) -> str:
+    """The ``.maze`` text of :func:`generate`'s maze (what ``mbn mazes generate`` writes; read
+    back, it is the same maze)."""
+    fam = family(fam) if isinstance(fam, str) else fam
+    split_of(seed)
+    return _generate(fam, int(seed))[0]
+
+
+def describe(maze: Maze) -> dict[str, Any]:
+    """What a grid maze holds (for tables and records): cells, decision cells by kind, dead
+    ends, loops, tiles by kind, start marks."""
+    free = np.asarray(maze.grid) != "#"
+    nb = free_neighbours(maze)
+    count = nb.sum(-1)
+    decision = decision_cells(maze)
+    return {
+        "name": maze.name,
+        "shape": list(free.shape),
+        "free_cells": int(free.sum()),
+        "corners": int((decision & (count == 2)).sum()),
+        "t_junctions": int((free & (count == 3)).sum()),
+        "plus_crossings": int((free & (count == 4)).sum()),
+        "dead_ends": int((free & (count == 1)).sum()),
+        "loops": _loops(free),
+        "tiles": {str(k): sum(t.colors == k for t in maze.tiles) for k in (1, 2, 3)},
+        "starts": len(maze.starts),
+    }

@@ -1,0 +1,202 @@
+"""Maze families (``mbn.world.mazes.families``): a seeded generator whose every maze is checked,
+three disjoint splits of its seeds, names that load a generated maze or a split, and the test
+split kept out of training and validation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mbn.cli.main import main
+from mbn.errors import MbnInputError
+from mbn.world.junctions import decision_cells, free_neighbours, rule_route
+from mbn.world.mazes import families as fm
+from mbn.world.mazes.grid_text import parse_maze_text
+from mbn.world.mazes.load import load_maze, load_mazes
+
+#: Validation seeds the checks below draw (the test split is only ever a test).
+SAMPLE = range(1_000_000, 1_000_008)
+
+
+@pytest.mark.parametrize("name", list(fm.FAMILIES))
+def test_the_same_seed_gives_the_same_maze_and_others_differ(name):
+    a = fm.generate_text(name, 12)
+    fm._generate.cache_clear()  # made again from scratch, not read from the cache
+    assert fm.generate_text(name, 12) == a
+    assert fm.generate_text(name, 13) != a
+    others = [fm.generate_text(o, 12) for o in fm.FAMILIES if o != name]
+    assert all(_grid_of(o) != _grid_of(a) for o in others)
+
+
+def _grid_of(text: str) -> str:
+    return "\n".join(line for line in text.splitlines() if line and line[0] in "#.")
+
+
+@pytest.mark.parametrize("name", list(fm.FAMILIES))
+def test_every_maze_has_the_familys_structure_and_judgeable_starts(name):
+    """Corners, T junctions, plus crossings, dead ends, loops, a junction within 2 cells of a
+    corner; one-cell corridors, connected; every start judgeable under every rule in use."""
+    fam = fm.family(name)
+    for seed in SAMPLE:
+        maze = fm.generate(name, seed)
+        assert fm.check(maze, fam) == [], (name, seed)
+        info = fm.describe(maze)
+        assert info["corners"] and info["t_junctions"] and info["plus_crossings"]
+        assert info["dead_ends"] >= 1 and info["loops"] >= 1
+        assert info["starts"] == fam.starts
+        free = np.asarray(maze.grid) != "#"
+        assert not np.any(free[1:, 1:] & free[:-1, 1:] & free[1:, :-1] & free[:-1, :-1])
+        for start in maze.starts:
+            for rule in fam.rules:
+                assert rule_route(maze, tuple(start), rule, fam.junctions) is not None
+        # start marks lie on straight corridor cells, facing along them
+        nb = free_neighbours(maze)
+        decision = decision_cells(maze)
+        for x, y, theta in maze.starts:
+            r = maze.grid.shape[0] - 1 - int(y // maze.cell)
+            c = int(x // maze.cell)
+            assert not decision[r, c] and nb[r, c].sum() == 2
+            h = (1 - round(theta / (np.pi / 2))) % 4
+            assert nb[r, c, h]
+
+
+@pytest.mark.parametrize("name", ["tiles2", "tiles3"])
+def test_tiles_lie_at_every_distance_before_a_junction_and_mid_corridor(name):
+    fam = fm.family(name)
+    for seed in SAMPLE:
+        maze = fm.generate(name, seed)
+        places = fm.tile_places(maze)
+        assert {p["colors"] for p in places} == set(fam.tile_kinds)
+        for kind in fam.tile_kinds:
+            mine = [p for p in places if p["colors"] == kind]
+            for d in range(fam.reach + 1):
+                assert any(d in p["before"] for p in mine), (seed, kind, d)
+            assert any(p["mid"] for p in mine), (seed, kind)
+        # every start drives over a tile and then through the judged junctions, from each
+        # first rule, following the tiles
+        for start in maze.starts:
+            for first in fam.first_rules:
+                route = rule_route(
+                    maze,
+                    tuple(start),
+                    first,
+                    fam.junctions,
+                    follow_tiles=True,
+                    count_from_tile=True,
+                    tile_rules=fam.tile_rules,
+                )
+                assert route is not None
+
+
+def test_the_written_text_reads_back_as_the_same_maze():
+    for name in fm.FAMILIES:
+        maze = fm.generate(name, 5)
+        again = parse_maze_text(fm.generate_text(name, 5), "x.maze")
+        np.testing.assert_array_equal(again.grid, maze.grid)
+        np.testing.assert_array_equal(again.starts, maze.starts)
+        assert again.tiles == maze.tiles and again.name == f"{name}:5"
+
+
+def test_the_splits_are_disjoint_and_the_test_split_holds_100_mazes():
+    ranges = list(fm.SPLITS.values())
+    for i, a in enumerate(ranges):
+        for b in ranges[i + 1 :]:
+            assert a.stop <= b.start or b.stop <= a.start
+    assert len(fm.split_seeds("test")) == fm.TEST_SIZE >= 100
+    assert fm.split_of(0) == "train" and fm.split_of(1_000_000) == "validation"
+    assert fm.split_of(2_000_099) == "test"
+
+
+def test_a_test_seed_is_refused_for_training_and_validation():
+    fm.check_use([3, 1_000_001], "validation")
+    fm.check_use([2_000_000], "test")
+    with pytest.raises(
+        MbnInputError,
+        match=r"^lf: maze seed 2000004 is in the test split, and "
+        r"train may not use it \(a test maze is only ever a test\)$",
+    ):
+        fm.check_use([1, 2_000_004], "train", where="lf")
+    with pytest.raises(MbnInputError, match="test split, and validation may not use it"):
+        fm.check_use([2_000_000], "validation")
+    with pytest.raises(MbnInputError, match="validation split, and train may not use it"):
+        fm.check_use([1_000_000], "train")
+    with pytest.raises(MbnInputError, match="in no split"):
+        fm.check_use([5_000_000], "test")
+
+
+def test_names_load_a_generated_maze_or_a_split():
+    maze = load_maze("tiles2:1000003")
+    assert maze.name == "tiles2:1000003" and maze.grid is fm.generate("tiles2", 1_000_003).grid
+    mazes, split = load_mazes("grid/validation:2-4")
+    assert split == "grid/validation:2-4"
+    assert [m.name for m in mazes] == [f"grid:{s}" for s in (1_000_002, 1_000_003, 1_000_004)]
+    assert fm.parse_name("grid/test").text == "grid/test"
+    assert len(fm.parse_name("grid/test").seeds) == fm.TEST_SIZE
+    assert fm.parse_name("fig4") is None and fm.parse_name("runs/a.maze") is None
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ("nope:3", r"unknown maze family 'nope' \(known: grid, tiles2, tiles3\)"),
+        ("grid:3000000", "maze seed 3000000 is in no split"),
+        ("grid/test:0-100", r"split 'test': members 0-100 out of range \(0-99\)"),
+        ("grid/train", r"the train split is open-ended: name a range \(train:0-99\)"),
+        ("grid/other", "unknown split 'other'"),
+        ("grid/test", r"'grid/test' names 100 mazes \(a split\); one maze is needed here"),
+        ("grid-3", "unknown maze 'grid-3': neither a built-in"),
+    ],
+)
+def test_bad_names_are_one_line(spec, message):
+    with pytest.raises(MbnInputError, match=message):
+        load_maze(spec)
+
+
+def test_parameters_that_cannot_make_a_maze_are_refused_in_one_line():
+    with pytest.raises(MbnInputError, match=r"gap must be two integers low <= high"):
+        fm.family("grid").replace(gap=(4, 2))
+    with pytest.raises(MbnInputError, match=r"unknown parameter 'holes'"):
+        fm.family("grid").replace(holes=3)
+    with pytest.raises(MbnInputError, match="tile_rules must name a rule for every tile kind"):
+        fm.family("tiles2").replace(tile_kinds=(1, 2, 3))
+    tiny = fm.family("grid").replace(name="tiny", size=(5, 5))
+    with pytest.raises(
+        MbnInputError,
+        match=r"^maze family 'tiny': no valid maze for seed 7 in "
+        r"200 attempts \(the last: .*\); the parameters cannot produce one$",
+    ):
+        fm.generate(tiny, 7)
+
+
+def test_mbn_mazes_generate_writes_a_maze_file(tmp_path, capsys):
+    out = tmp_path / "t.maze"
+    assert main(["mazes", "generate", "tiles3", "--seed", "9", "--out", str(out)]) == 0
+    assert out.read_text() == fm.generate_text("tiles3", 9)
+    assert "tiles3:9 (train split)" in capsys.readouterr().out
+    assert load_maze(str(out)).tiles == fm.generate("tiles3", 9).tiles
+    big = tmp_path / "big.maze"
+    assert (
+        main(["mazes", "generate", "grid", "--seed", "9", "--set", "size=25,31", "--out", str(big)])
+        == 0
+    )
+    assert load_maze(str(big)).grid.shape[0] > fm.generate("grid", 9).grid.shape[0] - 1
+    assert big.read_text().startswith("; --set size=25,31\n")
+    for argv, message in (
+        (["mazes", "generate", "maze", "--seed", "1"], "unknown maze family 'maze'"),
+        (["mazes", "generate", "grid", "--seed", "1", "--set", "holes=2"], "unknown parameter"),
+        (["mazes", "generate", "grid", "--seed", "1", "--set", "size=5,5"], "no valid maze"),
+    ):
+        bad = tmp_path / "bad.maze"
+        assert main([*argv, "--out", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1
+        assert not bad.exists()
+
+
+def test_mbn_mazes_families_lists_the_families_and_splits(capsys):
+    assert main(["mazes", "families", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data["families"]) == set(fm.FAMILIES)
+    assert data["splits"]["test"] == [2_000_000, 2_000_000 + fm.TEST_SIZE - 1]
