@@ -207,9 +207,10 @@ def _cmd_mazes_generate(args: argparse.Namespace) -> int:
 def _cmd_mazes_families(args: argparse.Namespace) -> int:
     from mbn.world.mazes import families
 
+    splits = {k: [r.start, r.stop - 1] for k, r in families.SPLITS.items()}
     data = {
         "families": {name: f.to_dict() for name, f in families.FAMILIES.items()},
-        "splits": {k: [r.start, r.stop - 1] for k, r in families.SPLITS.items()},
+        "splits": splits,
     }
     if args.json:
         print(json_text(data))
@@ -219,7 +220,7 @@ def _cmd_mazes_families(args: argparse.Namespace) -> int:
         for key, value in fam.to_dict().items():
             if key not in ("name", "doc"):
                 print(f"    {key} = {value}")
-    for split, (a, b) in data["splits"].items():
+    for split, (a, b) in splits.items():
         print(f"split {split}: seeds {a}-{b}")
     return 0
 
