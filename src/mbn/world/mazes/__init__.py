@@ -7,7 +7,10 @@
 * :mod:`~mbn.world.mazes.stage` — Player/Stage ``.world`` files;
 * :mod:`~mbn.world.mazes.builtin` — the built-in mazes;
 * :mod:`~mbn.world.mazes.generate` — generated corridor mazes;
-* :mod:`~mbn.world.mazes.load` — :func:`load_maze`: a built-in name or a file, by its suffix.
+* :mod:`~mbn.world.mazes.families` — maze families: a checked generator and the splits of its
+  seeds;
+* :mod:`~mbn.world.mazes.load` — :func:`load_maze`: a built-in name, a generated maze or a file,
+  by its suffix.
 
 ``Maze`` and ``load_maze`` are importable from here; their modules are imported on first use, so
 importing this package (as every submodule import does) costs nothing.
