@@ -251,7 +251,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from mbn.world.sensors import NoiseConfig, parse_noise
 
     mazes, split = load_mazes(args.maze)
-    maze = as_grid_maze(mazes[0])  # TOML and Stage mazes on a lattice of corridors
+    mazes = [as_grid_maze(m) for m in mazes]  # TOML and Stage mazes on a lattice of corridors
+    maze = mazes[0]
     controller_spec = read_controller_spec(args.controller)
     # the rule each tile kind puts in force: the mbn file's (the paper's: right, left)
     tile_rules = getattr(controller_spec, "tile_rules", None) or ("right", "left")
@@ -338,9 +339,7 @@ def _evaluate_split(
 
     # one time limit for the batch: the longest of the mazes' own (docs/generalization.md)
     seconds = (
-        args.seconds
-        if args.seconds is not None
-        else max(route_seconds(m, spec) for m in mazes)
+        args.seconds if args.seconds is not None else max(route_seconds(m, spec) for m in mazes)
     )
     check_trial_length(loaded, seconds, str(args.controller), limit_name="--seconds")
     spec = dataclasses.replace(spec, seconds=seconds)
@@ -381,7 +380,8 @@ def _evaluate_split(
     what = loaded.kind + (f", program {loaded.program}" if loaded.program else "")
     print(
         f"{args.controller} ({what}) on {split} ({len(mazes)} mazes): behavior "
-        f"{args.behavior}" + (f" (initial {spec.initial})" if args.behavior == "tiles" else "")
+        f"{args.behavior}"
+        + (f" (initial {spec.initial})" if args.behavior == "tiles" else "")
         + f", start marks x {args.repeats}, {args.junctions} junctions, {seconds:g} s"
         + ("" if args.seconds is not None else " (the longest maze's)")
         + (f", noise {_noise_text(noise)}" if noise.enabled else "")

@@ -81,7 +81,12 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     families = mazes_sub.add_parser(
         "families",
         help="the maze families, their parameters and splits",
-        description="The maze families, their parameters, and the generator seeds of the splits.",
+        description="The maze families, their parameters, the generator seeds of the splits, "
+        "and the zero-shot suite (docs/generalization.md).",
+        epilog="examples:\n"
+        "  mbn mazes families          each family's parameters, the splits, the zero-shot suite\n"
+        "  mbn mazes families --json   the same as one JSON object",
+        formatter_class=raw,
     )
     families.add_argument("--json", action="store_true", help="print one JSON object")
     generate.set_defaults(func=_cmd_mazes_generate, precision=NETWORKS, writes="file")
@@ -187,10 +192,13 @@ def _cmd_mazes_generate(args: argparse.Namespace) -> int:
         fam = fam.replace(name=f"{fam.name}-custom", **changes)
     text = families.generate_text(fam, args.seed)
     if changes:
-        text = "".join(
-            f"; --set {k}={','.join(map(str, v)) if isinstance(v, tuple) else v}\n"
-            for k, v in changes.items()
-        ) + text
+        text = (
+            "".join(
+                f"; --set {k}={','.join(map(str, v)) if isinstance(v, tuple) else v}\n"
+                for k, v in changes.items()
+            )
+            + text
+        )
     with atomic_open(args.out) as handle:
         handle.write(text)
     maze = families.generate(fam, args.seed)
@@ -211,6 +219,7 @@ def _cmd_mazes_families(args: argparse.Namespace) -> int:
     data = {
         "families": {name: f.to_dict() for name, f in families.FAMILIES.items()},
         "splits": splits,
+        "zero_shot": {k: list(v) for k, v in families.ZERO_SHOT.items()},
     }
     if args.json:
         print(json_text(data))
@@ -222,6 +231,8 @@ def _cmd_mazes_families(args: argparse.Namespace) -> int:
                 print(f"    {key} = {value}")
     for split, (a, b) in splits.items():
         print(f"split {split}: seeds {a}-{b}")
+    for name, suite in families.ZERO_SHOT.items():
+        print(f"zero-shot suite of {name} ({name}/zero-shot): {', '.join(suite)}")
     return 0
 
 

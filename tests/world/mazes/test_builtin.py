@@ -57,6 +57,15 @@ def test_names_and_descriptions():
         "tiles3",
         "tiles3_heldout",
         "tiles3_validation",
+        "zs_long",
+        "zs_dense",
+        "zs_hall",
+        "zs_spiral",
+        "zs_comb",
+        "zs_stairs",
+        "zs_far_tiles2",
+        "zs_dense_tiles2",
+        "zs_far_tiles3",
     )
     described = describe_builtins()
     assert [name for name, _ in described] == list(BUILTIN_NAMES)

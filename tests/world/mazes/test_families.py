@@ -145,7 +145,7 @@ def test_names_load_a_generated_maze_or_a_split():
         ("grid/test:0-100", r"split 'test': members 0-100 out of range \(0-99\)"),
         ("grid/train", r"the train split is open-ended: name a range \(train:0-99\)"),
         ("grid/other", "unknown split 'other'"),
-        ("grid/test", r"'grid/test' names 100 mazes \(a split\); one maze is needed here"),
+        ("grid/test", r"'grid/test' names 100 mazes; one maze is needed here"),
         ("grid-3", "unknown maze 'grid-3': neither a built-in"),
     ],
 )
@@ -200,3 +200,50 @@ def test_mbn_mazes_families_lists_the_families_and_splits(capsys):
     data = json.loads(capsys.readouterr().out)
     assert set(data["families"]) == set(fm.FAMILIES)
     assert data["splits"]["test"] == [2_000_000, 2_000_000 + fm.TEST_SIZE - 1]
+
+
+def test_the_zero_shot_suite_holds_ten_mazes_judgeable_under_their_familys_rules():
+    names = {n for suite in fm.ZERO_SHOT.values() for n in suite}
+    assert len(names) >= 10
+    for name, suite in fm.ZERO_SHOT.items():
+        fam = fm.family(name)
+        mazes, split = load_mazes(f"{name}/zero-shot")
+        assert split == f"{name}/zero-shot" and [m.name for m in mazes] == list(suite)
+        for maze in mazes:
+            assert len(maze.starts) >= 8, maze.name
+            for start in maze.starts:
+                for rule in fam.rules:
+                    assert rule_route(maze, tuple(start), rule, fam.junctions) is not None
+                for first in fam.first_rules:
+                    assert (
+                        rule_route(
+                            maze,
+                            tuple(start),
+                            first,
+                            fam.junctions,
+                            follow_tiles=True,
+                            count_from_tile=True,
+                            tile_rules=fam.tile_rules,
+                        )
+                        is not None
+                    ), (maze.name, tuple(start), first)
+
+
+def test_the_zero_shot_files_are_what_the_script_makes():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(root / "scripts" / "make_zero_shot.py"),
+            "--check",
+            "--out",
+            str(root / "src" / "mbn" / "data" / "mazes"),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr

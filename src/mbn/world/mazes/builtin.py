@@ -14,6 +14,8 @@
 * ``tiles3``, ``tiles3_heldout`` and ``tiles3_validation``: lattices of corridors with tiles of
   one, two and three colours, for rules beyond right and left; ``tiles3_heldout`` is kept out
   of training and choices, ``tiles3_validation`` out of every test.
+* ``zs_*``: the zero-shot suite (:data:`mbn.world.mazes.families.ZERO_SHOT`), hand-made mazes
+  unlike the generated ones (``scripts/make_zero_shot.py``), only ever a test.
 """
 
 from __future__ import annotations
@@ -235,6 +237,15 @@ _DESCRIPTIONS: dict[str, str] = {
     "tiles3": "test maze with one-, two- and three-colour tiles: plus, T and L, 11 starts",
     "tiles3_heldout": "a second maze with three kinds of tile, kept out of training: 11 starts",
     "tiles3_validation": "a maze with three kinds of tile used by no test (to choose): 11 starts",
+    "zs_long": "zero-shot: long corridors (up to 16 cells between junctions), 10 starts",
+    "zs_dense": "zero-shot: a lattice of one-cell pillars, plus crossings everywhere, 10 starts",
+    "zs_hall": "zero-shot: a pillared hall crossed by four long corridors, 10 starts",
+    "zs_spiral": "zero-shot: a double spiral, corner after corner, 10 starts",
+    "zs_comb": "zero-shot: a loop with a comb of short dead ends, 10 starts",
+    "zs_stairs": "zero-shot: a staircase of corners beside a long loop, 10 starts",
+    "zs_far_tiles2": "zero-shot: long corridors, tiles 4+ cells before junctions, 10 starts",
+    "zs_dense_tiles2": "zero-shot: the pillared lattice with one- and two-colour tiles, 10 starts",
+    "zs_far_tiles3": "zero-shot: long corridors, three tile kinds far from junctions, 10 starts",
 }
 
 #: The built-in mazes shipped as ``.maze`` files in ``mbn/data/mazes``.
@@ -246,6 +257,15 @@ _PACKAGED = (
     "tiles3",
     "tiles3_heldout",
     "tiles3_validation",
+    "zs_long",
+    "zs_dense",
+    "zs_hall",
+    "zs_spiral",
+    "zs_comb",
+    "zs_stairs",
+    "zs_far_tiles2",
+    "zs_dense_tiles2",
+    "zs_far_tiles3",
 )
 
 #: Names :func:`builtin_maze` knows, in order.

@@ -39,7 +39,8 @@ training or validation.
 
 **Names** (:func:`parse_name`): ``FAMILY:SEED`` is one maze (``tiles2:2000007``);
 ``FAMILY/SPLIT`` a whole split (``grid/test``), ``FAMILY/SPLIT:A-B`` the split's mazes ``A`` to
-``B`` (0-based, inclusive: ``grid/validation:0-9``). :func:`mbn.world.mazes.load.load_maze`
+``B`` (0-based, inclusive: ``grid/validation:0-9``); ``FAMILY/zero-shot`` the family's mazes of
+the zero-shot suite (:data:`ZERO_SHOT`, hand-made built-ins). :func:`mbn.world.mazes.load.load_maze`
 takes a single maze's name; ``mbn evaluate --maze`` takes a split too.
 """
 
@@ -69,7 +70,9 @@ __all__ = [
     "FAMILIES",
     "MID_CORRIDOR",
     "SPLITS",
+    "START_MARKS",
     "TEST_SIZE",
+    "ZERO_SHOT",
     "Family",
     "MazeName",
     "check",
@@ -79,9 +82,13 @@ __all__ = [
     "generate",
     "generate_text",
     "lattice_grid",
+    "neighbours",
     "parse_name",
+    "place_starts",
     "place_tiles",
+    "run_to_end",
     "split_seeds",
+    "straight_cells",
     "tile_places",
 ]
 
@@ -99,12 +106,21 @@ SPLITS: dict[str, range] = {
     "validation": range(1_000_000, 1_000_000 + 100),
     "test": range(2_000_000, 2_000_000 + TEST_SIZE),
 }
+#: The zero-shot suite (``docs/generalization.md``): hand-made built-in mazes unlike the
+#: generator's output, by the family whose rules every start mark of them is judgeable under.
+#: Only ever a test, reported apart from the test split; ``FAMILY/zero-shot`` names them.
+ZERO_SHOT: dict[str, tuple[str, ...]] = {
+    "grid": ("zs_long", "zs_dense", "zs_hall", "zs_spiral", "zs_comb", "zs_stairs"),
+    "tiles2": ("fig4", "heldout", "zs_far_tiles2", "zs_dense_tiles2"),
+    "tiles3": ("tiles3_heldout", "zs_far_tiles3"),
+}
 #: What each split may be used for (:func:`check_use`).
 _USES = {"train": ("train", "validation"), "validation": ("validation",), "test": ("test",)}
 
 _N, _E, _S, _W = range(4)
 _STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))  # (d_row, d_col) of N E S W; row 0 is north
-_MARK = {_N: "^", _E: ">", _S: "v", _W: "<"}
+#: The ``.maze`` start mark facing each compass direction (index N E S W).
+START_MARKS = {_N: "^", _E: ">", _S: "v", _W: "<"}
 
 
 @dataclass(frozen=True)
@@ -329,12 +345,15 @@ class MazeName:
     family: str
     seeds: tuple[int, ...]
     split: str | None
+    builtins: tuple[str, ...] = ()
 
     @property
     def text(self) -> str:
         """The name, written back (``grid:7``, ``grid/test``, ``grid/validation:0-9``)."""
         if self.split is None:
             return f"{self.family}:{self.seeds[0]}"
+        if self.split == "zero-shot":
+            return f"{self.family}/zero-shot"
         seeds = SPLITS[self.split]
         if len(self.seeds) == len(seeds):
             return f"{self.family}/{self.split}"
@@ -343,7 +362,7 @@ class MazeName:
 
 
 _ONE = re.compile(r"^([a-z][a-z0-9_]*):(\d+)$")
-_SPLIT = re.compile(r"^([a-z][a-z0-9_]*)/([a-z]+)(?::(\d+)(?:-(\d+))?)?$")
+_SPLIT = re.compile(r"^([a-z][a-z0-9_]*)/([a-z-]+)(?::(\d+)(?:-(\d+))?)?$")
 
 
 def parse_name(text: str) -> MazeName | None:
@@ -361,6 +380,10 @@ def parse_name(text: str) -> MazeName | None:
         return MazeName(name, (seed,), None)
     assert many is not None
     split = many.group(2)
+    if split == "zero-shot":
+        if many.group(3) is not None:
+            raise MbnInputError(f"{text!r}: the zero-shot suite is named whole ({name}/zero-shot)")
+        return MazeName(name, (), "zero-shot", ZERO_SHOT[name])
     first = None if many.group(3) is None else int(many.group(3))
     last = None if many.group(4) is None else int(many.group(4))
     return MazeName(name, tuple(split_seeds(split, first, last)), split)
@@ -439,11 +462,13 @@ def _connected_without(segments: list, kept: set[int]) -> bool:
     return len(seen) == len(nodes)
 
 
-class _RetryError(Exception):
+class _RetryError(MbnInputError):
     """An attempt that failed a check (the reason); :func:`generate` draws again."""
 
 
-def _neighbours(free: np.ndarray) -> np.ndarray:
+def neighbours(free: np.ndarray) -> np.ndarray:
+    """``(R, C, 4)`` bool: whether each cell's neighbour to the N, E, S, W is free in the
+    free-cell mask ``free`` (outside it is wall)."""
     rows, cols = free.shape
     padded = np.pad(free, 1, constant_values=False)
     out = np.empty((rows, cols, 4), dtype=bool)
@@ -452,17 +477,18 @@ def _neighbours(free: np.ndarray) -> np.ndarray:
     return out
 
 
-def _straight(free: np.ndarray) -> np.ndarray:
-    """Straight corridor cells: free, exactly two free neighbours, opposite."""
-    nb = _neighbours(free)
+def straight_cells(free: np.ndarray) -> np.ndarray:
+    """Straight corridor cells of the free-cell mask ``free``: free, exactly two free
+    neighbours, opposite."""
+    nb = neighbours(free)
     count = nb.sum(-1)
     return free & (count == 2) & ((nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W]))
 
 
-def _run_to_end(free: np.ndarray, r: int, c: int, h: int) -> int:
+def run_to_end(free: np.ndarray, r: int, c: int, h: int) -> int:
     """Straight corridor cells from ``(r, c)`` (excluded) in direction ``h`` up to the first cell
     that is not one (the corridor's end: a decision cell or a dead end)."""
-    straight = _straight(free)
+    straight = straight_cells(free)
     n = 0
     dr, dc = _STEP[h]
     r, c = r + dr, c + dc
@@ -477,9 +503,9 @@ def place_tiles(
 ) -> dict[tuple[int, int], tuple[int, str]]:
     """Tile cells ``{(row, col): (colours, where)}``, ``where`` ``"d=K"`` (K cells before a T or
     plus crossing) or ``"mid"`` (the middle of a corridor); no two tiles side by side."""
-    nb = _neighbours(free)
+    nb = neighbours(free)
     count = nb.sum(-1)
-    straight = _straight(free)
+    straight = straight_cells(free)
     junction_cells = [tuple(map(int, rc)) for rc in np.argwhere(free & (count >= 3))]
     tiles: dict[tuple[int, int], tuple[int, str]] = {}
 
@@ -514,7 +540,7 @@ def place_tiles(
                 for r, c in np.argwhere(straight)
                 if allowed(int(r), int(c))
                 and min(
-                    _run_to_end(free, int(r), int(c), h) for h in range(4) if nb[int(r), int(c), h]
+                    run_to_end(free, int(r), int(c), h) for h in range(4) if nb[int(r), int(c), h]
                 )
                 >= MID_CORRIDOR
             ]
@@ -524,14 +550,17 @@ def place_tiles(
     return tiles
 
 
-def _grid_text(fam: Family, seed: int, chars: np.ndarray, notes: Sequence[str]) -> str:
-    head = [
-        f"; {fam.name}:{seed}: a generated maze of the family {fam.name!r} ({fam.doc}),",
-        f"; split {split_of(seed)}; made by mbn.world.mazes.families.generate.",
-        *[f"; {n}" for n in notes],
-        f"name = {fam.name}:{seed}",
-        f"cell = {fam.cell:g}",
-    ]
+def _grid_text(fam: Family, seed: int | None, chars: np.ndarray, notes: Sequence[str]) -> str:
+    if seed is None:  # a grid being built
+        head = [f"name = {fam.name}", f"cell = {fam.cell:g}"]
+    else:
+        head = [
+            f"; {fam.name}:{seed}: a generated maze of the family {fam.name!r} ({fam.doc}),",
+            f"; split {split_of(seed)}; made by mbn.world.mazes.families.generate.",
+            *[f"; {n}" for n in notes],
+            f"name = {fam.name}:{seed}",
+            f"cell = {fam.cell:g}",
+        ]
     return "\n".join([*head, *("".join(row) for row in chars)]) + "\n"
 
 
@@ -544,17 +573,39 @@ def _attempt(fam: Family, seed: int, rng: np.random.Generator) -> tuple[str, Maz
     tiles = place_tiles(fam, free, rng) if fam.tile_kinds else {}
     for (r, c), (kind, _) in tiles.items():
         chars[r, c] = str(kind)
-    straight = _straight(free)
-    nb = _neighbours(free)
+    for r, c, h in place_starts(fam, chars, rng, f"{fam.name}:{seed}"):
+        chars[r, c] = START_MARKS[h]
+    notes = []
+    if tiles:
+        where = sorted({w for _, w in tiles.values()}, key=lambda w: (w == "mid", w))
+        notes.append(f"tiles: {len(tiles)} ({', '.join(where)})")
+    text = _grid_text(fam, seed, chars, notes)
+    maze = parse_maze_text(text, f"{fam.name}:{seed}", source=f"{fam.name}:{seed}")
+    problems = check(maze, fam)
+    if problems:
+        raise _RetryError(problems[0])
+    return text, maze
+
+
+def place_starts(
+    fam: Family, chars: np.ndarray, rng: np.random.Generator, where: str = "<maze>"
+) -> list[tuple[int, int, int]]:
+    """``fam.starts`` start marks ``(row, col, heading index N E S W)`` for the grid ``chars``
+    (``#`` wall, ``.`` free, digits tiles): straight corridor cells without a tile, facing along
+    the corridor, drawn in a random order (``rng``) and each kept when it is judgeable under
+    every rule of ``fam`` (at most one mark a cell). Too few judgeable cells: a retry."""
+    free = chars != "#"
+    straight = straight_cells(free)
+    nb = neighbours(free)
     candidates = [
         (int(r), int(c), h)
         for r, c in np.argwhere(straight)
-        if (int(r), int(c)) not in tiles
+        if chars[r, c] == "."
         for h in range(4)
         if nb[r, c, h]
     ]
     order = rng.permutation(len(candidates))
-    base = parse_maze_text(_grid_text(fam, seed, chars, ()), f"{fam.name}:{seed}")
+    base = parse_maze_text(_grid_text(fam, None, chars, ()), where)
     marks: list[tuple[int, int, int]] = []
     used: set[tuple[int, int]] = set()
     for k in order:
@@ -566,23 +617,8 @@ def _attempt(fam: Family, seed: int, rng: np.random.Generator) -> tuple[str, Maz
             marks.append((r, c, h))
             used.add((r, c))
             if len(marks) == fam.starts:
-                break
-    if len(marks) < fam.starts:
-        raise _RetryError(
-            f"only {len(marks)} of {fam.starts} start marks judgeable under every rule"
-        )
-    for r, c, h in marks:
-        chars[r, c] = _MARK[h]
-    notes = []
-    if tiles:
-        where = sorted({w for _, w in tiles.values()}, key=lambda w: (w == "mid", w))
-        notes.append(f"tiles: {len(tiles)} ({', '.join(where)})")
-    text = _grid_text(fam, seed, chars, notes)
-    maze = parse_maze_text(text, f"{fam.name}:{seed}", source=f"{fam.name}:{seed}")
-    problems = check(maze, fam)
-    if problems:
-        raise _RetryError(problems[0])
-    return text, maze
+                return marks
+    raise _RetryError(f"only {len(marks)} of {fam.starts} start marks judgeable under every rule")
 
 
 def _heading(h: int) -> float:
@@ -613,7 +649,7 @@ def _structure(free: np.ndarray, fam: Family) -> list[str]:
     connected, corners, T junctions, plus crossings, and a junction right after a corner (where
     lines can be 3 cells apart or less), dead ends and loops (where the parameters make them)."""
     problems: list[str] = []
-    nb = _neighbours(free)
+    nb = neighbours(free)
     count = np.where(free, nb.sum(-1), 0)
     straight = (nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W])
     corners = free & (count == 2) & ~straight
@@ -690,7 +726,7 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
     from mbn.world.junctions import cell_of
 
     free = np.asarray(maze.grid) != "#"
-    nb = _neighbours(free)
+    nb = neighbours(free)
     count = np.where(free, nb.sum(-1), 0)
     out = []
     for tile in maze.tiles:
@@ -699,7 +735,7 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
         for h in range(4):
             if not nb[r, c, h]:
                 continue
-            n = _run_to_end(free, r, c, h)
+            n = run_to_end(free, r, c, h)
             runs.append(n)
             dr, dc = _STEP[h]
             end = (r + dr * (n + 1), c + dc * (n + 1))
@@ -735,7 +771,7 @@ def _all_connected(free: np.ndarray) -> bool:
 
 def _junction_after_corner(free: np.ndarray, corners: np.ndarray, count: np.ndarray) -> bool:
     """Whether some corner has a T or plus crossing at most 2 cells along one of its arms."""
-    nb = _neighbours(free)
+    nb = neighbours(free)
     for r, c in np.argwhere(corners):
         for h in range(4):
             if not nb[r, c, h]:

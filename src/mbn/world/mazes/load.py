@@ -45,9 +45,10 @@ def load_maze(spec: str | os.PathLike[str]) -> Maze:
         name = families.parse_name(spec)
         if name is not None:
             if name.split is not None:
+                count = len(name.seeds) or len(name.builtins)
                 raise MbnInputError(
-                    f"{spec!r} names {len(name.seeds)} mazes (a split); one maze is needed "
-                    f"here: {name.family}:SEED (e.g. {name.family}:{name.seeds[0]})"
+                    f"{spec!r} names {count} mazes; one maze is needed here: a generated one, "
+                    f"{name.family}:SEED, or a built-in by name"
                 )
             return families.generate(name.family, name.seeds[0])
     path = Path(spec)
@@ -78,6 +79,8 @@ def load_mazes(spec: str | os.PathLike[str]) -> tuple[list[Maze], str | None]:
         from mbn.world.mazes import families
 
         name = families.parse_name(spec)
+        if name is not None and name.split == "zero-shot":
+            return [builtin_maze(n) for n in name.builtins], name.text
         if name is not None and name.split is not None:
             return [families.generate(name.family, s) for s in name.seeds], name.text
     return [load_maze(spec)], None
