@@ -527,6 +527,7 @@ def test_mbn_initial_round_trip_and_files_without_it_start_at_rest(tmp_path, sta
     assert "initial" not in json.loads((tmp_path / "again.json").read_text())["program_module"]
 
 
+@pytest.mark.slow
 def test_an_mbn_started_as_rf_drives_as_the_interpreter_with_rfs_program_before_a_tile(
     started_mbn, interpreter_spec
 ):

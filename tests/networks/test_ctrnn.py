@@ -186,7 +186,7 @@ def test_substeps_equal_smaller_steps():
     np.testing.assert_allclose(np.asarray(y_sub), np.asarray(y_fine), rtol=1e-13)
 
 
-@pytest.mark.parametrize("n", [3, 12])
+@pytest.mark.parametrize("n", [3, pytest.param(12, marks=pytest.mark.slow)])
 def test_euler_steps_mapped_over_a_batch_equal_euler_steps_one_by_one(n):
     """``euler_steps`` under ``jax.vmap``: a held network (integrated neuron-major), a batched
     one (mapped ``euler_step``), inputs batched or held, a state held, and a vmap inside a vmap

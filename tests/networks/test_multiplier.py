@@ -176,6 +176,7 @@ def test_bptt_training_reduces_the_error():
     assert isinstance(mul, Multiplier)
 
 
+@pytest.mark.slow
 def test_training_is_deterministic():
     cfg = TrainConfig(num_restarts=4, num_iterations=50, num_validation=20)
     a, _ = train(jax.random.key(3), cfg)

@@ -163,7 +163,7 @@ def _plus_of_widths(dx: float, dy: float) -> Maze:
     return as_grid_maze(maze)
 
 
-@pytest.mark.parametrize("turn", ["left", "right"])
+@pytest.mark.parametrize("turn", [pytest.param("left", marks=pytest.mark.slow), "right"])
 def test_a_grid_of_several_widths_is_tracked_like_the_trajectory_analysis_wherever_it_lies(turn):
     """A robot in the plus crossing of 3.7 m arms (at the origin and far from it) and one in the
     built-in crossroad, in one batch, make the same pass, as the trajectory analysis sees it."""

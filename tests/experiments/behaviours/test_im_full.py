@@ -1,5 +1,7 @@
 """Tests of the ``im_full`` stage of ``mbn run new-behaviours``: the fully programmable
-interpreter built from a run's RF, its file, its tests and the agreement curve."""
+interpreter built from a run's RF, its file, its tests and the agreement curve. The tests on
+the stage's run are slow (left out of CI, run with ``pytest -m slow``); the stage's helpers are
+checked in CI."""
 
 from __future__ import annotations
 
@@ -52,6 +54,7 @@ def test_settings_refuse_bad_connections():
     assert (IMFullSettings().tau_ratio, IMFullSettings().substeps) == (0.025, 80)
 
 
+@pytest.mark.slow
 def test_im_full_writes_a_programmable_interpreter_of_rf(im_full_run):
     rundir, data, conns = im_full_run
     spec = read_controller_spec(rundir.controller_file("im_full"))
@@ -71,6 +74,7 @@ def test_im_full_writes_a_programmable_interpreter_of_rf(im_full_run):
     np.testing.assert_allclose(decoded, [c.value(lf) for c in interp.connections], atol=1e-5)
 
 
+@pytest.mark.slow
 def test_im_full_records_tests_agreement_and_the_curve(im_full_run):
     _, data, conns = im_full_run
     for short in ("rf", "lf"):

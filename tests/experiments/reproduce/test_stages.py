@@ -83,6 +83,7 @@ def test_a_stage_whose_needs_are_missing_is_refused(quick_run, tmp_path, name):
         run_stage(REPRODUCE, rundir, name, seed=seed, config=config)
 
 
+@pytest.mark.slow
 def test_the_report_renders_from_the_folder_alone_without_simulating(
     quick_run, tmp_path, monkeypatch
 ):

@@ -23,6 +23,7 @@ def _script():
     return module
 
 
+@pytest.mark.slow
 def test_the_script_places_tiles3_as_shipped(capsys: pytest.CaptureFixture[str]):
     assert _script().main(["tiles3", "--seed", "0"]) == 0
     printed = capsys.readouterr()
