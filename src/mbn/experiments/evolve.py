@@ -34,11 +34,15 @@ from mbn.control.ctrnn import (
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState, ask, init, initialize_fitness, tell
 from mbn.experiments.crossroads import CrossroadTask, TaskArrays, episode_fitness, paper_terms
+from mbn.experiments.maze_task import MazeTask, maze_episode_fitness
 from mbn.host import put
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.paper import DEFAULT_TAU
 from mbn.world.rollout import EpisodeStats, count_robot_steps, own_tally, rollout, tally_of
+
+#: A training task: the paper's crossroads, or episodes in mazes of a family.
+Task = CrossroadTask | MazeTask
 
 __all__ = [
     "FITNESS_PARTS",
@@ -136,7 +140,7 @@ def evaluate_networks(
     WE: Array,
     tau: float,
     arrays: TaskArrays,
-    task: CrossroadTask,
+    task: Task,
     substeps: int = NETWORK_SUBSTEPS,
     poses: Array | None = None,
 ) -> EpisodeStats:
@@ -165,7 +169,7 @@ def _episodes(
     n: int,
     dtype: Any,
     arrays: TaskArrays,
-    task: CrossroadTask,
+    task: Task,
     poses: Array | None = None,
 ) -> EpisodeStats:
     """Run ``n`` controllers (batched ``state``, network-major) on every episode of the task
@@ -185,9 +189,9 @@ def _episodes(
 
 
 #: Task fields a compiled fitness takes as arrays, not as static settings: the noise key, and
-#: the seed of the jittered starts (the starts themselves are arrays), so that the seeds of a
-#: sweep share one program.
-_ARRAY_FIELDS = ("noise_key", "seed")
+#: the seed of the jittered starts and a maze task's draw (the starts themselves are arrays), so
+#: that the seeds of a sweep, and a maze task's draws, share one program.
+_ARRAY_FIELDS = ("noise_key", "seed", "draw")
 
 
 @dataclass(frozen=True)
@@ -201,20 +205,22 @@ class _Episodes:
     task: tuple[tuple[str, Any], ...]
     cell: float
     arm_length: float
+    maze: bool = False  # a MazeTask (else a CrossroadTask)
 
     @classmethod
-    def of(cls, task: CrossroadTask, arrays: TaskArrays) -> _Episodes:
+    def of(cls, task: Task, arrays: TaskArrays) -> _Episodes:
         fields = tuple(
             (f.name, getattr(task, f.name))
             for f in dataclasses.fields(task)
             if f.name not in _ARRAY_FIELDS
         )
-        return cls(fields, float(arrays.cell), float(arrays.arm_length))
+        return cls(fields, float(arrays.cell), float(arrays.arm_length), isinstance(task, MazeTask))
 
-    def rebuild(self, dynamic: dict[str, Any]) -> tuple[CrossroadTask, TaskArrays]:
+    def rebuild(self, dynamic: dict[str, Any]) -> tuple[Task, TaskArrays]:
         """The task (with the noise key of ``dynamic``; its start seed the default, unused: the
         starts are ``dynamic``'s) and its arrays, inside a trace."""
-        task = CrossroadTask(**dict(self.task), noise_key=dynamic["key"])
+        kind: type[CrossroadTask] | type[MazeTask] = MazeTask if self.maze else CrossroadTask
+        task = kind(**dict(self.task), noise_key=dynamic["key"])
         arrays = TaskArrays(
             mazes=[],
             world=dynamic["world"],
@@ -229,7 +235,7 @@ class _Episodes:
         return task, arrays
 
 
-def _episode_arrays(task: CrossroadTask, arrays: TaskArrays) -> dict[str, Any]:
+def _episode_arrays(task: Task, arrays: TaskArrays) -> dict[str, Any]:
     """The arrays of a task's episodes, as a compiled fitness takes them (:class:`_Episodes`)."""
     return {
         "world": arrays.world,
@@ -309,7 +315,7 @@ def _owned_fitness(
     return values.reshape(copies + 1, -1).mean(0) if copies else values
 
 
-def _counted(population: Array, arrays: TaskArrays, task: CrossroadTask) -> None:
+def _counted(population: Array, arrays: TaskArrays, task: Task) -> None:
     count_robot_steps(int(population.shape[0]) * arrays.episodes * task.steps)
 
 
@@ -365,7 +371,7 @@ class OwnedFitness:
         base_WE: np.ndarray,
         tables: Sequence[np.ndarray],
         noise: np.ndarray,
-        task: CrossroadTask,
+        task: Task,
         arrays: TaskArrays,
         tau: float,
     ) -> OwnedFitness:
@@ -457,9 +463,7 @@ class OwnedFitness:
         return population, owner, owned
 
 
-def crossroad_fitness(
-    genome: Genome, task: CrossroadTask, arrays: TaskArrays | None = None
-) -> OwnedFitness:
+def crossroad_fitness(genome: Genome, task: Task, arrays: TaskArrays | None = None) -> OwnedFitness:
     """A compiled map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
     task's episodes). The genome's base weights and the task's arrays are arguments of one
     program per task and shapes (:func:`_owned_fitness`): every genome of the same length,
@@ -480,7 +484,7 @@ def _network_terms(
     stats = evaluate_networks(W[None], WE[None], tau, arrays, task)
     terms = paper_terms(stats)
     return {
-        "branch_fitness": jnp.sum(episode_fitness(stats, arrays, task)),
+        "branch_fitness": jnp.sum(tile_fitness(arrays)(stats, task)),
         "paper_F_M": jnp.sum(terms["F_M"]),
         "paper_F_R": jnp.sum(terms["F_R"]),
         "paper_F_L": jnp.sum(terms["F_L"]),
@@ -684,7 +688,7 @@ def connection_search_fitness(
 
 def connection_group_fitness(
     base: CTRNN,
-    task: CrossroadTask,
+    task: Task,
     choices: Sequence[tuple[Connection, ...]],
     arrays: TaskArrays | None = None,
 ) -> OwnedFitness:
@@ -706,8 +710,10 @@ def connection_group_fitness(
     return OwnedFitness.make(base_W, base_WE, stacked, noise, task, arrays, tau)
 
 
-def tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, CrossroadTask], Array]:
-    def f(stats: EpisodeStats, task: CrossroadTask) -> Array:
+def tile_fitness(arrays: TaskArrays) -> Callable[[EpisodeStats, Task], Array]:
+    def f(stats: EpisodeStats, task: Task) -> Array:
+        if isinstance(task, MazeTask):  # judged by its junction passes, episode by episode
+            return maze_episode_fitness(stats, task)
         n = stats.final_pose.shape[0] // arrays.episodes
         tiled = TaskArrays(
             mazes=arrays.mazes,
@@ -805,7 +811,7 @@ def evaluate_interpreted(
     W: Array,
     WE: Array,
     arrays: TaskArrays,
-    task: CrossroadTask,
+    task: Task,
     substeps: int = NETWORK_SUBSTEPS,
     lower: Array | None = None,
     upper: Array | None = None,
@@ -828,7 +834,7 @@ def evaluate_interpreted(
 def emulated_fitness(
     genome: Genome,
     template: Interpreter,
-    task: CrossroadTask,
+    task: Task,
     arrays: TaskArrays | None = None,
     *,
     substeps: int = NETWORK_SUBSTEPS,
