@@ -463,6 +463,32 @@ class OwnedFitness:
         return population, owner, owned
 
 
+class Redrawn:
+    """A fitness whose episodes are drawn again every ``every`` generations (``docs/
+    generalization.md``): generation ``g`` (0 is the first population's evaluation) is judged
+    by ``make(draw(g))``, ``draw(g) = g // every`` (``every`` 0: never, always draw 0).
+    :meth:`mbn.experiments.pipeline.context.StageContext.evolve_group` judges the populations
+    on the new episodes where the draw changes, before that generation's trials. The fitness of
+    a draw is made once (the last draw's is kept)."""
+
+    def __init__(self, make: Callable[[int], Any], every: int) -> None:
+        if not (isinstance(every, int) and not isinstance(every, bool) and every >= 0):
+            raise MbnInputError(f"redraw every must be an integer >= 0, got {every!r}")
+        self.make = make
+        self.every = every
+        self._held: tuple[int, Any] | None = None
+
+    def draw(self, generation: int) -> int:
+        return 0 if self.every == 0 else int(generation) // self.every
+
+    def at(self, generation: int) -> Any:
+        """The fitness of generation ``generation``'s episodes."""
+        draw = self.draw(generation)
+        if self._held is None or self._held[0] != draw:
+            self._held = (draw, self.make(draw))
+        return self._held[1]
+
+
 def crossroad_fitness(genome: Genome, task: Task, arrays: TaskArrays | None = None) -> OwnedFitness:
     """A compiled map from a population ``(P, genome.size)`` to fitness ``(P,)`` (sum over the
     task's episodes). The genome's base weights and the task's arrays are arguments of one

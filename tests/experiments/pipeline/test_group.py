@@ -13,6 +13,7 @@ import pytest
 
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
+from mbn.experiments.evolve import Redrawn
 from mbn.experiments.pipeline import (
     DERun,
     Experiment,
@@ -34,13 +35,26 @@ def _sphere(population, centres):
     return np.array([np.sum((g - c) ** 2) for g, c in zip(pop, centres, strict=True)])
 
 
-def _experiment(generations: int, shapes: list[tuple[int, ...]], group: bool = True):
+def _experiment(
+    generations: int, shapes: list[tuple[int, ...]], group: bool = True, every: int | None = None
+):
     class Spheres(Stage):
         name = "spheres"
         key_id = 1
 
         def run(self, ctx: StageContext) -> dict[str, Any]:
             runs = [DERun(f"s{r}", CONFIG, jax.random.fold_in(ctx.key, r)) for r in range(3)]
+            if every is not None:  # the centres move with every draw of episodes
+
+                def drawn(draw):
+                    def fitness(population, owner):
+                        shapes.append((draw, *population.shape))
+                        return _sphere(population, CENTRES[np.asarray(owner)] + draw)
+
+                    return fitness
+
+                results = ctx.evolve_group(runs, Redrawn(drawn, every), generations, "spheres")
+                return {"runs": [r.data for r in results]}
             if group:
 
                 def fitness(population, owner):
@@ -65,8 +79,8 @@ def _experiment(generations: int, shapes: list[tuple[int, ...]], group: bool = T
     return Experiment(name="spheres", kind="mbn.spheres", registry=Registry([Spheres()]))
 
 
-def _run(folder, generations, shapes=None, group=True, **kw):
-    exp = _experiment(generations, [] if shapes is None else shapes, group)
+def _run(folder, generations, shapes=None, group=True, every=None, **kw):
+    exp = _experiment(generations, [] if shapes is None else shapes, group, every)
     return run_experiment(exp, folder, seed=5, config=exp.config(), log=lambda _: None, **kw)
 
 
@@ -113,3 +127,32 @@ def test_a_group_of_different_shapes_is_refused(tmp_path):
     exp = Experiment(name="mixed", kind="mbn.mixed", registry=Registry([Mixed()]))
     with pytest.raises(MbnInputError, match="one population shape"):
         run_experiment(exp, tmp_path / "m", seed=0, config=exp.config(), log=lambda _: None)
+
+
+def test_episodes_redrawn_every_n_generations_judge_the_population_again_first(tmp_path):
+    """Every 2 generations the fitness changes (the spheres' centres move by the draw): the
+    populations are judged on the new draw before its first trials, so each run's best is its
+    value on the last draw; a group resumed in the middle of a draw ends as an uninterrupted
+    one."""
+    shapes: list[tuple[int, ...]] = []
+    runs = _run(tmp_path / "redrawn", 6, shapes, every=2)["stages"]["spheres"]["runs"]
+    # draws: generations 0-1 draw 0, 2-3 draw 1, 4-5 draw 2, 6 draw 3; a redraw at 2, 4 and 6
+    # judges the population again (two parts each), before the generation's trials
+    draws = [s[0] for s in shapes[::2]]
+    assert draws == [0, 0, 1, 1, 1, 2, 2, 2, 3, 3]
+    for r, run in enumerate(runs):
+        genome = np.asarray(run["best_genome"], np.float32)
+        assert run["best_fitness"] == pytest.approx(float(np.sum((genome - CENTRES[r] - 3) ** 2)))
+    never = _run(tmp_path / "never", 6, every=0)["stages"]["spheres"]["runs"]
+    assert never == _run(tmp_path / "group", 6)["stages"]["spheres"]["runs"]
+    _run(tmp_path / "at3", 3, every=2)
+    folder = tmp_path / "resumed"
+    shutil.copytree(tmp_path / "at3", folder)
+    (folder / "stages" / "spheres.json").unlink()
+    resumed = _run(folder, 6, every=2, resume=True)["stages"]["spheres"]["runs"]
+    assert resumed == runs
+
+
+def test_a_redraw_interval_must_be_a_whole_number_of_generations():
+    with pytest.raises(MbnInputError, match="redraw every must be an integer >= 0"):
+        Redrawn(lambda d: None, -1)

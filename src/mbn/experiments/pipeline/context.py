@@ -147,12 +147,14 @@ class StageContext:
         ``fold_in(key, g)``. Populations are evaluated in
         :data:`~mbn.experiments.evolve.FITNESS_PARTS` parts, ``workers`` of them at once. A
         group of one run (:meth:`evolve_group`)."""
-        from mbn.experiments.evolve import OwnedFitness
+        from mbn.experiments.evolve import OwnedFitness, Redrawn
 
         run = DERun(name, config, key, population)
         # a fitness of owners is the group's as it is (every genome's owner is 0): a batched
-        # sweep can merge it with the other seeds'
-        group = fitness if isinstance(fitness, OwnedFitness) else lambda pop, _owner: fitness(pop)
+        # sweep can merge it with the other seeds'; so is one redrawn (of such fitnesses)
+        group: Any = fitness
+        if not isinstance(fitness, OwnedFitness | Redrawn):
+            group = lambda pop, _owner: fitness(pop)  # noqa: E731
         return self.evolve_group([run], group, generations, description)[0]
 
     def evolve_group(
@@ -177,6 +179,7 @@ class StageContext:
         from mbn.experiments.evolve import (
             FITNESS_PARTS,
             OwnedFitness,
+            Redrawn,
             fitness_pool,
             join_rows,
             split_fitness,
@@ -198,21 +201,30 @@ class StageContext:
             return from_population(jnp.asarray(run.population), run.config)
 
         threads = max(1, min(self.workers, FITNESS_PARTS))
-        batcher = batching.current() if isinstance(fitness, OwnedFitness) else None
+        # a fitness whose episodes are redrawn every N generations gives generation g's
+        redrawn = fitness if isinstance(fitness, Redrawn) else None
+        first = redrawn.at(0) if redrawn is not None else fitness
+        batcher = batching.current() if isinstance(first, OwnedFitness) else None
         with contextlib.ExitStack() as stack:
             pool = stack.enter_context(fitness_pool(threads))
-            values_of = split_fitness(fitness, self.workers, pool)
+            parted: dict[int, Callable[[jax.Array, jax.Array], jax.Array]] = {}
             # a batched sweep's other seeds wait for this group's populations while it evolves
             if batcher is not None:
                 stack.enter_context(batcher.evolving())
 
-            def evaluate(populations: list[jax.Array]) -> list[jax.Array]:
+            def evaluate(populations: list[jax.Array], g: int = 0) -> list[jax.Array]:
+                """The values of every run's population under generation ``g``'s fitness."""
+                now = redrawn.at(g) if redrawn is not None else fitness
                 joined = populations[0] if len(populations) == 1 else join_rows(tuple(populations))
                 if batcher is not None:  # merged with the other seeds of a batched sweep
-                    assert isinstance(fitness, OwnedFitness)
-                    values = put(batcher.evaluate(fitness, joined, owner))
+                    assert isinstance(now, OwnedFitness)
+                    values = put(batcher.evaluate(now, joined, owner))
                 else:
-                    values = values_of(joined, owner)
+                    draw = redrawn.draw(g) if redrawn is not None else 0
+                    if draw not in parted:
+                        parted.clear()  # one draw at a time
+                        parted[draw] = split_fitness(now, self.workers, pool)
+                    values = parted[draw](joined, owner)
                 if len(populations) == 1:  # one run: nothing to cut
                     return [values]
                 return list(split_rows(values, bounds))
@@ -236,10 +248,16 @@ class StageContext:
             self.progress.update(bar, completed=g0, info=f"best {best:.2f}")
             for g in range(g0 + 1, generations + 1):
                 behind = [i for i, st in enumerate(states) if int(st.generation) < g]
+                if redrawn is not None and redrawn.draw(g) != redrawn.draw(g - 1):
+                    # new episodes: the populations are judged on them before any trial is
+                    # (their best too), so that a trial meets its parent on the same episodes
+                    values = evaluate([st.population for st in states], g)
+                    for i in behind:
+                        states[i] = initialize_fitness(states[i], values[i], runs[i].config)
                 trials = [st.population for st in states]
                 for i in behind:
                     trials[i] = ask(jax.random.fold_in(runs[i].key, g), states[i], runs[i].config)
-                values = evaluate(trials)
+                values = evaluate(trials, g)
                 for i in behind:
                     states[i] = tell(states[i], trials[i], values[i], runs[i].config)
                     histories[i].append(generation_stats(states[i]))
