@@ -4,6 +4,8 @@ compiled program for every draw."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -101,6 +103,13 @@ def test_the_fitness_judges_junction_passes_as_the_tests_do(rule):
     assert 0 < full.mean() < 1  # a right pass after a wrong one earns no progress
     fitness = np.asarray(maze_episode_fitness(stats, task))
     np.testing.assert_allclose(fitness, progress * (1 - stall) - stall, rtol=1e-6)
+    heavy = dataclasses.replace(task, stall_weight=10.0)
+    np.testing.assert_allclose(
+        np.asarray(maze_episode_fitness(stats, heavy)),
+        progress * (1 - stall) - 10 * stall,
+        rtol=1e-6,
+        atol=1e-7,
+    )
 
 
 def test_the_compiled_fitness_is_the_episodes_sum_and_every_draw_shares_its_program():

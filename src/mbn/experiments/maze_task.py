@@ -12,14 +12,15 @@ drawn from (:func:`mbn.world.mazes.families.check_use`).
 
 The fitness of an episode (``"junctions"``) rewards what the tests judge:
 
-    progress * (1 - stall) - stall + 0.1 F_M
+    progress * (1 - stall) - w stall + 0.1 F_M
 
 ``progress`` is the share of the first ``junctions`` junction passes taken by the rule in force
 before the first wrong one (0 .. 1: every pass right until the last judged one is 1), ``stall``
 the stall fraction until the last judged junction was left (over the whole episode if it never
-was), and ``F_M`` the paper's motion term (eq. 4), weighted as in the crossroads' branch
-fitness. The rule in force is ``rule``; for ``"tiles"`` the rule of the last tile driven over
-(``tile_rules``), ``initial`` before the first.
+was), ``w`` the weight of stalling (``stall_weight``: 1, as in the crossroads' branch fitness),
+and ``F_M`` the paper's motion term (eq. 4), weighted as there. The rule in force is ``rule``;
+for ``"tiles"`` the rule of the last tile driven over (``tile_rules``), ``initial`` before the
+first.
 """
 
 from __future__ import annotations
@@ -69,6 +70,8 @@ class MazeTask:
         draw: which draw of episodes (0, 1, ...: evolution redraws by taking the next).
         initial: for "tiles", the rule before the first tile.
         tile_rules: for "tiles", the rule each tile kind puts in force.
+        stall_weight: the weight of the stall fraction subtracted (1: as the crossroads'
+            branch fitness).
         sensors: sonar settings.
         noise: sensor, actuator and neuron noise (off by default), drawn from ``noise_key``.
         noise_key: the PRNG key of the noise (required when noise is on).
@@ -88,6 +91,7 @@ class MazeTask:
     draw: int = 0
     initial: str = "right"
     tile_rules: tuple[str, ...] = ("right", "left")
+    stall_weight: float = 1.0
     sensors: SensorConfig = field(default_factory=SensorConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     noise_key: Array | None = None
@@ -238,4 +242,4 @@ def maze_episode_fitness(stats: EpisodeStats, task: MazeTask) -> Array:
     """Fitness of every episode (see the module docstring)."""
     progress, stall = junction_progress(stats, task)
     f_m = paper_terms(stats, task.sensors.far)["F_M"]
-    return progress * (1.0 - stall) - stall + F_M_WEIGHT * f_m
+    return progress * (1.0 - stall) - task.stall_weight * stall + F_M_WEIGHT * f_m
