@@ -146,3 +146,40 @@ def test_the_compiled_fitness_is_the_episodes_sum_and_every_draw_shares_its_prog
 def test_settings_that_cannot_make_episodes_are_one_line(changes, message):
     with pytest.raises(MbnInputError, match=message):
         MazeTask(**{**SMALL, **changes})
+
+
+def test_the_episodes_settings_choose_the_followers_training_task():
+    """``[episodes] kind``: the crossroads as before, or a redrawn maze task seeded by the run's
+    crossroad seed (the draw of generation g: g // redraw)."""
+    from types import SimpleNamespace
+
+    from mbn.experiments.crossroads import CrossroadTask
+    from mbn.experiments.evolve import Redrawn
+    from mbn.experiments.reproduce.settings import (
+        EpisodeSettings,
+        FollowerSettings,
+        ValidationSettings,
+    )
+    from mbn.experiments.reproduce.stages.common import training_fitness, training_task
+    from mbn.world.sensors import NoiseConfig
+
+    def ctx(**episodes):
+        sections = {
+            "episodes": EpisodeSettings(**episodes),
+            "followers": FollowerSettings(),
+            "validation": ValidationSettings(),
+            "noise": NoiseConfig(),
+        }
+        return SimpleNamespace(
+            section=sections.__getitem__, seeds={"crossroad_jitter": 17}, key=jax.random.key(0)
+        )
+
+    paper = training_task(ctx(), "right", 4)
+    assert isinstance(paper, CrossroadTask) and paper.variants == 4 and paper.seed == 17
+    assert training_fitness(ctx(), "right", 4, lambda t: t) == paper
+    maze = training_task(ctx(kind="maze", family="grid", pool=12, mazes=4, starts=3), "left", 4)
+    assert isinstance(maze, MazeTask)
+    assert (maze.rule, maze.pool, maze.mazes, maze.starts, maze.seed) == ("left", 12, 4, 3, 17)
+    redrawn = training_fitness(ctx(kind="maze", pool=12, mazes=4, redraw=5), "left", 4, lambda t: t)
+    assert isinstance(redrawn, Redrawn)
+    assert [redrawn.at(g).draw for g in (0, 4, 5, 12)] == [0, 0, 1, 2]

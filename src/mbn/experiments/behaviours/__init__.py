@@ -35,6 +35,7 @@ from mbn.experiments.reproduce.settings import (
 )
 from mbn.experiments.reproduce.settings import (
     DESettings,
+    EpisodeSettings,
     FollowerSettings,
     InterpreterSettings,
     ValidationSettings,
@@ -86,7 +87,14 @@ NEW_BEHAVIOURS = Experiment(
     name="new-behaviours",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(DESettings, FollowerSettings, InterpreterSettings, ValidationSettings, TestsSettings),
+    shared=(
+        DESettings,
+        FollowerSettings,
+        EpisodeSettings,
+        InterpreterSettings,
+        ValidationSettings,
+        TestsSettings,
+    ),
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

@@ -29,6 +29,7 @@ from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
 from mbn.experiments.reproduce.settings import (
     DESettings,
+    EpisodeSettings,
     FollowerSettings,
     InterpreterSettings,
     ValidationSettings,
@@ -92,6 +93,7 @@ PROGRAMS_VS_DYNAMICS = Experiment(
     shared=(
         DESettings,
         FollowerSettings,
+        EpisodeSettings,
         InterpreterSettings,
         ValidationSettings,
         TestsSettings,

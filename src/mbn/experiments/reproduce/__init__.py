@@ -28,6 +28,7 @@ from mbn.experiments.reproduce.report import write_report
 from mbn.experiments.reproduce.settings import (
     QUICK,
     DESettings,
+    EpisodeSettings,
     FollowerSettings,
     InterpreterSettings,
     ValidationSettings,
@@ -47,7 +48,14 @@ __all__ = ["REPRODUCE", "RUN_KIND", "SHARED", "STAGES", "controller_stages"]
 RUN_KIND = "mbn.reproduce"
 
 #: The sections every experiment built on the reproduction's controllers shares.
-SHARED = (DESettings, FollowerSettings, InterpreterSettings, ValidationSettings, NoiseConfig)
+SHARED = (
+    DESettings,
+    FollowerSettings,
+    EpisodeSettings,
+    InterpreterSettings,
+    ValidationSettings,
+    NoiseConfig,
+)
 
 
 def controller_stages() -> list[Stage]:

@@ -20,6 +20,7 @@ from mbn.experiments.named import PAPER_TILE_RULES, check_not_test_mazes, locate
 __all__ = [
     "QUICK",
     "DESettings",
+    "EpisodeSettings",
     "FollowerSettings",
     "InterpreterSettings",
     "ValidationSettings",
@@ -81,6 +82,72 @@ class FollowerSettings(Settings):
         low=0.1,
         high=3600.0,
         source="paper 3.1 ('about 20 seconds'); docs/experiments.md",
+    )
+
+
+@dataclass(frozen=True)
+class EpisodeSettings(Settings):
+    """Where the followers' training episodes come from (RF, the LF search and LF): the paper's
+    seven crossroads, or mazes drawn from a family's train split and drawn again every
+    ``redraw`` generations (``docs/generalization.md``, "Selection across the family")."""
+
+    section = "episodes"
+    # runs recorded before this section existed were evolved on the crossroads
+    recorded_before: ClassVar[dict[str, Any]] = {"kind": "crossroads"}
+    kind: str = setting(
+        "crossroads",
+        doc="crossroads: the paper's seven crossroads; maze: episodes drawn from a maze family",
+        choices=("crossroads", "maze"),
+        source="paper 3.1; docs/generalization.md",
+    )
+    family: str = setting(
+        "grid",
+        doc="the maze family of maze episodes",
+        choices=("grid", "tiles2", "tiles3"),
+        source="docs/generalization.md",
+    )
+    pool: int = setting(
+        256,
+        doc="training mazes drawn from the family's train split (once, by the run's seed)",
+        low=1,
+        high=100_000,
+        source="docs/generalization.md",
+    )
+    mazes: int = setting(
+        8,
+        doc="mazes of the pool in one draw of episodes",
+        low=1,
+        high=10_000,
+        source="docs/generalization.md",
+    )
+    starts: int = setting(
+        4,
+        doc="start marks of each maze in one draw (jittered)",
+        low=1,
+        high=10,
+        source="docs/generalization.md",
+    )
+    seconds: float = setting(
+        60.0,
+        doc="length of a maze episode",
+        unit="s",
+        low=1.0,
+        high=3600.0,
+        source="docs/generalization.md (three junctions of a generated maze at 0.3 m/s)",
+    )
+    redraw: int = setting(
+        10,
+        doc="generations between two draws of episodes (0: never, one draw for the whole run)",
+        low=0,
+        high=100_000,
+        source="docs/generalization.md (to be chosen by the N measurement)",
+    )
+    stall_weight: float = setting(
+        1.0,
+        doc="weight of the stall fraction in the maze episodes' fitness",
+        low=0.0,
+        high=1000.0,
+        source="docs/generalization.md (1: as the crossroads' branch fitness)",
     )
 
 

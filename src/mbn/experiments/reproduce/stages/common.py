@@ -20,11 +20,14 @@ from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import (
     Genome,
+    Redrawn,
+    Task,
     crossroad_fitness,
     crossroad_scores,
     perturbations,
     robust_fitness,
 )
+from mbn.experiments.maze_task import MazeTask
 from mbn.experiments.pipeline import StageContext
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import Multiplier
@@ -35,6 +38,7 @@ __all__ = [
     "MADE_BY",
     "PERTURBATION_KEY",
     "SCORE_KEYS",
+    "SCORING_DRAW",
     "de_config",
     "evolve_follower",
     "interpreter_of",
@@ -47,6 +51,8 @@ __all__ = [
     "score",
     "stage_perturbations",
     "task",
+    "training_fitness",
+    "training_task",
     "validate",
     "validation_mazes",
     "validation_record",
@@ -111,6 +117,54 @@ def task(
         noise=run_noise(ctx),
         noise_key=noise_key(ctx, FITNESS_NOISE_KEY),
     )
+
+
+#: The draw of maze episodes that scores final populations (no generation's draw reaches it).
+SCORING_DRAW = 10**6
+
+
+def training_task(
+    ctx: StageContext,
+    rule: str,
+    variants: int,
+    approaches: tuple[str, ...] = ("south",),
+    draw: int = 0,
+) -> Task:
+    """The followers' training task (``[episodes]``): the crossroads (:func:`task`), or draw
+    ``draw`` of episodes in mazes of a family's train split (a :class:`MazeTask` seeded by the
+    run's ``crossroad_jitter`` seed, under the run's noise)."""
+    episodes = ctx.section("episodes")
+    if episodes.kind == "crossroads":
+        return task(ctx, rule, variants, approaches)
+    return MazeTask(
+        rule=rule,
+        family=episodes.family,
+        pool=episodes.pool,
+        mazes=episodes.mazes,
+        starts=episodes.starts,
+        seconds=episodes.seconds,
+        stall_weight=episodes.stall_weight,
+        seed=ctx.seeds["crossroad_jitter"],
+        draw=draw,
+        noise=run_noise(ctx),
+        noise_key=noise_key(ctx, FITNESS_NOISE_KEY),
+    )
+
+
+def training_fitness(
+    ctx: StageContext,
+    rule: str,
+    variants: int,
+    make: Any,
+    approaches: tuple[str, ...] = ("south",),
+) -> Any:
+    """``make(task)`` of the followers' training task: on the crossroads as it is; on maze
+    episodes a :class:`~mbn.experiments.evolve.Redrawn` fitness whose episodes are drawn again
+    every ``[episodes] redraw`` generations."""
+    first = training_task(ctx, rule, variants, approaches)
+    if not isinstance(first, MazeTask):
+        return make(first)
+    return Redrawn(lambda d: make(first.redrawn(d)), ctx.section("episodes").redraw)
 
 
 def score(
@@ -212,9 +266,13 @@ def evolve_follower(
     name = name or ctx.name
     key = ctx.key if key is None else key
     followers = ctx.section("followers")
-    fitness = robust_fitness(
-        crossroad_fitness(genome, task(ctx, rule, variants, approaches)),
-        stage_perturbations(ctx, genome.size),
+    perturbed = stage_perturbations(ctx, genome.size)
+    fitness = training_fitness(
+        ctx,
+        rule,
+        variants,
+        lambda t: robust_fitness(crossroad_fitness(genome, t), perturbed),
+        approaches,
     )
     extra = ctx.section("validation").attempts - 1 if validated else 0
     runs: list[dict[str, Any]] = []

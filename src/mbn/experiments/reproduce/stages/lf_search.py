@@ -26,10 +26,12 @@ from mbn.experiments.evolve import (
 from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import DERun, Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
+    SCORING_DRAW,
     de_config,
     read_network,
     stage_perturbations,
-    task,
+    training_fitness,
+    training_task,
 )
 from mbn.host import put
 from mbn.networks.programmable import Connection
@@ -104,7 +106,6 @@ def search_triples(
     approaches = ctx.section("lf").approaches
     cands = [Connection.parse(c) for c in s.candidates]
     triples = list(itertools.combinations(cands, 3))
-    search_task = task(ctx, "left", s.variants)
     noise = stage_perturbations(ctx, 3)
     config = de_config(ctx, 3, followers.weight_bound)
     runs = [DERun(checkpoint(t), config, jax.random.fold_in(key, t)) for t in range(len(triples))]
@@ -121,7 +122,9 @@ def search_triples(
         group = [triples[t] for t in alive]
         done = ctx.evolve_group(
             [runs[t] for t in alive],
-            connection_group_fitness(rf, search_task, group),
+            training_fitness(
+                ctx, "left", s.variants, lambda t, g=group: connection_group_fitness(rf, t, g)
+            ),
             end,
             f"LF search: {len(alive)} triples side by side"
             + (f" (rung {rung + 1}/{len(ends)})" if len(ends) > 1 else ""),
@@ -130,7 +133,8 @@ def search_triples(
     # The final populations scored with perturbed copies too, on the crossroads entered round a
     # corner as in a maze: an LF that keeps its behaviour when its weights move is one the
     # interpreter can emulate. One batch of every triple's, in parts as DE's.
-    choose = connection_group_fitness(rf, task(ctx, "left", s.variants, approaches), triples)
+    final_task = training_task(ctx, "left", s.variants, approaches, draw=SCORING_DRAW)
+    choose = connection_group_fitness(rf, final_task, triples)
     final = join_rows(tuple(results[t].state.population for t in range(len(triples))))
     owner = put(np.repeat(np.arange(len(triples)), config.popsize))
     robust_all = np.asarray(split_fitness(robust_fitness(choose, noise), ctx.workers)(final, owner))
