@@ -183,3 +183,24 @@ def test_the_episodes_settings_choose_the_followers_training_task():
     redrawn = training_fitness(ctx(kind="maze", pool=12, mazes=4, redraw=5), "left", 4, lambda t: t)
     assert isinstance(redrawn, Redrawn)
     assert [redrawn.at(g).draw for g in (0, 4, 5, 12)] == [0, 0, 1, 2]
+
+
+@pytest.mark.slow  # a quick reproduction of its own (about 2 min on 2 cores)
+def test_a_quick_reproduction_evolves_its_followers_on_maze_episodes(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    settings = tmp_path / "maze.toml"
+    settings.write_text('[episodes]\nkind = "maze"\npool = 32\nredraw = 5\n')
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "mbn", "reproduce", "--quick", "--seed", "3", "--quiet"]
+    proc = subprocess.run(
+        [*cmd, "--config", str(settings), "--out", str(out)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    results = json.loads((out / "results.json").read_text())
+    assert results["config"]["episodes"]["kind"] == "maze"
+    assert results["config"]["episodes"]["redraw"] == 5
+    for stage in ("rf", "lf_search", "lf", "tests"):
+        assert stage in results["stages"]
