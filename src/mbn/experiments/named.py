@@ -104,9 +104,17 @@ def test_mazes(sections: Mapping[str, Settings]) -> list[tuple[str, str]]:
 def check_not_test_mazes(
     names: Sequence[tuple[str, str]], sections: Mapping[str, Settings]
 ) -> None:
-    """Refuse a validation maze that is a test maze. ``names``: ``(where, maze name)`` of the
-    validation mazes (each already checked by :func:`trial_maze`)."""
+    """Refuse a validation maze that is a test maze: one a test setting names, or a generated
+    maze of a family's test split (:func:`mbn.world.mazes.families.check_use`). ``names``:
+    ``(where, maze name)`` of the validation mazes (each already checked by
+    :func:`trial_maze`)."""
+    from mbn.world.mazes import families
     from mbn.world.mazes.load import load_maze
+
+    for where, name in names:
+        generated = families.parse_name(name)
+        if generated is not None:
+            families.check_use(generated.seeds, "validation", where)
 
     tests: list[tuple[str, str, Maze | None]] = []
     for setting, name in test_mazes(sections):

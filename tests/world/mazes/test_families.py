@@ -247,3 +247,18 @@ def test_the_zero_shot_files_are_what_the_script_makes():
         text=True,
     )
     assert proc.returncode == 0, proc.stderr
+
+
+def test_a_settings_file_that_validates_on_a_test_maze_is_refused(tmp_path, capsys):
+    """``[validation] maze`` naming a generated maze of a test split: one line naming the file,
+    line and setting, exit 2, nothing written."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[validation]\nmaze = "tiles2:2000005"\n')
+    out = tmp_path / "run"
+    assert main(["reproduce", "--quick", "--config", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(
+        "bad.toml:2: validation.maze: maze seed 2000005 is in the test split, and validation "
+        "may not use it (a test maze is only ever a test)"
+    )
+    assert len(err.splitlines()) == 1 and not out.exists()
