@@ -346,7 +346,7 @@ BOUNDED_CONFIGS = (
 )
 
 
-@HYPOTHESIS
+@settings(max_examples=12, deadline=None)  # each example compiles its own trials (a new config)
 @given(
     config=st.sampled_from(BOUNDED_CONFIGS),
     population=hnp.arrays(
