@@ -212,9 +212,11 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"RF: {_count(rf['generations'], 'generation')}"
                 + (f" in each of {restarts} independent runs" if restarts > 1 else "")
                 + f", best fitness {rf['best_fitness']:.2f} "
-                f"(branch fitness over {rf['episodes']} crossroad episodes, averaged over the "
+                f"({_fitness_episodes(results, rf['episodes'])}, averaged over the "
                 f"genome and {rf['noise']['copies']} copies perturbed by N(0, "
-                f"{rf['noise']['sigma']}²); the paper's terms of "
+                f"{rf['noise']['sigma']}²); "
+                + _crossroad_score(results, rf)
+                + f"the paper's terms of "
                 f"the best: F_M {rf['paper_F_M']:.2f}, F_R {rf['paper_F_R']:.2f}, F_L "
                 f"{rf['paper_F_L']:.2f}).",
                 f"LF: the 3 connections re-evolved are {connection_names(lf['connections'])} "
@@ -341,12 +343,46 @@ def _de_text(results: dict[str, Any]) -> list[str]:
     if "weight_bound" in followers:
         w = followers["weight_bound"]
         bound += f"; the followers' genes in [-{w:g}, {w:g}]"
-    if "episode_seconds" in followers:
+    maze = _maze_episodes(results)
+    if maze is not None:
+        bound += (
+            f", maze episodes of {maze['seconds']:g} s ({maze['mazes']} mazes x {maze['starts']} "
+            f"starts a draw from a pool of {maze['pool']} {maze['family']} train mazes, drawn "
+            + (f"again every {maze['redraw']} generations" if maze["redraw"] else "once")
+            + ")"
+        )
+    elif "episode_seconds" in followers:
         bound += f", crossroad episodes of {followers['episode_seconds']:g} s"
     return [
         f"DE/best/1/bin for every evolved stage: population {de['popsize']}, F {de['F']:g}, "
         f"CR {de['CR']:g}{bound}."
     ]
+
+
+def _maze_episodes(results: dict[str, Any]) -> dict[str, Any] | None:
+    """The run's recorded ``[episodes]`` when its followers evolved on maze episodes, else None
+    (the crossroads; also a run recorded before the section existed)."""
+    episodes = results.get("config", {}).get("episodes") or {}
+    return episodes if episodes.get("kind") == "maze" else None
+
+
+def _fitness_episodes(results: dict[str, Any], crossroad_episodes: int) -> str:
+    """What RF's best fitness sums over, as the run recorded it."""
+    maze = _maze_episodes(results)
+    if maze is None:
+        return f"branch fitness over {crossroad_episodes} crossroad episodes"
+    return f"junction fitness over the {maze['mazes'] * maze['starts']} maze episodes of a draw"
+
+
+def _crossroad_score(results: dict[str, Any], rf: dict[str, Any]) -> str:
+    """For a run evolved on maze episodes, the best's branch fitness on the crossroads (its
+    recorded score), where the paper's terms below come from."""
+    if _maze_episodes(results) is None:
+        return ""
+    return (
+        f"on {rf['episodes']} crossroad episodes its branch fitness is "
+        f"{rf['branch_fitness']:.2f} and "
+    )
 
 
 def _paper_changed() -> str:
