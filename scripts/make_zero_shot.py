@@ -108,7 +108,7 @@ def _far_tiles(g: np.ndarray, kinds: tuple[int, ...], rng: np.random.Generator) 
     options = [
         (int(r), int(c))
         for r, c in np.argwhere(straight)
-        if min(families.run_to_end(maze_free, int(r), int(c), h) for h in range(4) if nb[r, c, h])
+        if min(families.run_to_end(straight, int(r), int(c), h) for h in range(4) if nb[r, c, h])
         >= 4
     ]
     taken: set[tuple[int, int]] = set()

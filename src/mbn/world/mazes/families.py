@@ -485,14 +485,14 @@ def straight_cells(free: np.ndarray) -> np.ndarray:
     return free & (count == 2) & ((nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W]))
 
 
-def run_to_end(free: np.ndarray, r: int, c: int, h: int) -> int:
-    """Straight corridor cells from ``(r, c)`` (excluded) in direction ``h`` up to the first cell
-    that is not one (the corridor's end: a decision cell or a dead end)."""
-    straight = straight_cells(free)
+def run_to_end(straight: np.ndarray, r: int, c: int, h: int) -> int:
+    """Straight corridor cells (the mask ``straight``, :func:`straight_cells`) from ``(r, c)``
+    (excluded) in direction ``h`` up to the first cell that is not one (the corridor's end: a
+    decision cell or a dead end)."""
     n = 0
     dr, dc = _STEP[h]
     r, c = r + dr, c + dc
-    while 0 <= r < free.shape[0] and 0 <= c < free.shape[1] and straight[r, c]:
+    while 0 <= r < straight.shape[0] and 0 <= c < straight.shape[1] and straight[r, c]:
         n += 1
         r, c = r + dr, c + dc
     return n
@@ -540,7 +540,9 @@ def place_tiles(
                 for r, c in np.argwhere(straight)
                 if allowed(int(r), int(c))
                 and min(
-                    run_to_end(free, int(r), int(c), h) for h in range(4) if nb[int(r), int(c), h]
+                    run_to_end(straight, int(r), int(c), h)
+                    for h in range(4)
+                    if nb[int(r), int(c), h]
                 )
                 >= MID_CORRIDOR
             ]
@@ -728,6 +730,7 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
     free = np.asarray(maze.grid) != "#"
     nb = neighbours(free)
     count = np.where(free, nb.sum(-1), 0)
+    straight = straight_cells(free)
     out = []
     for tile in maze.tiles:
         r, c = cell_of(maze, tile.x, tile.y)
@@ -735,7 +738,7 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
         for h in range(4):
             if not nb[r, c, h]:
                 continue
-            n = run_to_end(free, r, c, h)
+            n = run_to_end(straight, r, c, h)
             runs.append(n)
             dr, dc = _STEP[h]
             end = (r + dr * (n + 1), c + dc * (n + 1))
