@@ -40,15 +40,13 @@ from mbn.world.engine import compile_mazes
 from mbn.world.mazes import families
 from mbn.world.mazes.model import Maze
 from mbn.world.rollout import EpisodeStats, RolloutConfig, input_reach, junction_arrays
-from mbn.world.rules import OPEN_BITS, parse_rule
+from mbn.world.rules import parse_rule, rule_exit_codes
 from mbn.world.sensors import NoiseConfig, SensorConfig
 
 __all__ = ["MAZE_FITNESSES", "MazeTask", "junction_progress", "maze_episode_fitness"]
 
 #: The fitnesses of a maze task.
 MAZE_FITNESSES = ("junctions",)
-#: Exit codes of the exits a rule orders (:data:`mbn.world.junctions.EXIT_CODES`).
-_CODE = {"back": 0, "right": 1, "straight": 2, "left": 3}
 
 
 @dataclass(frozen=True)
@@ -200,18 +198,6 @@ def _pool(family: str, pool: int, seed: int) -> tuple[tuple[Maze, ...], Any, Arr
     return mazes, world, junction_arrays(list(mazes), world)
 
 
-def _rule_codes(rule: str, mask: Array) -> Array:
-    """The exit code ``rule`` takes where the open exits are ``mask`` (jnp; -1 stays -1)."""
-    r = parse_rule(rule)
-    out = jnp.zeros(mask.shape, jnp.int32)
-    done = jnp.zeros(mask.shape, bool)
-    for e in r.order:
-        take = ~done & ((mask & OPEN_BITS[e]) != 0)
-        out = jnp.where(take, _CODE[e], out)
-        done = done | take
-    return jnp.where(mask < 0, -1, out)
-
-
 def junction_progress(stats: EpisodeStats, task: MazeTask) -> tuple[Array, Array]:
     """``(progress, stall)`` of every episode: the share of the first ``junctions`` passes taken
     by the rule in force before the first wrong one, and the stall fraction until the last
@@ -222,11 +208,11 @@ def junction_progress(stats: EpisodeStats, task: MazeTask) -> tuple[Array, Array
     n = jnp.minimum(stats.n_junctions, stats.junction_exit.shape[-1])
     if task.rule == "tiles":
         tile = stats.junction_tile[..., :J]
-        rule = _rule_codes(task.initial, opened)
+        rule = rule_exit_codes(task.initial, opened)
         for colors, name in enumerate(task.tile_rules, start=1):
-            rule = jnp.where(tile == colors, _rule_codes(name, opened), rule)
+            rule = jnp.where(tile == colors, rule_exit_codes(name, opened), rule)
     else:
-        rule = _rule_codes(task.rule, opened)
+        rule = rule_exit_codes(task.rule, opened)
     passed = jnp.arange(J) < n[..., None]
     right = passed & (exits == rule)
     prefix = jnp.cumprod(right.astype(jnp.int32), axis=-1).sum(-1)

@@ -143,16 +143,24 @@ def open_mask(open_exits: set[str] | frozenset[str] | list[str]) -> int:
     return sum(OPEN_BITS[e] for e in set(open_exits))
 
 
-def rule_exit_codes(rule: str | Rule, mask: Any) -> np.ndarray:
+def rule_exit_codes(rule: str | Rule, mask: Any) -> Any:
     """The exit code (0 back, 1 right, 2 straight, 3 left) ``rule`` takes at junctions whose
     open exits are ``mask`` (an array of :data:`OPEN_BITS` masks; -1 where there is no
-    junction, which stays -1)."""
+    junction, which stays -1): a NumPy array, or a JAX one for a JAX array (traced too)."""
     r = parse_rule(rule)
-    m = np.asarray(mask)
-    out = np.zeros(m.shape, np.int32)  # back
-    done = np.zeros(m.shape, bool)
+    import jax
+
+    # NumPy for host arrays; jax.numpy for device or traced ones (a compiled fitness)
+    xp: Any = np
+    m = mask
+    if isinstance(mask, jax.Array):
+        import jax.numpy as xp
+    else:
+        m = np.asarray(mask)
+    out = xp.zeros(m.shape, xp.int32)  # back
+    done = xp.zeros(m.shape, bool)
     for e in r.order:
         take = ~done & ((m & OPEN_BITS[e]) != 0)
-        out = np.where(take, _CODE[e], out)
-        done |= take
-    return np.where(m < 0, -1, out)
+        out = xp.where(take, _CODE[e], out)
+        done = done | take
+    return xp.where(m < 0, -1, out)
