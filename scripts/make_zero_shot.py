@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mbn.world.junctions import mask_neighbours
 from mbn.world.mazes import families
 
 #: What each maze is, for its header comment and the built-in description.
@@ -103,7 +104,7 @@ def _far_tiles(g: np.ndarray, kinds: tuple[int, ...], rng: np.random.Generator) 
     along their corridor, no two side by side."""
     free = g != "#"
     maze_free = free.copy()
-    nb = families.neighbours(maze_free)
+    nb = mask_neighbours(maze_free)
     straight = families.straight_cells(maze_free)
     options = [
         (int(r), int(c))

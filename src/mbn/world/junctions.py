@@ -51,6 +51,7 @@ __all__ = [
     "free_neighbours",
     "junction_sequence",
     "junction_tables",
+    "mask_neighbours",
     "program_swaps_caught",
     "route_passes",
     "rule_exit",
@@ -82,12 +83,16 @@ def _grid(maze: Maze) -> np.ndarray:
 def free_neighbours(maze: Maze) -> np.ndarray:
     """``(R, C, 4)`` bool: whether each cell's neighbour to the N, E, S, W is free (outside the
     grid is wall)."""
-    grid = _grid(maze)
-    free = np.pad(grid != "#", 1, constant_values=False)
-    rows, cols = grid.shape
+    return mask_neighbours(_grid(maze) != "#")
+
+
+def mask_neighbours(free: np.ndarray) -> np.ndarray:
+    """:func:`free_neighbours` of a free-cell mask ``free`` ``(R, C)`` (a grid being built)."""
+    padded = np.pad(free, 1, constant_values=False)
+    rows, cols = free.shape
     out = np.empty((rows, cols, 4), dtype=bool)
     for h, (dr, dc) in enumerate(_STEP):
-        out[..., h] = free[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
+        out[..., h] = padded[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
     return out
 
 

@@ -59,6 +59,7 @@ from mbn.errors import MbnInputError
 from mbn.world.junctions import (
     decision_cells,
     free_neighbours,
+    mask_neighbours,
     program_swaps_caught,
     rule_route,
 )
@@ -82,7 +83,6 @@ __all__ = [
     "generate",
     "generate_text",
     "lattice_grid",
-    "neighbours",
     "parse_name",
     "place_starts",
     "place_tiles",
@@ -466,21 +466,10 @@ class _RetryError(MbnInputError):
     """An attempt that failed a check (the reason); :func:`generate` draws again."""
 
 
-def neighbours(free: np.ndarray) -> np.ndarray:
-    """``(R, C, 4)`` bool: whether each cell's neighbour to the N, E, S, W is free in the
-    free-cell mask ``free`` (outside it is wall)."""
-    rows, cols = free.shape
-    padded = np.pad(free, 1, constant_values=False)
-    out = np.empty((rows, cols, 4), dtype=bool)
-    for h, (dr, dc) in enumerate(_STEP):
-        out[..., h] = padded[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
-    return out
-
-
 def straight_cells(free: np.ndarray) -> np.ndarray:
     """Straight corridor cells of the free-cell mask ``free``: free, exactly two free
     neighbours, opposite."""
-    nb = neighbours(free)
+    nb = mask_neighbours(free)
     count = nb.sum(-1)
     return free & (count == 2) & ((nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W]))
 
@@ -503,7 +492,7 @@ def place_tiles(
 ) -> dict[tuple[int, int], tuple[int, str]]:
     """Tile cells ``{(row, col): (colours, where)}``, ``where`` ``"d=K"`` (K cells before a T or
     plus crossing) or ``"mid"`` (the middle of a corridor); no two tiles side by side."""
-    nb = neighbours(free)
+    nb = mask_neighbours(free)
     count = nb.sum(-1)
     straight = straight_cells(free)
     junction_cells = [tuple(map(int, rc)) for rc in np.argwhere(free & (count >= 3))]
@@ -598,7 +587,7 @@ def place_starts(
     every rule of ``fam`` (at most one mark a cell). Too few judgeable cells: a retry."""
     free = chars != "#"
     straight = straight_cells(free)
-    nb = neighbours(free)
+    nb = mask_neighbours(free)
     candidates = [
         (int(r), int(c), h)
         for r, c in np.argwhere(straight)
@@ -651,7 +640,7 @@ def _structure(free: np.ndarray, fam: Family) -> list[str]:
     connected, corners, T junctions, plus crossings, and a junction right after a corner (where
     lines can be 3 cells apart or less), dead ends and loops (where the parameters make them)."""
     problems: list[str] = []
-    nb = neighbours(free)
+    nb = mask_neighbours(free)
     count = np.where(free, nb.sum(-1), 0)
     straight = (nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W])
     corners = free & (count == 2) & ~straight
@@ -728,7 +717,7 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
     from mbn.world.junctions import cell_of
 
     free = np.asarray(maze.grid) != "#"
-    nb = neighbours(free)
+    nb = mask_neighbours(free)
     count = np.where(free, nb.sum(-1), 0)
     straight = straight_cells(free)
     out = []
@@ -774,7 +763,7 @@ def _all_connected(free: np.ndarray) -> bool:
 
 def _junction_after_corner(free: np.ndarray, corners: np.ndarray, count: np.ndarray) -> bool:
     """Whether some corner has a T or plus crossing at most 2 cells along one of its arms."""
-    nb = neighbours(free)
+    nb = mask_neighbours(free)
     for r, c in np.argwhere(corners):
         for h in range(4):
             if not nb[r, c, h]:
