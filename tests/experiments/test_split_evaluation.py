@@ -42,3 +42,17 @@ def test_a_split_is_judged_maze_by_maze_as_each_maze_alone(quick_run, capsys):
     assert 0 < pooled["successes"] < pooled["trials"]  # rows that can differ
     status, text, _ = run(capsys, *common[:-1], "--maze", "grid/validation:0-1")
     assert status == 0 and "grid:1000001" in text and "pooled:" in text
+
+
+def test_pooled_rows_sum_the_mazes_and_count_those_at_the_target():
+    from mbn.experiments.generalization import pooled_rows
+
+    rows = [
+        {"trials": 10, "successes": 10, "timed_out": 0, "success_rate": 1.0},
+        {"trials": 10, "successes": 9, "timed_out": 1, "success_rate": 0.9},
+        {"trials": 20, "successes": 19, "timed_out": 0, "success_rate": 0.95},
+    ]
+    out = pooled_rows(rows)
+    assert out["pooled"] == {"trials": 40, "successes": 38, "timed_out": 1, "success_rate": 0.95}
+    assert out["mazes_at_95"] == 2
+    assert abs(out["fraction_of_mazes_at_95"] - 2 / 3) < 1e-12

@@ -335,43 +335,17 @@ def _evaluate_split(
     import jax
 
     from mbn.controllers import check_trial_length
-    from mbn.experiments.trials import TrialGroup, route_seconds, run_trial_groups, summary
+    from mbn.experiments.generalization import evaluate_mazes
+    from mbn.experiments.trials import route_seconds
 
     # one time limit for the batch: the longest of the mazes' own (docs/generalization.md)
     seconds = (
         args.seconds if args.seconds is not None else max(route_seconds(m, spec) for m in mazes)
     )
     check_trial_length(loaded, seconds, str(args.controller), limit_name="--seconds")
-    spec = dataclasses.replace(spec, seconds=seconds)
     key = jax.random.fold_in(jax.random.key(args.seed), NOISE_STREAM) if noise.enabled else None
-    camera = loaded.camera
-    if camera is None and spec.behavior == "tiles":
-        from mbn.world.engine import CameraConfig
-
-        camera = CameraConfig()
-    verdicts, _, _, _ = run_trial_groups(
-        mazes,
-        [TrialGroup(m.name, i, spec, loaded.initial_state) for i, m in enumerate(mazes)],
-        loaded.controller,
-        seconds=seconds,
-        dt=loaded.dt,
-        sensors=loaded.sensors,
-        camera=camera,
-        noise=loaded.noise,
-        key=key,
-    )
-    rows = [{"maze": m.name, **summary(verdicts[m.name])} for m in mazes]
-    pooled = {k: sum(r[k] for r in rows) for k in ("trials", "successes", "timed_out")}
-    pooled["success_rate"] = pooled["successes"] / pooled["trials"]
-    at_95 = sum(r["success_rate"] >= 0.95 for r in rows)
-    result = {
-        "split": split,
-        "mazes": rows,
-        "pooled": pooled,
-        "mazes_at_95": at_95,
-        "fraction_of_mazes_at_95": at_95 / len(rows),
-        "seconds": seconds,
-    }
+    result = {"split": split, **evaluate_mazes(mazes, spec, loaded, seconds=seconds, key=key)}
+    rows, pooled, at_95 = result["mazes"], result["pooled"], result["mazes_at_95"]
     if noise.enabled:
         result["noise"] = noise.as_dict()
     if args.json:

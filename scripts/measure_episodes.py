@@ -1,0 +1,160 @@
+"""Measure how the followers' maze episodes are drawn: every N generations, and how many.
+
+For each arm (a named ``[episodes]`` / ``[followers]`` override of ``mbn reproduce``'s defaults)
+and each seed, run the ``rf`` stage of ``mbn reproduce`` (with the multiplier it needs) into
+``OUT/ARM/seed-S``, then judge its right-follower on the ``grid`` family's **validation** split
+(100 mazes, every start mark once, as ``mbn evaluate --maze grid/validation``). One JSON line per
+arm and seed is appended to ``OUT/measure.jsonl``: the validation figures, the stage's seconds
+and robot-steps. Done pairs are skipped, so the script resumes where it stopped (a stage resumes
+from its checkpoints).
+
+Seeds are visited in order and the arms round-robin within a seed, so that a partial
+measurement is balanced. The test split is never touched: this chooses settings
+(``docs/generalization.md``, "The N measurement").
+
+    python scripts/measure_episodes.py --out runs/n-measure --seeds 0-4
+    python scripts/measure_episodes.py --out runs/n-measure --summary
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+#: The arms: name -> settings sections. ``redraw`` 0 draws the episodes once (never again).
+ARMS: dict[str, dict[str, dict[str, Any]]] = {
+    "n0": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 0}},
+    "n1": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 1}},
+    "n10": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10}},
+    "n50": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 50}},
+    "n10-32ep": {"episodes": {"kind": "maze", "mazes": 8, "starts": 4, "redraw": 10}},
+    "crossroads": {"episodes": {"kind": "crossroads"}},
+}
+
+
+def _toml(sections: dict[str, dict[str, Any]]) -> str:
+    lines = []
+    for name, values in sections.items():
+        lines.append(f"[{name}]")
+        for k, v in values.items():
+            lines.append(f"{k} = {json.dumps(v)}")
+    return "\n".join(lines) + "\n"
+
+
+def _seeds(text: str) -> list[int]:
+    if "-" in text:
+        a, b = text.split("-")
+        return list(range(int(a), int(b) + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def _done(out: Path) -> set[tuple[str, int]]:
+    path = out / "measure.jsonl"
+    if not path.exists():
+        return set()
+    return {(r["arm"], r["seed"]) for r in map(json.loads, path.read_text().splitlines())}
+
+
+def measure(out: Path, arm: str, seed: int) -> dict[str, Any]:
+    from mbn.config import read_toml
+    from mbn.controllers import make_controller, read_controller_spec
+    from mbn.experiments.generalization import evaluate_mazes
+    from mbn.experiments.pipeline.runner import run_experiment
+    from mbn.experiments.reproduce import REPRODUCE
+    from mbn.experiments.trials import TrialSpec
+    from mbn.precision import ROBOT, scope
+    from mbn.world.mazes.load import load_mazes
+
+    folder = out / arm / f"seed-{seed}"
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    config_file = out / arm / "config.toml"
+    config_file.write_text(_toml(ARMS[arm]))
+    config = REPRODUCE.config(quick=False, document=read_toml(config_file))
+    t0 = time.perf_counter()
+    run_experiment(
+        REPRODUCE,
+        folder,
+        seed=seed,
+        config=config,
+        resume=(folder / "run.json").exists(),
+        log=lambda _m: None,
+        stages=["rf"],
+        workers=2,
+    )
+    wall = time.perf_counter() - t0
+    timings = json.loads((folder / "timings.json").read_text())
+    rf = json.loads((folder / "stages" / "rf.json").read_text())
+    mazes, split = load_mazes("grid/validation")
+    with scope(ROBOT):  # as `mbn evaluate` judges
+        loaded = make_controller(read_controller_spec(folder / "controllers" / "rf.json"), None)
+        judged = evaluate_mazes(mazes, TrialSpec(behavior="right"), loaded)
+    return {
+        "arm": arm,
+        "seed": seed,
+        "settings": ARMS[arm],
+        "split": split,
+        "pooled": judged["pooled"],
+        "mazes_at_95": judged["mazes_at_95"],
+        "rf_seconds": timings["stages"]["rf"],
+        "rf_robot_steps": timings["robot_steps"]["rf"],
+        "restarts": len(rf.get("restarts", [])) or 1,
+        "best_fitness": rf["best_fitness"],
+        "wall_seconds_this_call": round(wall, 1),
+    }
+
+
+def summary(out: Path) -> None:
+    rows = [json.loads(x) for x in (out / "measure.jsonl").read_text().splitlines()]
+    arms = sorted({r["arm"] for r in rows}, key=list(ARMS).index)
+    print(
+        "| arm | seeds | pooled (each seed) | mazes at >= 95 % (each seed) "
+        "| RF robot-steps (M, mean) |"
+    )
+    print("|---|---|---|---|---|")
+    for arm in arms:
+        rs = sorted((r for r in rows if r["arm"] == arm), key=lambda r: r["seed"])
+        pooled = ", ".join(f"{r['pooled']['success_rate']:.1%}" for r in rs)
+        at = ", ".join(str(r["mazes_at_95"]) for r in rs)
+        steps = sum(r["rf_robot_steps"] for r in rs) / len(rs) / 1e6
+        seeds = ",".join(str(r["seed"]) for r in rs)
+        print(f"| {arm} | {seeds} | {pooled} | {at} | {steps:.0f} |")
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--seeds", default="0-4")
+    p.add_argument("--arms", default=",".join(ARMS), help="comma-separated arms (default all)")
+    p.add_argument("--summary", action="store_true", help="print the table of what is measured")
+    args = p.parse_args()
+    if args.summary:
+        summary(args.out)
+        return 0
+    arms = args.arms.split(",")
+    for arm in arms:
+        if arm not in ARMS:
+            print(f"no arm {arm!r} (the arms: {', '.join(ARMS)})", file=sys.stderr)
+            return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    for seed in _seeds(args.seeds):
+        for arm in arms:
+            if (arm, seed) in _done(args.out):
+                continue
+            row = measure(args.out, arm, seed)
+            with open(args.out / "measure.jsonl", "a") as f:
+                f.write(json.dumps(row) + "\n")
+            print(
+                f"{arm} seed {seed}: {row['pooled']['success_rate']:.1%} pooled, "
+                f"{row['mazes_at_95']} mazes at >= 95 %, {row['rf_robot_steps'] / 1e6:.0f} M "
+                f"robot-steps, {row['rf_seconds']:.0f} s",
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
