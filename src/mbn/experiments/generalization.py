@@ -15,12 +15,36 @@ from typing import Any
 import numpy as np
 from jax import Array
 
-from mbn.experiments.trials import TrialGroup, TrialSpec, route_seconds, run_trial_groups, summary
+from mbn.experiments.stats import wilson_interval
+from mbn.experiments.trials import (
+    MAX_STALL_FRACTION,
+    TrialGroup,
+    TrialSpec,
+    route_seconds,
+    run_trial_groups,
+    summary,
+)
+from mbn.world.rules import OPEN_BITS
 
-__all__ = ["MAZE_TARGET", "evaluate_mazes", "pooled_rows"]
+__all__ = [
+    "MAZE_TARGET",
+    "evaluate_mazes",
+    "failure_causes",
+    "generalization_claims",
+    "junction_kind",
+    "junction_kinds",
+    "meets_generalization",
+    "performance_profile",
+    "pooled_rows",
+    "split_record",
+]
 
 #: A maze counts as passed when at least this share of its trials succeed (the tests' target).
 MAZE_TARGET = 0.95
+#: The generalization targets on a test split: pooled success, and the share of the mazes that
+#: pass (each at :data:`MAZE_TARGET`).
+POOLED_TARGET = 0.95
+MAZE_SHARE_TARGET = 0.90
 
 
 def pooled_rows(rows: list[dict[str, Any]], target: float = MAZE_TARGET) -> dict[str, Any]:
@@ -83,3 +107,136 @@ def evaluate_mazes(
     if verdicts:
         result["verdicts"] = {n: {k: np.asarray(v) for k, v in out[n].items()} for n in names}
     return result
+
+
+def junction_kind(mask: int) -> str:
+    """A junction's kind by the exits open as the robot enters it (an
+    :data:`~mbn.world.rules.OPEN_BITS` mask): ``plus``, ``T left-right``, ``T straight-right``,
+    ``T straight-left``, or ``corner right`` / ``corner left`` / ``straight`` with one exit."""
+    exits = [e for e in ("left", "straight", "right") if mask & OPEN_BITS[e]]
+    if len(exits) == 3:
+        return "plus"
+    if len(exits) == 2:
+        return "T " + "-".join(exits)
+    if len(exits) == 1:
+        return exits[0] if exits[0] == "straight" else f"corner {exits[0]}"
+    return "dead end"
+
+
+def junction_kinds(verdict: dict[str, np.ndarray]) -> dict[str, dict[str, int]]:
+    """Every judged junction pass of a verdict by the junction's kind (:func:`junction_kind`):
+    ``{kind: {"passes", "correct"}}``, kinds in a fixed order."""
+    opened = np.asarray(verdict["open"]).ravel()
+    right = (np.asarray(verdict["exits"]) == np.asarray(verdict["expected"])).ravel()
+    out: dict[str, dict[str, int]] = {}
+    for mask in sorted(set(int(m) for m in opened if m >= 0)):
+        here = opened == mask
+        kind = junction_kind(mask)
+        row = out.setdefault(kind, {"passes": 0, "correct": 0})
+        row["passes"] += int(here.sum())
+        row["correct"] += int((here & right).sum())
+    return out
+
+
+def failure_causes(verdict: dict[str, np.ndarray]) -> dict[str, int]:
+    """Why the failed trials of a verdict failed, each counted once in this order: ``wrong_exit``
+    (a judged junction left by another exit than the rule's), ``stalled`` (stall fraction over
+    :data:`~mbn.experiments.trials.MAX_STALL_FRACTION`), ``timed_out`` (the time limit ended
+    it first)."""
+    success = np.asarray(verdict["success"], bool)
+    wrong = np.asarray(verdict["correct"]) < np.asarray(verdict["judged"])
+    stalled = np.asarray(verdict["stall"]) > MAX_STALL_FRACTION
+    failed = ~success
+    return {
+        "failed": int(failed.sum()),
+        "wrong_exit": int((failed & wrong).sum()),
+        "stalled": int((failed & ~wrong & stalled).sum()),
+        "timed_out": int((failed & ~wrong & ~stalled).sum()),
+    }
+
+
+def performance_profile(rates: list[float], xs: np.ndarray | None = None) -> dict[str, list[float]]:
+    """The fraction of mazes whose success reaches at least ``x``, for each ``x`` of ``xs``
+    (default 0.50, 0.51, ..., 1.00): one curve of the report's performance profile."""
+    xs = np.round(np.linspace(0.5, 1.0, 51), 2) if xs is None else np.asarray(xs)
+    r = np.asarray(rates, float)
+    return {
+        "x": [float(x) for x in xs],
+        "fraction": [float((r >= x - 1e-12).mean()) if r.size else 0.0 for x in xs],
+    }
+
+
+def meets_generalization(record: dict[str, Any]) -> bool:
+    """Whether a split's record meets the generalization targets: pooled success at least
+    :data:`POOLED_TARGET` and at least :data:`MAZE_SHARE_TARGET` of its mazes each at
+    :data:`MAZE_TARGET` (compared as fractions of whole trials and mazes)."""
+    pooled = record["pooled"]
+    n = len(record["mazes"])
+    return bool(
+        pooled["successes"] * 100 >= round(POOLED_TARGET * 100) * pooled["trials"]
+        and record["mazes_at_95"] * 100 >= round(MAZE_SHARE_TARGET * 100) * n
+    )
+
+
+def split_record(result: dict[str, Any], *, breakdown: bool = False) -> dict[str, Any]:
+    """What a run records of :func:`evaluate_mazes` (called with ``verdicts``) on one split:
+    the per-maze rows (maze, trials, successes, timed out), the pooled figures with their
+    Wilson 95 % interval, how many mazes pass, the failures' causes, whether the
+    generalization targets are met, and, ``breakdown``, the judged passes by junction kind."""
+    verdicts = result["verdicts"]
+    joined = {
+        k: np.concatenate([np.asarray(v[k]) for v in verdicts.values()])
+        for k in ("success", "correct", "judged", "stall", "timed_out", "open", "exits", "expected")
+    }
+    pooled = result["pooled"]
+    lo, hi = wilson_interval(pooled["successes"], pooled["trials"])
+    record: dict[str, Any] = {
+        "mazes": [
+            {k: r[k] for k in ("maze", "trials", "successes", "timed_out")} for r in result["mazes"]
+        ],
+        "pooled": {**pooled, "wilson95": [lo, hi]},
+        "mazes_at_95": result["mazes_at_95"],
+        "fraction_of_mazes_at_95": result["fraction_of_mazes_at_95"],
+        "seconds": result["seconds"],
+        "failures": failure_causes(joined),
+    }
+    record["meets_targets"] = meets_generalization(record)
+    if breakdown:
+        record["junction_kinds"] = junction_kinds(joined)
+    return record
+
+
+def generalization_claims(data: dict[str, Any] | None) -> list[dict[str, Any]]:
+    """The claims rows of a ``generalization`` stage's data: for each controller, "holds in
+    mazes drawn from its family, never looked into" (its test split: the targets of
+    :func:`meets_generalization`), with the zero-shot suite's pooled rate beside it. Rows carry
+    ``claim``, ``paper``, ``measured``, ``target`` (the criterion) and ``pass``."""
+    if not data:
+        return []
+    rows = []
+    for name, rec in data["controllers"].items():
+        test = rec["splits"].get("test")
+        if test is None:
+            continue
+        p = test["pooled"]
+        zs = rec["splits"].get("zero-shot")
+        zero = (
+            f"; zero-shot suite {zs['pooled']['successes']}/{zs['pooled']['trials']} "
+            f"({zs['pooled']['success_rate']:.1%})"
+            if zs
+            else ""
+        )
+        rows.append(
+            {
+                "claim": f"{name} holds in mazes drawn from the {rec['family']} family, never "
+                "looked into (its test split)",
+                "paper": "not tested in the paper (its tests: one maze)",
+                "measured": f"{p['successes']}/{p['trials']} ({p['success_rate']:.1%}) pooled "
+                f"over {len(test['mazes'])} test mazes, {test['mazes_at_95']} of them at >= 95 %"
+                + zero,
+                "target": f"pooled >= {POOLED_TARGET:.0%} and >= {MAZE_SHARE_TARGET:.0%} of the "
+                f"mazes at >= {MAZE_TARGET:.0%}",
+                "pass": meets_generalization(test),
+            }
+        )
+    return rows

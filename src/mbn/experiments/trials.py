@@ -209,8 +209,10 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     ``judged`` junctions (J or fewer if the robot passed fewer), ``stall`` fraction until the J-th
     junction was left (or over the whole trial if it never was), ``timed_out`` (the trial ended
     before its J-th judged junction with no wrong exit and no stall failure: the time limit, not
-    the controller, ended it), and ``exits`` ``(n, J)``: the exit taken at each judged junction
-    (-1 where there was none)."""
+    the controller, ended it), ``exits`` ``(n, J)``: the exit taken at each judged junction
+    (-1 where there was none), ``open`` ``(n, J)``: its open exits (a
+    :data:`~mbn.world.rules.OPEN_BITS` mask; -1 where there was none) and ``expected``
+    ``(n, J)``: the exit the rule in force takes there (-1 where there was none)."""
     J = spec.junctions
     kept = np.asarray(stats.junction_exit).shape[1]
     n = np.minimum(np.asarray(stats.n_junctions), kept)
@@ -256,6 +258,8 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         "judged": judged,
         "stall": stall,
         "exits": np.where(passed, exits, -1),
+        "open": np.where(passed, opened, -1),
+        "expected": np.where(passed, rule, -1),
     }
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -179,7 +180,7 @@ def test_approaches_are_checked_and_reach_the_programs_crossroads(monkeypatch):
         "Ctx",
         (),
         {
-            "section": staticmethod(lambda name: followers),
+            "section": staticmethod(lambda name: {"followers": followers}[name]),
             "seeds": {"crossroad_jitter": 0},
             "key": jax.random.key(0),
         },
@@ -194,3 +195,43 @@ def test_approaches_are_checked_and_reach_the_programs_crossroads(monkeypatch):
     # one start per crossroad: 7 episodes from the south, 14 with the west, each at most 1.1
     assert values[("south",)].shape == (2,) and np.all(values[("south",)] <= 7 * 1.1)
     assert not np.array_equal(values[("south",)], values[("south", "west")])
+
+
+def test_with_maze_episodes_programs_are_scored_on_redrawn_maze_episodes():
+    """``[episodes] kind = "maze"``: a program's fitness is the rule's on episodes drawn from
+    the train split of the family, drawn again every ``redraw`` generations."""
+    import jax
+
+    from mbn.experiments.behaviours.stages import programs as stage
+    from mbn.experiments.evolve import Redrawn
+    from mbn.experiments.reproduce.settings import EpisodeSettings, FollowerSettings
+    from mbn.networks.multiplier import load_default
+    from mbn.networks.programmable import all_connections, build_interpreter
+    from mbn.paper import published_rf
+
+    followers = FollowerSettings(perturbation_copies=0)
+    episodes = EpisodeSettings(kind="maze", pool=3, mazes=2, starts=1, seconds=4.0, redraw=5)
+    sections = {"followers": followers, "episodes": episodes}
+    ctx = type(
+        "Ctx",
+        (),
+        {
+            "section": staticmethod(lambda name: sections[name]),
+            "seeds": {"crossroad_jitter": 0},
+            "key": jax.random.key(0),
+        },
+    )()
+    rf = published_rf(dtype=np.float32)
+    interp = build_interpreter(rf, all_connections(rf, bound=20.0)[:2], load_default())
+    fitness = stage.program_fitness(ctx, interp, rf, "straight-right", 1)
+    assert isinstance(fitness, Redrawn) and fitness.every == 5
+    programs = jnp.asarray(np.full((2, 2), 0.5, np.float32))
+    owner = jnp.zeros(2, jnp.int32)
+    first = np.asarray(fitness.at(0)(programs, owner))
+    again = np.asarray(fitness.at(4)(programs, owner))  # the same draw
+    other = np.asarray(fitness.at(5)(programs, owner))  # the next draw: other episodes
+    assert first.shape == (2,) and np.all(np.isfinite(first))
+    # two episodes, each at most 1.1 (progress 1, no stall, F_M at most 1 times 0.1)
+    assert np.all(first <= 2 * 1.1 + 1e-6)
+    np.testing.assert_array_equal(first, again)
+    assert not np.array_equal(first, other)

@@ -26,6 +26,7 @@ OUTPUTS = {
     "im": ["controllers/im.json"],
     "pm": ["controllers/mbn.json", "checkpoints/pm.npz"],
     "tests": ["records/test_trajectories.npz", "records/mbn_recording.npz"],
+    "generalization": ["records/generalization_worst.npz"],
 }
 
 
@@ -40,8 +41,17 @@ def _copy(quick_run, tmp_path):
 
 
 def test_the_registry_lists_the_paper_pipeline_in_order():
-    assert STAGES.names == ("multiplier", "rf", "lf_search", "lf", "im", "pm", "tests")
-    assert [s.key_id for s in STAGES] == [1, 2, 3, 4, 5, 6, 7]
+    assert STAGES.names == (
+        "multiplier",
+        "rf",
+        "lf_search",
+        "lf",
+        "im",
+        "pm",
+        "tests",
+        "generalization",
+    )
+    assert [s.key_id for s in STAGES] == [1, 2, 3, 4, 5, 6, 7, 16]
     assert set(OUTPUTS) == set(STAGES.names)
 
 

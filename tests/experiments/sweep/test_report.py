@@ -76,7 +76,10 @@ def test_summary_of_a_fake_folder(folder):
     on_disk = json.loads((folder / "sweep.json").read_text())
     assert on_disk["summary"]["meet_every_target"] == 1
     line = summary_line(data)
-    assert line.startswith("sweep: 1/4 seeds meet every target, 1 failed (seed 3: RuntimeError")
+    assert line.startswith(
+        "sweep: 1/4 seeds meet every target, 0/4 every generalization target, 1 failed (seed 3: "
+        "RuntimeError"
+    )
     assert line.endswith("2 min 05 s")
 
 

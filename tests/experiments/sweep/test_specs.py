@@ -75,7 +75,12 @@ def test_a_new_behaviours_summary_counts_its_own_targets_and_claims():
     assert s["meet_every_target"] == 1 and s["per_seed"]["1"]["missed"] == [
         "im_full_straight_right"
     ]
-    assert set(s["targets"]) == {t.name for t in NEW_BEHAVIOURS_TARGETS}
+    assert set(s["targets"]) == {
+        t.name for t in (*NEW_BEHAVIOURS_TARGETS, *NEW_BEHAVIOURS_SPEC.generalization)
+    }
+    # runs without a generalization stage meet no generalization target, counted apart
+    assert s["meet_every_generalization_target"] == 0
+    assert s["per_seed"]["0"]["meets_all"] and not s["per_seed"]["0"]["meets_generalization"]
     assert s["tests"]["mbn3_jitter"]["pooled"] == {
         "successes": 440,
         "trials": 440,

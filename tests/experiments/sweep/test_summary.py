@@ -121,3 +121,36 @@ def test_claims_naming_a_run_s_own_connections_count_together():
     assert claim_key("The MBN follows the right wall (section 3.2)") == (
         "The MBN follows the right wall (section 3.2)"
     )
+
+
+def _split(successes: list[int], trials: int = 10) -> dict:
+    return {
+        "mazes": [
+            {"maze": f"m{k}", "trials": trials, "successes": s} for k, s in enumerate(successes)
+        ],
+        "pooled": {"successes": sum(successes), "trials": trials * len(successes)},
+        "mazes_at_95": sum(s * 100 >= 95 * trials for s in successes),
+    }
+
+
+def test_generalization_targets_are_judged_per_seed_apart_from_the_run_targets():
+    from mbn.experiments.sweep.specs import sweep_spec
+    from mbn.experiments.sweep.targets import GENERALIZATION_TARGETS
+
+    spec = sweep_spec("reproduce")
+    assert spec.generalization == GENERALIZATION_TARGETS
+    good = {"test": _split([10] * 9 + [5]), "zero-shot": _split([10, 8, 9])}  # 95 %, 90 %
+    controllers = {n: {"splits": dict(good)} for n in ("rf", "lf", "im_rf", "im_lf", "mbn")}
+    # LF: pooled 98 % but 8 of 10 mazes at 95 %; the MBN: zero-shot 26/30 < 90 %
+    controllers["lf"] = {"splits": {**good, "test": _split([10] * 8 + [9, 9])}}
+    controllers["mbn"] = {"splits": {**good, "zero-shot": _split([10, 8, 8])}}
+    results = {"stages": {"generalization": {"controllers": controllers}}, "tests": {}}
+    v = seed_verdict(results, spec.generalization)
+    assert v["missed"] == ["lf_test_mazes", "mbn_zero_shot"]
+    assert v["targets"]["lf_test"] == {"hits": 98, "trials": 100, "meets": True}
+    assert v["targets"]["lf_test_mazes"] == {"hits": 8, "trials": 10, "meets": False}
+    s = summarize({0: results}, spec=spec)
+    assert s["meet_every_generalization_target"] == 0
+    assert s["per_seed"]["0"]["missed_generalization"] == ["lf_test_mazes", "mbn_zero_shot"]
+    assert s["targets"]["rf_test"]["group"] == "generalization"
+    assert s["targets"]["rf_jitter"]["group"] == "run"

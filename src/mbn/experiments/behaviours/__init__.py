@@ -15,6 +15,9 @@ Stages:
    one-, two- and three-colour tiles to RF's, LF's and straight-right's programs.
 11. ``tests3``: the new rules' programs and the three-behaviour MBN on the three-tile mazes, the
    MBN on the paper's mazes, and the interpreter's sha256 in every file checked.
+12. ``generalization``: the new rules' programs and the three-behaviour MBN in mazes drawn
+   from their family (train, validation and test splits) and on the zero-shot suite
+   (``docs/generalization.md``).
 
 Each stage is one module (the first four ``mbn.experiments.reproduce.stages``'s, the others
 :mod:`mbn.experiments.behaviours.stages`'s); ``docs/behaviours.md`` describes them.
@@ -25,6 +28,7 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.behaviours.report import claims, write_report
+from mbn.experiments.behaviours.stages.generalization import BehavioursGeneralization
 from mbn.experiments.behaviours.stages.im_full import IMFullStage
 from mbn.experiments.behaviours.stages.mbn3 import MBN3Stage
 from mbn.experiments.behaviours.stages.programs import ProgramsStage
@@ -61,6 +65,7 @@ STAGES = Registry(
         ProgramsStage(),
         MBN3Stage(),
         Tests3Stage(),
+        BehavioursGeneralization(),
     ]
 )
 

@@ -12,8 +12,10 @@ import numpy as np
 
 from mbn.controllers import MBNControllerSpec, read_controller_spec
 from mbn.experiments.behaviours.stages.im_full import AGREEMENT_TARGET, ROBUST_TARGET
+from mbn.experiments.generalization import generalization_claims
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.reproduce.stages.generalization import generalization_sections
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
 from mbn.notation import connection_name
@@ -116,6 +118,8 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             "pass": bool(ok),
         }
     )
+    for row in generalization_claims(stages.get("generalization")):
+        out.append({k: row[k] for k in ("claim", "measured", "target", "pass")})
     return out
 
 
@@ -241,5 +245,7 @@ def write_report(rundir: RunDir) -> None:
                 ),
             )
         )
+    if stages.get("generalization"):
+        secs.extend(generalization_sections(rundir, stages["generalization"]))
     secs.append(Section("Pictures", images=_pictures(rundir, stages)))
     write_document(rundir.root, "report", TITLE, secs)

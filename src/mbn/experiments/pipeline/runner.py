@@ -237,6 +237,14 @@ def run_stage(
     return data
 
 
+def maze_splits() -> dict[str, list[int]]:
+    """The maze families' splits of generator seeds (first and last seed of each), which every
+    ``results.json`` records (``docs/generalization.md``, "Splits")."""
+    from mbn.world.mazes.families import SPLITS
+
+    return {name: [r.start, r.stop - 1] for name, r in SPLITS.items()}
+
+
 def collect_results(
     experiment: Experiment, rundir: RunDir, seed: int, config: RunConfig
 ) -> dict[str, Any]:
@@ -250,6 +258,7 @@ def collect_results(
         "config": config.to_dict(),
         "versions": versions(),
         "code": code_identity(),
+        "maze_splits": maze_splits(),
         "stages": {s.name: s.metrics(stages[s.name]) for s in experiment.registry},
     }
     if experiment.results is not None:

@@ -11,6 +11,8 @@ Stages (paper section 3; ``docs/reproduce.md`` describes each and every deviatio
 6. ``pm``: the program module, evolved with the interpreter fixed.
 7. ``tests``: the paper's protocol, jittered starts and the held-out maze, for RF, LF, the
    interpreter with each program, the MBN and the published weights.
+8. ``generalization``: the same controllers in mazes drawn from their family (train,
+   validation and test splits) and on the zero-shot suite (``docs/generalization.md``).
 
 Each stage is one module of :mod:`mbn.experiments.reproduce.stages`; :data:`STAGES` lists them
 in order (adding a stage: one module and one line here). The run folder, resume and
@@ -34,6 +36,7 @@ from mbn.experiments.reproduce.settings import (
     ValidationSettings,
     derived_seeds,
 )
+from mbn.experiments.reproduce.stages.generalization import ReproduceGeneralization
 from mbn.experiments.reproduce.stages.im import IMStage
 from mbn.experiments.reproduce.stages.lf import LFStage
 from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
@@ -66,7 +69,7 @@ def controller_stages() -> list[Stage]:
 
 
 #: The stages of the paper's experiment, in the order they run.
-STAGES = Registry([*controller_stages(), TestsStage()])
+STAGES = Registry([*controller_stages(), TestsStage(), ReproduceGeneralization()])
 
 
 def _results(

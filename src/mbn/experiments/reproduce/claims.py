@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from mbn.experiments.generalization import generalization_claims
 from mbn.experiments.reproduce.protocol import WHO
 from mbn.experiments.reproduce.stages.multiplier import GRID_POINTS
 from mbn.notation import connection_names
@@ -158,4 +159,6 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
             _all(t),
             "all trials succeed",
         )
+    for row in generalization_claims(stages.get("generalization")):
+        add(row["claim"], row["paper"], row["measured"], row["pass"], row["target"])
     return out

@@ -17,6 +17,7 @@ from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.reproduce.protocol import TESTED
 from mbn.experiments.reproduce.settings import InterpreterSettings
+from mbn.experiments.reproduce.stages.generalization import generalization_sections
 from mbn.io import read_json
 from mbn.networks.programmable import differing_connections
 from mbn.notation import connection_names
@@ -281,6 +282,8 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
             images=[images["traces"], images["gif"]],
         )
     )
+    if s.get("generalization"):
+        secs.extend(generalization_sections(rundir, s["generalization"]))
     timings = rundir.read_timings()
     if timings:
         secs.append(

@@ -193,7 +193,12 @@ class ValidationSettings(Settings):
 
     section = "validation"
     # runs recorded before ``extra_mazes`` existed checked their candidates in ``maze`` alone
-    recorded_before: ClassVar[dict[str, Any]] = {"extra_mazes": ()}
+    recorded_before: ClassVar[dict[str, Any]] = {
+        "extra_mazes": (),
+        "split_mazes": 20,
+        "split_jitter_per_mark": 2,
+        "maze_share": 0.9,
+    }
     maze: str = setting(
         "validation",
         doc="maze the candidates are checked in (built-in name or file; not a test maze)",
@@ -228,6 +233,32 @@ class ValidationSettings(Settings):
         high=1.0,
         source="docs/reproduce.md (Validation: which agreement holds in the tests)",
     )
+    split_mazes: int = setting(
+        20,
+        doc="with maze episodes ([episodes] kind = maze): the candidates are checked in the "
+        "first N mazes of the validation split of their family (the followers' and the "
+        "programs': [episodes] family; an MBN's: the family of its tile kinds, tiles2 or "
+        "tiles3), instead of maze and extra_mazes",
+        low=1,
+        high=100,
+        source="docs/generalization.md (Validation on the validation split)",
+    )
+    split_jitter_per_mark: int = setting(
+        2,
+        doc="with maze episodes: starts per start mark of each validation maze (the mark and "
+        "jittered ones)",
+        low=1,
+        high=1000,
+        source="docs/generalization.md (Validation on the validation split)",
+    )
+    maze_share: float = setting(
+        0.9,
+        doc="with maze episodes: share of the validation mazes that must each reach target "
+        "(beside the pooled rate: the tests' second target)",
+        low=0.0,
+        high=1.0,
+        source="the generalization targets (docs/generalization.md)",
+    )
     attempts: int = setting(
         3,
         doc="candidates a stage evolves at most before it keeps the best",
@@ -259,6 +290,7 @@ QUICK: dict[str, dict[str, Any]] = {
     "pm": {"generations": 30, "variants": 1},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
     "validation": {"jitter_per_mark": 1, "attempts": 1},
+    "generalization": {"test_mazes": 5, "gap_mazes": 3},
 }
 
 

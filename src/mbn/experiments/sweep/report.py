@@ -78,6 +78,8 @@ def summary_line(data: dict[str, Any]) -> str:
     n = len(summ["seeds"])
     if has_run_targets(summ):
         line = f"sweep: {summ['meet_every_target']}/{n} seeds meet every target"
+        if summ.get("meet_every_generalization_target") is not None:
+            line += f", {summ['meet_every_generalization_target']}/{n} every generalization target"
     else:  # an experiment without per-run targets (compared over runs)
         line = f"sweep: {summ['finished']}/{n} seeds finished (no per-run targets)"
     failed = [(s, data["runs"].get(str(s), {}).get("error")) for s in summ["failed"]]
@@ -245,6 +247,8 @@ def summarize_folder(out: Path) -> dict[str, Any]:
         completed = {s: r for s, r in runs.items() if r is not None}
         summ["analysis"], extra, more = spec.analysis(out, completed) if completed else ({}, [], [])
         images.extend(more)
+    if spec.generalization and finished:
+        extra.append(_generalization_section(out, summ, runs, spec))
     if finished:
         curves = de_curves(out, finished, spec)
         if curves:
@@ -276,6 +280,66 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     write_sweep(out, data)
     write_document(out, "sweep", spec.title, _sections(out, data, images, spec, extra))
     return data
+
+
+def _generalization_section(
+    out: Path,
+    summ: dict[str, Any],
+    runs: dict[int, dict[str, Any] | None],
+    spec: SweepSpec,
+) -> Section:
+    """The sweep's generalization: per seed, each generalization target (test split pooled and
+    mazes at 95 %, zero-shot pooled) met or not with its figure, and the performance profile on
+    the test split (one curve per seed, a panel per controller)."""
+    from mbn.experiments.sweep.targets import measure, meets
+    from mbn.viz.generalization import performance_profile_panels
+
+    names = [t.name for t in spec.generalization]
+    rows: list[list[str]] = []
+    status: list[bool | None] = []
+    profiles: dict[str, dict[str, list[float]]] = {}
+    for s, r in runs.items():
+        if r is None:
+            continue
+        cells = []
+        for t in spec.generalization:
+            hits, trials = measure(t, r)
+            ok = meets(t, hits, trials)
+            cells.append(f"{hits}/{trials}" + ("" if ok else " ✗") if trials else "–")
+        v = summ["per_seed"][str(s)]
+        rows.append([str(s), *cells, "yes" if v.get("meets_generalization") else "no"])
+        status.append(bool(v.get("meets_generalization")))
+        gen = r.get("stages", {}).get("generalization") or {}
+        for name, rec in (gen.get("controllers") or {}).items():
+            test = rec["splits"].get("test")
+            if test:
+                rates = [m["successes"] / m["trials"] for m in test["mazes"]]
+                profiles.setdefault(name, {})[f"seed {s}"] = rates
+    images = []
+    if profiles:
+        performance_profile_panels(profiles, out / "figures" / "sweep_profile.png")
+        images.append(
+            (
+                "figures/sweep_profile.png",
+                "Test split: fraction of the mazes at a success rate of at least x, one curve "
+                "per seed",
+            )
+        )
+    count = summ.get("meet_every_generalization_target")
+    return Section(
+        "Generalization over seeds",
+        [
+            f"**{count} of {len(summ['seeds'])} seeds meet every generalization target**: on "
+            "the test split (100 mazes drawn from the family before any run, used by no "
+            "selection) pooled success >= 95 % and >= 90 % of the mazes each at >= 95 %, and "
+            "pooled >= 90 % on the zero-shot suite, for each controller. Cells: hits/trials "
+            "(mazes at 95 %/mazes for the second of each); ✗ marks a miss "
+            "(`docs/generalization.md`)."
+        ],
+        table=(["seed", *names, "meets every one"], rows),
+        status=status,
+        images=images,
+    )
 
 
 def finished_taken(out: Path, seeds: list[int]) -> dict[int, list[str]]:

@@ -21,7 +21,12 @@ from typing import TYPE_CHECKING, Any
 
 from mbn.errors import MbnInputError
 from mbn.experiments.reproduce.protocol import SUFFIXES, TEST_NAMES
-from mbn.experiments.sweep.targets import TARGETS, Target
+from mbn.experiments.sweep.targets import (
+    GENERALIZATION_TARGETS,
+    TARGETS,
+    Target,
+    generalization_targets,
+)
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
@@ -58,6 +63,9 @@ class SweepSpec:
         de_stages: the stages whose DE best-fitness curves are drawn, with their titles.
         curve: reads one stage's curve from a seed folder (``None`` where it has none).
         load: the experiment (imported when a run needs it).
+        generalization: the generalization targets (a seed "meets every generalization
+            target"), counted apart from ``targets``: runs made before the ``generalization``
+            stage have no record of them.
         analysis: statistics over the finished runs beyond the per-test ones, ``(folder,
             {seed: results.json}) -> (statistics, report sections, figures)`` (``None``: none).
     """
@@ -72,6 +80,7 @@ class SweepSpec:
     de_stages: Mapping[str, str]
     curve: Callable[[RunDir, str], list[float] | None]
     load: Callable[[], Experiment]
+    generalization: tuple[Target, ...] = ()
     analysis: (
         Callable[
             [Path, Mapping[int, Mapping[str, Any]]],
@@ -147,6 +156,7 @@ REPRODUCE_SPEC = SweepSpec(
     title="mbn sweep: the reproduction over seeds",
     command="mbn reproduce",
     targets=TARGETS,
+    generalization=GENERALIZATION_TARGETS,
     tests=tuple(TEST_NAMES),
     groups=_by_trials("Paper protocol", _FOLLOWERS),
     targets_text="The targets (`mbn.experiments.sweep.targets`): the paper protocol in every "
@@ -215,6 +225,13 @@ NEW_BEHAVIOURS_SPEC = SweepSpec(
     title="mbn sweep: new behaviours by programs alone, over seeds",
     command="mbn run new-behaviours",
     targets=NEW_BEHAVIOURS_TARGETS,
+    generalization=generalization_targets(
+        (
+            ("straight_right", "straight-right by a program alone"),
+            ("straight_left", "straight-left by a program alone"),
+            ("mbn3", "three-behaviour MBN"),
+        )
+    ),
     tests=_NB_TESTS,
     groups=_by_trials("Start marks", _NB_STEMS),
     targets_text="The targets (`mbn.experiments.sweep.specs`): every start mark, and at least "

@@ -62,8 +62,9 @@ def summarize(
         spec: the experiment's targets and tests (default: the reproduction's).
 
     Returns:
-        ``{"seeds", "finished", "failed", "meet_every_target", "per_seed", "tests", "targets",
-        "claims"}`` (plain JSON).
+        ``{"seeds", "finished", "failed", "meet_every_target",
+        "meet_every_generalization_target", "per_seed", "tests", "targets", "claims"}`` (plain
+        JSON; the generalization targets are counted apart, None where the spec has none).
     """
     errors = dict(errors or {})
     spec = spec or sweep_spec(None)
@@ -80,6 +81,10 @@ def summarize(
         else:
             v = seed_verdict(r, spec.targets)
             per_seed[str(s)] = {"state": "done", "meets_all": v["meets_all"], "missed": v["missed"]}
+            if spec.generalization:
+                g = seed_verdict(r, spec.generalization)
+                per_seed[str(s)]["meets_generalization"] = g["meets_all"]
+                per_seed[str(s)]["missed_generalization"] = g["missed"]
     tests: dict[str, Any] = {}
     for name in spec.tests:
         rates, succ, trials = [], 0, 0
@@ -97,7 +102,7 @@ def summarize(
             "pooled": {"successes": succ, "trials": trials, "wilson95": [lo, hi]},
         }
     targets: dict[str, Any] = {}
-    for t in spec.targets:
+    for t in (*spec.targets, *spec.generalization):
         measured = [measure(t, dict(r)) for r in finished.values()]
         hits = sum(h for h, _ in measured)
         trials = sum(n for _, n in measured)
@@ -106,6 +111,7 @@ def summarize(
             "source": t.source,
             "threshold": float(t.threshold),
             "what": t.what,
+            "group": "generalization" if t in spec.generalization else "run",
             "seeds_meeting": sum(meets(t, h, n) for h, n in measured),
             "rates": [h / n if n else math.nan for h, n in measured],
             **describe([h / n for h, n in measured if n]),
@@ -136,6 +142,11 @@ def summarize(
         "finished": len(finished),
         "failed": sorted(s for s in errors if runs.get(s) is None),
         "meet_every_target": sum(bool(v.get("meets_all")) for v in per_seed.values()),
+        "meet_every_generalization_target": (
+            sum(bool(v.get("meets_generalization")) for v in per_seed.values())
+            if spec.generalization
+            else None
+        ),
         "per_seed": per_seed,
         "tests": tests,
         "targets": targets,

@@ -25,7 +25,18 @@ from typing import Any
 from mbn.experiments.reproduce.claims import AGREEMENT_TARGET, ROBUST_TARGET
 from mbn.experiments.reproduce.protocol import WHO
 
-__all__ = ["TARGETS", "Target", "measure", "meets"]
+__all__ = [
+    "GENERALIZATION_TARGETS",
+    "TARGETS",
+    "ZERO_SHOT_TARGET",
+    "Target",
+    "generalization_targets",
+    "measure",
+    "meets",
+]
+
+#: The zero-shot suite's target: pooled success over its mazes.
+ZERO_SHOT_TARGET = 0.90
 
 
 @dataclass(frozen=True)
@@ -55,6 +66,8 @@ class Target:
     @property
     def path(self) -> tuple[str, ...]:
         """The keys from ``results.json`` to the record."""
+        if self.source in SPLIT_SOURCES:
+            return self.where
         default = ("tests",) if self.source == "tests" else ("stages", "tests", "agreement")
         return (*(self.where or default), self.test)
 
@@ -62,6 +75,12 @@ class Target:
     def label(self) -> str:
         """The threshold as the report writes it (``10/10``-style "all", or ``>= 95 %``)."""
         return "all trials" if self.threshold == 1 else f">= {float(self.threshold):.0%}"
+
+
+#: Sources of a generalization target: a split record of a ``generalization`` stage
+#: (:func:`mbn.experiments.generalization.split_record`), its pooled trials or its mazes each
+#: at 95 %.
+SPLIT_SOURCES = ("split_pooled", "split_mazes")
 
 
 def _fraction(rate: float) -> Fraction:
@@ -118,10 +137,58 @@ def measure(target: Target, results: dict[str, Any]) -> tuple[int, int]:
         if not isinstance(record, dict) or key not in record:
             return 0, 0  # the run did not record it: no trials, not met
         record = record[key]
+    if target.source == "split_pooled":
+        return int(record["pooled"]["successes"]), int(record["pooled"]["trials"])
+    if target.source == "split_mazes":
+        return int(record["mazes_at_95"]), len(record["mazes"])
     hits = record["successes"] if target.source == "tests" else record["same_branches"]
     return int(hits), int(record["trials"])
+
+
+def generalization_targets(
+    controllers: tuple[tuple[str, str], ...], stage: str = "generalization"
+) -> tuple[Target, ...]:
+    """The generalization targets of a ``generalization`` stage's controllers (``(name, what
+    the report calls it)``): on the test split pooled success >= 95 % and >= 90 % of the mazes
+    each at >= 95 %, and on the zero-shot suite pooled >= 90 % (``docs/generalization.md``)."""
+    from mbn.experiments.generalization import MAZE_SHARE_TARGET, POOLED_TARGET
+
+    out: list[Target] = []
+    for name, what in controllers:
+        base = ("stages", stage, "controllers", name, "splits")
+        out += [
+            Target(
+                f"{name}_test",
+                "split_pooled",
+                f"{name}/test",
+                _fraction(POOLED_TARGET),
+                f"{what}: test split, pooled",
+                (*base, "test"),
+            ),
+            Target(
+                f"{name}_test_mazes",
+                "split_mazes",
+                f"{name}/test",
+                _fraction(MAZE_SHARE_TARGET),
+                f"{what}: test split, mazes at >= 95 %",
+                (*base, "test"),
+            ),
+            Target(
+                f"{name}_zero_shot",
+                "split_pooled",
+                f"{name}/zero-shot",
+                _fraction(ZERO_SHOT_TARGET),
+                f"{what}: zero-shot suite, pooled",
+                (*base, "zero-shot"),
+            ),
+        ]
+    return tuple(out)
 
 
 def meets(target: Target, hits: int, trials: int) -> bool:
     """Whether ``hits`` of ``trials`` meet ``target`` (no trials: not met)."""
     return trials > 0 and Fraction(hits, trials) >= target.threshold
+
+
+#: The reproduction's generalization targets (its ``generalization`` stage).
+GENERALIZATION_TARGETS = generalization_targets(tuple((n, WHO[n]) for n in _FOLLOWERS))

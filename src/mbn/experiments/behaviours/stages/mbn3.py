@@ -37,7 +37,8 @@ from mbn.experiments.program_module import (
     latch_after_tile,
     tile_sequences,
 )
-from mbn.experiments.reproduce.stages.common import MADE_BY, de_config
+from mbn.experiments.reproduce.stages.common import MADE_BY, de_config, maze_episodes, validate
+from mbn.experiments.reproduce.stages.lf import ATTEMPT_KEY
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule, parse_rules
@@ -222,16 +223,31 @@ class MBN3Stage(Stage):
                 f"mbn3.tile_rules: {path} has no program for {', '.join(missing)} (it has "
                 f"{', '.join(im_spec.programs)})"
             )
-        pm = evolve_code_pm(ctx, "mbn3_pm", rules, s.generations, s.bound, s.switch_seconds)
         programs = [im_spec.programs[r] for r in rules]
-        spec = code_mbn(
-            im_spec,
-            pm.network,
-            rules,
-            programs,
-            CameraConfig(range=s.camera_range),
-            {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest},
+        meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest}
+        camera = CameraConfig(range=s.camera_range)
+        # with maze episodes the final choice drives the robot: up to [validation] attempts
+        # PMs, each judged in the tiles3 family's validation mazes, the best kept
+        attempts = ctx.section("validation").attempts if maze_episodes(ctx) is not None else 1
+        tries: list[dict[str, Any]] = []
+        for a in range(attempts):
+            key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
+            name = "mbn3_pm" if a == 0 else f"mbn3_pm_attempt{a}"
+            pm = evolve_code_pm(ctx, name, rules, s.generations, s.bound, s.switch_seconds, key)
+            spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
+            check = validate(ctx, spec, "tiles") if attempts > 1 else None
+            tries.append({"pm": pm, "spec": spec, "validation": check})
+            if check is None or check["meets_target"]:
+                break
+        chosen = max(
+            range(len(tries)),
+            key=lambda i: (
+                tries[i]["validation"]["success_rate"] if tries[i]["validation"] else 0.0,
+                tries[i]["pm"].run.data["best_fitness"],
+                -i,
+            ),
         )
+        pm, spec = tries[chosen]["pm"], tries[chosen]["spec"]
         run = pm.run
         save_controller(ctx.rundir.controller_file("mbn3"), spec)
         again = read_controller_spec(ctx.rundir.controller_file("mbn3"))
@@ -247,6 +263,21 @@ class MBN3Stage(Stage):
             "initial": None if spec.initial is None else spec.initial.rule,
             "sha256": digest,
             "sha256_checked": True,
+            **(
+                {
+                    "validation": tries[chosen]["validation"],
+                    "attempts": [
+                        {
+                            "best_fitness": t["pm"].run.data["best_fitness"],
+                            "validation": t["validation"],
+                        }
+                        for t in tries
+                    ],
+                    "chosen_attempt": chosen,
+                }
+                if attempts > 1
+                else {}
+            ),
         }
 
     def summary(self, data: dict[str, Any]) -> str:

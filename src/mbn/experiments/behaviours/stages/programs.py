@@ -37,8 +37,10 @@ from mbn.experiments.named import check_not_test_mazes, locate, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     MADE_BY,
+    maze_episodes,
     read_network,
     stage_perturbations,
+    training_fitness,
     validate,
     validation_record,
     validation_verdicts,
@@ -171,8 +173,26 @@ def program_fitness(
 ) -> Callable[[jax.Array], jax.Array]:
     """Fitness of a population of programs ``(P, K)``: the rule's crossroad fitness of the
     networks they encode (exact products), averaged over perturbed copies of the weights, on the
-    crossroads entered by ``approaches``."""
+    crossroads entered by ``approaches`` - or, with maze episodes (``[episodes] kind = "maze"``),
+    on episodes drawn from the family's train split and drawn again every ``redraw``
+    generations (:func:`~mbn.experiments.reproduce.stages.common.training_fitness`)."""
     genome = Genome.around(base, interp.connections)
+    perturbed = stage_perturbations(ctx, genome.size)
+    lower, span = interp.lower, interp.upper - interp.lower
+
+    def make(task: Any) -> Callable[..., jax.Array]:
+        by_weights = robust_fitness(crossroad_fitness(genome, task), perturbed)
+
+        def fitness(programs: jax.Array, *per_genome: jax.Array) -> jax.Array:
+            return by_weights(lower + programs * span, *per_genome)
+
+        return fitness
+
+    if maze_episodes(ctx) is not None:
+        made: Callable[[jax.Array], jax.Array] = training_fitness(
+            ctx, rule, variants, make, approaches
+        )
+        return made
     followers = ctx.section("followers")
     task = CrossroadTask(
         rule=rule,
@@ -181,15 +201,7 @@ def program_fitness(
         seed=ctx.seeds["crossroad_jitter"],
         approaches=approaches,
     )
-    by_weights = robust_fitness(
-        crossroad_fitness(genome, task), stage_perturbations(ctx, genome.size)
-    )
-    lower, span = interp.lower, interp.upper - interp.lower
-
-    def fitness(programs: jax.Array) -> jax.Array:
-        return by_weights(lower + programs * span)
-
-    return fitness
+    return make(task)
 
 
 def _best_member(

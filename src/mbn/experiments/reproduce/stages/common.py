@@ -3,6 +3,7 @@ perturbations, evolving and scoring a follower, and reading the networks earlier
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import jax
@@ -42,6 +43,7 @@ __all__ = [
     "de_config",
     "evolve_follower",
     "interpreter_of",
+    "maze_episodes",
     "noise_key",
     "read_network",
     "restart_rank",
@@ -51,9 +53,11 @@ __all__ = [
     "score",
     "stage_perturbations",
     "task",
+    "tile_family",
     "training_fitness",
     "training_task",
     "validate",
+    "validation_maze_names",
     "validation_mazes",
     "validation_record",
     "validation_verdict",
@@ -387,33 +391,102 @@ def validate(
     return validation_record(ctx, validation_verdict(ctx, spec, behavior, program, extra=extra))
 
 
-def _validation_trial(ctx: StageContext, behavior: str, initial: str) -> Any:
-    """The trials of the ``[validation]`` maze: every mark, ``jitter_per_mark`` starts each (the
-    run's ``validation_jitter`` seed), the tests' time limits."""
-    from mbn.experiments.trials import TrialSpec
+def maze_episodes(ctx: StageContext) -> Any:
+    """The run's ``[episodes]`` settings when its stages select on maze episodes (``kind =
+    "maze"``), else None (the paper's crossroads, or an experiment without the section)."""
+    try:
+        episodes = ctx.section("episodes")
+    except KeyError:
+        return None
+    return episodes if episodes.kind == "maze" else None
+
+
+def _validation_trial(
+    ctx: StageContext,
+    behavior: str,
+    initial: str,
+    mazes: list[Any],
+    tile_rules: tuple[str, ...] = ("right", "left"),
+) -> Any:
+    """The trials of the validation mazes: every mark, ``jitter_per_mark`` starts each (on maze
+    episodes ``split_jitter_per_mark``; the run's ``validation_jitter`` seed), the tests' time
+    limits (on maze episodes, at least the longest of the mazes' own)."""
+    from mbn.experiments.trials import TrialSpec, route_seconds
 
     t = ctx.section("tests")
-    return TrialSpec(
+    v = ctx.section("validation")
+    maze_kind = maze_episodes(ctx) is not None
+    spec = TrialSpec(
         behavior=behavior,
         initial=initial,
-        repeats=ctx.section("validation").jitter_per_mark,
+        repeats=v.split_jitter_per_mark if maze_kind else v.jitter_per_mark,
         seconds=t.mbn_seconds if behavior == "tiles" else t.seconds,
         seed=ctx.seeds["validation_jitter"],
+        tile_rules=tile_rules,
+    )
+    if maze_kind:
+        longest = max(route_seconds(m, spec) for m in mazes)
+        spec = dataclasses.replace(spec, seconds=max(spec.seconds, longest))
+    return spec
+
+
+def tile_family(tile_rules: tuple[str, ...]) -> str:
+    """The maze family whose tile kinds put ``tile_rules`` in force (an MBN's: ``tiles2`` for
+    the paper's right and left, ``tiles3`` for the three-behaviour MBN's)."""
+    from mbn.world.mazes import families
+
+    for name, fam in families.FAMILIES.items():
+        if fam.tile_rules and fam.tile_rules == tuple(tile_rules):
+            return name
+    known = "; ".join(
+        f"{n}: {', '.join(f.tile_rules)}" for n, f in families.FAMILIES.items() if f.tile_rules
+    )
+    raise MbnInputError(
+        f"no maze family has tiles for the rules {', '.join(tile_rules)} (the families: {known})"
     )
 
 
-def validation_mazes(ctx: StageContext, extra: tuple[str, ...] = ()) -> list[Any]:
-    """The ``[validation]`` mazes, which no test uses: ``maze`` and then ``extra_mazes``, and
-    then a stage's own ``extra``."""
-    from mbn.world.mazes.load import load_maze
+def validation_maze_names(
+    ctx: StageContext,
+    behavior: str = "right",
+    extra: tuple[str, ...] = (),
+    tile_rules: tuple[str, ...] = ("right", "left"),
+) -> list[str]:
+    """The names of the validation mazes, which no test uses: on maze episodes the first
+    ``split_mazes`` of the validation split of the family (``[episodes] family``; for an MBN,
+    ``behavior`` "tiles", the family of its ``tile_rules``: :func:`tile_family`); else ``maze``
+    and ``extra_mazes``; then a stage's own ``extra``."""
+    from mbn.world.mazes import families
 
     v = ctx.section("validation")
-    return [load_maze(name) for name in (v.maze, *v.extra_mazes, *extra)]
+    episodes = maze_episodes(ctx)
+    if episodes is None:
+        return [v.maze, *v.extra_mazes, *extra]
+    family = tile_family(tile_rules) if behavior == "tiles" else episodes.family
+    seeds = families.split_seeds("validation", 0, v.split_mazes - 1)
+    return [*(f"{family}:{s}" for s in seeds), *extra]
+
+
+def validation_mazes(
+    ctx: StageContext,
+    extra: tuple[str, ...] = (),
+    behavior: str = "right",
+    tile_rules: tuple[str, ...] = ("right", "left"),
+) -> list[Any]:
+    """The validation mazes (:func:`validation_maze_names`), loaded."""
+    from mbn.world.mazes.load import load_maze
+
+    return [load_maze(n) for n in validation_maze_names(ctx, behavior, extra, tile_rules)]
 
 
 def _joined(verdicts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-    """Verdicts of the same trial spec in several mazes as one (trials in maze order)."""
-    return {key: np.concatenate([np.asarray(v[key]) for v in verdicts]) for key in verdicts[0]}
+    """Verdicts of the same trial spec in several mazes as one (trials in maze order; ``maze``:
+    each trial's maze, by index)."""
+    out = {key: np.concatenate([np.asarray(v[key]) for v in verdicts]) for key in verdicts[0]}
+    out["maze"] = np.concatenate(
+        [np.full(len(np.asarray(v["success"])), m, np.int32) for m, v in enumerate(verdicts)]
+    )
+    return out
 
 
 def validation_verdict(
@@ -459,14 +532,15 @@ def validation_verdicts(
         )
         for spec in specs
     ]
-    mazes = validation_mazes(ctx, extra)
-    trial = _validation_trial(ctx, behavior, initial)
+    first = loaded[0]
+    tile_rules = tuple(first.tile_rules or ("right", "left"))
+    mazes = validation_mazes(ctx, extra, behavior, tile_rules)
+    trial = _validation_trial(ctx, behavior, initial, mazes, tile_rules)
     groups = [
         TrialGroup(f"c{i}m{m}", m, trial, c.initial_state)
         for i, c in enumerate(loaded)
         for m in range(len(mazes))
     ]
-    first = loaded[0]
     verdicts, _, _, _ = run_trial_groups(
         mazes,
         groups,
@@ -482,13 +556,25 @@ def validation_verdicts(
 
 
 def validation_record(ctx: StageContext, verdict: dict[str, np.ndarray]) -> dict[str, Any]:
-    """What :func:`validate` records of a verdict: trials, successes, rate, target met."""
+    """What :func:`validate` records of a verdict: trials, successes, rate, target met. On
+    maze episodes also how many validation mazes reach the target each, and the target is met
+    when the pooled rate and ``maze_share`` of the mazes reach it."""
     from mbn.experiments.trials import summary
 
+    v = ctx.section("validation")
     out = summary(verdict)
-    return {
+    record = {
         "trials": out["trials"],
         "successes": out["successes"],
         "success_rate": out["success_rate"],
-        "meets_target": out["success_rate"] >= ctx.section("validation").target,
+        "meets_target": out["success_rate"] >= v.target,
     }
+    if maze_episodes(ctx) is not None and "maze" in verdict:
+        maze = np.asarray(verdict["maze"])
+        success = np.asarray(verdict["success"])
+        rates = [float(success[maze == m].mean()) for m in np.unique(maze)]
+        at = sum(r >= v.target for r in rates)
+        record["mazes"] = len(rates)
+        record["mazes_at_target"] = int(at)
+        record["meets_target"] = bool(record["meets_target"] and at >= v.maze_share * len(rates))
+    return record

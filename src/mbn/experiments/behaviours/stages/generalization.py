@@ -1,0 +1,27 @@
+"""Stage ``generalization`` of ``mbn run new-behaviours``: the new rules' programs through the
+fixed full interpreter and the three-behaviour MBN in mazes drawn from their family (train,
+validation, test splits) and on the zero-shot suite (as ``mbn reproduce``'s stage:
+:mod:`mbn.experiments.reproduce.stages.generalization`)."""
+
+from __future__ import annotations
+
+from mbn.experiments.pipeline import StageContext
+from mbn.experiments.reproduce.stages.generalization import GeneralizationStage, Judged
+from mbn.world.rules import parse_rule
+
+__all__ = ["BehavioursGeneralization"]
+
+
+class BehavioursGeneralization(GeneralizationStage):
+    """The programs of ``[programs] rules`` (run by ``im_full_programs.json``) and the
+    three-behaviour MBN (``mbn3.json``)."""
+
+    key_id = 17
+    needs = ("programs", "mbn3")
+
+    def controllers(self, ctx: StageContext) -> tuple[Judged, ...]:
+        rules = [parse_rule(r).name for r in ctx.section("programs").rules]
+        return (
+            *(Judged(r.replace("-", "_"), "im_full_programs", r, r) for r in rules),
+            Judged("mbn3", "mbn3", "tiles"),
+        )

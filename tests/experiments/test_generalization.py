@@ -1,0 +1,134 @@
+"""Judging controllers across a family's splits (``docs/generalization.md``): the helpers of
+:mod:`mbn.experiments.generalization`, and the ``generalization`` stage of the session's quick
+reproduction."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from mbn.experiments.generalization import (
+    failure_causes,
+    generalization_claims,
+    junction_kind,
+    junction_kinds,
+    meets_generalization,
+    performance_profile,
+)
+from mbn.world.mazes import families
+from mbn.world.rules import open_mask
+
+
+@pytest.mark.parametrize(
+    ("exits", "kind"),
+    [
+        (("left", "straight", "right"), "plus"),
+        (("left", "right"), "T left-right"),
+        (("straight", "right"), "T straight-right"),
+        (("left", "straight"), "T left-straight"),
+        (("right",), "corner right"),
+        (("left",), "corner left"),
+        (("straight",), "straight"),
+        ((), "dead end"),
+        (("back", "left"), "corner left"),  # the way back is not an exit of the kind
+    ],
+)
+def test_junction_kinds_are_named_by_their_open_exits(exits, kind):
+    assert junction_kind(open_mask(exits)) == kind
+
+
+def test_passes_are_counted_by_kind_and_correctness():
+    plus, t = open_mask(["left", "straight", "right"]), open_mask(["left", "right"])
+    verdict = {
+        "open": np.array([[plus, t, -1], [plus, plus, t]]),
+        "exits": np.array([[1, 3, -1], [2, 1, 1]]),
+        "expected": np.array([[1, 1, -1], [1, 1, 1]]),
+    }
+    assert junction_kinds(verdict) == {
+        "T left-right": {"passes": 2, "correct": 1},
+        "plus": {"passes": 3, "correct": 2},
+    }
+
+
+def test_failures_are_counted_once_by_their_first_cause():
+    verdict = {
+        "success": np.array([True, False, False, False, False]),
+        "correct": np.array([3, 2, 3, 3, 1]),
+        "judged": np.array([3, 3, 3, 2, 1]),
+        "stall": np.array([0.0, 0.5, 0.3, 0.0, 0.01]),
+        "timed_out": np.array([False, False, False, True, True]),
+    }
+    # trial 2: wrong exit (and stalled: counted as wrong exit); 3: stalled; 4 and 5: timed out
+    assert failure_causes(verdict) == {"failed": 4, "wrong_exit": 1, "stalled": 1, "timed_out": 2}
+
+
+def _record(successes, trials=10):
+    mazes = [{"maze": f"m{k}", "trials": trials, "successes": s} for k, s in enumerate(successes)]
+    total = sum(successes)
+    return {
+        "mazes": mazes,
+        "pooled": {"successes": total, "trials": trials * len(mazes)},
+        "mazes_at_95": sum(s >= 0.95 * trials for s in successes),
+    }
+
+
+@pytest.mark.parametrize(
+    ("successes", "meets"),
+    [
+        ([10] * 10, True),
+        ([10] * 9 + [5], True),  # pooled 95 %, 9 of 10 mazes
+        ([10] * 9 + [4], False),  # pooled 94 %
+        ([10] * 8 + [9, 9], False),  # pooled 98 %, 8 of 10 mazes at 95 %
+    ],
+)
+def test_the_generalization_targets_are_the_pooled_rate_and_the_share_of_mazes(successes, meets):
+    assert meets_generalization(_record(successes)) is meets
+
+
+def test_the_performance_profile_is_the_share_of_mazes_at_each_rate():
+    out = performance_profile([1.0, 0.9, 0.5, 0.95], xs=np.array([0.5, 0.9, 0.95, 1.0]))
+    assert out["fraction"] == [1.0, 0.75, 0.5, 0.25]
+
+
+def test_the_quick_run_judges_its_controllers_on_every_split(quick_run):
+    out, _ = quick_run
+    results = json.loads((out / "results.json").read_text())
+    assert results["maze_splits"] == {
+        name: [r.start, r.stop - 1] for name, r in families.SPLITS.items()
+    }
+    config = results["config"]["generalization"]
+    data = results["stages"]["generalization"]["controllers"]
+    assert list(data) == ["rf", "lf", "im_rf", "im_lf", "mbn"]
+    for name, rec in data.items():
+        family = "tiles2" if name == "mbn" else "grid"
+        assert rec["family"] == family
+        splits = rec["splits"]
+        assert list(splits) == ["train", "validation", "test", "zero-shot"]
+        test = [m["maze"] for m in splits["test"]["mazes"]]
+        first = families.SPLITS["test"].start
+        assert test == [f"{family}:{first + k}" for k in range(config["test_mazes"])]
+        for split in ("train", "validation"):
+            seeds = [int(m["maze"].split(":")[1]) for m in splits[split]["mazes"]]
+            assert len(seeds) == config["gap_mazes"]
+            assert {families.split_of(s) for s in seeds} == {split}
+        zero = [m["maze"] for m in splits["zero-shot"]["mazes"]]
+        assert zero == list(families.ZERO_SHOT[family])
+        for record in splits.values():
+            p = record["pooled"]
+            assert p["successes"] == sum(m["successes"] for m in record["mazes"])
+            assert p["wilson95"][0] <= p["success_rate"] <= p["wilson95"][1]
+            assert record["failures"]["failed"] == p["trials"] - p["successes"]
+        worst = rec["worst_test_maze"]
+        rates = [m["successes"] / m["trials"] for m in splits["test"]["mazes"]]
+        assert worst["maze"] == splits["test"]["mazes"][int(np.argmin(rates))]["maze"]
+    # a claims row per controller, judged by the test split
+    rows = generalization_claims(results["stages"]["generalization"])
+    assert len(rows) == 5
+    claims = {c["claim"]: c for c in results["claims"]}
+    for row in rows:
+        assert claims[row["claim"]]["pass"] == row["pass"]
+    report = (out / "report.md").read_text()
+    assert "## Generalization: mazes drawn from the family" in report
+    assert (out / "figures" / "generalization_profile.png").stat().st_size > 0
