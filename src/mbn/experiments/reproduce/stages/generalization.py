@@ -14,6 +14,9 @@ the programs; the family of its tile kinds for an MBN: ``tiles2``, ``tiles3``):
   chosen on;
 - ``zero-shot``: the family's part of the hand-made zero-shot suite.
 
+``[generalization] splits`` names the columns judged: a development run leaves out ``test``
+and ``zero-shot``, so that whoever tunes on it never sees them.
+
 Every start mark of every maze, ``repeats`` times (the first from the mark, the others jittered
 by the run's ``test_jitter`` seed), three junctions judged; all of a controller's mazes run in
 one batch, under the longest of their own time limits.
@@ -83,8 +86,12 @@ class GeneralizationSettings(Settings):
         high=100,
         source="docs/generalization.md",
     )
-    zero_shot: bool = setting(
-        True, doc="judge on the family's part of the zero-shot suite too", source="docs"
+    splits: tuple[str, ...] = setting(
+        SPLIT_ORDER,
+        doc="the columns judged (a development run may leave out the test split and the "
+        "zero-shot suite, so that nothing tuned on it has seen them)",
+        choices=SPLIT_ORDER,
+        source="docs/generalization.md",
     )
     repeats: int = setting(
         1,
@@ -218,7 +225,7 @@ class GeneralizationStage(Stage):
             parts: list[tuple[str, list[Any], bool]] = []
             for split in SPLIT_ORDER:
                 count = counts.get(split, 0)
-                wanted = s.zero_shot if split == "zero-shot" else count > 0
+                wanted = split in s.splits and (split == "zero-shot" or count > 0)
                 if wanted:
                     parts.append((split, *split_mazes(ctx, family, split, count)))
             every = [m for _, mazes, _ in parts for m in mazes]
