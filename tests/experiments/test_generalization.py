@@ -123,6 +123,12 @@ def test_the_quick_run_judges_its_controllers_on_every_split(quick_run):
         worst = rec["worst_test_maze"]
         rates = [m["successes"] / m["trials"] for m in splits["test"]["mazes"]]
         assert worst["maze"] == splits["test"]["mazes"][int(np.argmin(rates))]["maze"]
+    # the MBN's passes by the tile's distance: the same passes as by junction kind
+    test = data["mbn"]["splits"]["test"]
+    assert sum(v["passes"] for v in test["tile_distances"].values()) == sum(
+        v["passes"] for v in test["junction_kinds"].values()
+    )
+    assert "tile_distances" not in data["rf"]["splits"]["test"]
     # a claims row per controller, judged by the test split
     rows = generalization_claims(results["stages"]["generalization"])
     assert len(rows) == 5
@@ -132,3 +138,39 @@ def test_the_quick_run_judges_its_controllers_on_every_split(quick_run):
     report = (out / "report.md").read_text()
     assert "## Generalization: mazes drawn from the family" in report
     assert (out / "figures" / "generalization_profile.png").stat().st_size > 0
+
+
+def test_tile_distances_count_the_free_cells_back_to_the_nearest_tile():
+    from mbn.experiments.generalization import tile_distance, tile_distances
+    from mbn.world.junctions import cell_of
+
+    maze = families.generate("tiles2", 5)  # a train maze
+    # every tile that lies k cells before a T or plus crossing (families.tile_places) is found
+    # k cells back from that crossing, entered along the tile's corridor (unless another tile
+    # lies nearer to it)
+    steps = ((-1, 0), (0, 1), (1, 0), (0, -1))
+    for tile, place in zip(maze.tiles, families.tile_places(maze), strict=True):
+        r, c = cell_of(maze, tile.x, tile.y)
+        for k in place["before"]:
+            seen = [
+                tile_distance(maze, (r + dr * (k + 1), c + dc * (k + 1)), h)
+                for h, (dr, dc) in enumerate(steps)
+                if 0 <= r + dr * (k + 1) < maze.grid.shape[0]
+                and 0 <= c + dc * (k + 1) < maze.grid.shape[1]
+            ]
+            # k, or a nearer tile of the same corridor (the nearest counts)
+            assert k in seen or min(d for d in seen if d is not None) < k, (tile, place)
+    # a crossing entered from a corridor without a tile: none
+    grid = np.asarray(maze.grid)
+    assert tile_distance(maze, (6, 6), 0) is None and grid[7, 6] != "#"
+    # passes are counted by distance, correct where the exit is the rule's
+    verdict = {
+        "cells": np.array([[[1, 12], [6, 6], [-1, -1]]]),
+        "headings": np.array([[3, 0, -1]]),
+        "exits": np.array([[1, 2, -1]]),
+        "expected": np.array([[1, 1, -1]]),
+    }
+    assert tile_distances([maze], {maze.name: verdict}) == {
+        "0": {"passes": 1, "correct": 1},
+        "none": {"passes": 1, "correct": 0},
+    }

@@ -37,6 +37,8 @@ __all__ = [
     "performance_profile",
     "pooled_rows",
     "split_record",
+    "tile_distance",
+    "tile_distances",
 ]
 
 #: A maze counts as passed when at least this share of its trials succeed (the tests' target).
@@ -178,11 +180,14 @@ def meets_generalization(record: dict[str, Any]) -> bool:
     )
 
 
-def split_record(result: dict[str, Any], *, breakdown: bool = False) -> dict[str, Any]:
+def split_record(
+    result: dict[str, Any], *, breakdown: bool = False, mazes: list[Any] | None = None
+) -> dict[str, Any]:
     """What a run records of :func:`evaluate_mazes` (called with ``verdicts``) on one split:
     the per-maze rows (maze, trials, successes, timed out), the pooled figures with their
     Wilson 95 % interval, how many mazes pass, the failures' causes, whether the
-    generalization targets are met, and, ``breakdown``, the judged passes by junction kind."""
+    generalization targets are met, and, ``breakdown``, the judged passes by junction kind (and,
+    given the split's ``mazes`` with tiles, by the tile's distance before the junction)."""
     verdicts = result["verdicts"]
     joined = {
         k: np.concatenate([np.asarray(v[k]) for v in verdicts.values()])
@@ -203,6 +208,8 @@ def split_record(result: dict[str, Any], *, breakdown: bool = False) -> dict[str
     record["meets_targets"] = meets_generalization(record)
     if breakdown:
         record["junction_kinds"] = junction_kinds(joined)
+        if mazes is not None and any(m.tiles for m in mazes):
+            record["tile_distances"] = tile_distances(mazes, verdicts)
     return record
 
 
@@ -240,3 +247,63 @@ def generalization_claims(data: dict[str, Any] | None) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+#: Grid steps (row, column) of the compass headings N, E, S, W (row 0 is north).
+_STEPS = ((-1, 0), (0, 1), (1, 0), (0, -1))
+#: Tiles further than this before a junction are counted together ("4+").
+_FAR = 4
+
+
+def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | None:
+    """How many free cells lie between a junction pass's cell and the nearest tile in the
+    corridor the robot came along (entering ``cell`` by ``heading``: 0..3 = N, E, S, W): 0 for
+    a tile in the cell just before it; None where no tile lies in that corridor before its
+    previous junction or corner."""
+    from mbn.world.junctions import cell_of
+
+    grid = np.asarray(maze.grid) != "#"
+    rows, cols = grid.shape
+
+    def free(r: int, c: int) -> bool:
+        return 0 <= r < rows and 0 <= c < cols and bool(grid[r, c])
+
+    tiles = {cell_of(maze, t.x, t.y) for t in maze.tiles}
+    dr, dc = _STEPS[heading]
+    r, c = cell[0] - dr, cell[1] - dc  # the cell it came from
+    k = 0
+    while free(r, c):
+        if (r, c) in tiles:
+            return k
+        # on along the corridor only through a straight cell (two free neighbours, in line)
+        neighbours = sum(free(r + a, c + b) for a, b in _STEPS)
+        if neighbours != 2 or not (free(r + dr, c + dc) and free(r - dr, c - dc)):
+            return None
+        r, c = r - dr, c - dc
+        k += 1
+    return None
+
+
+def tile_distances(mazes: list[Any], verdicts: dict[str, dict[str, np.ndarray]]) -> dict[str, Any]:
+    """Every judged junction pass of an MBN's trials by how far before it the nearest tile lay
+    in the corridor it came along (:func:`tile_distance`: ``"0"`` .. ``"3"``, ``"4+"``, or
+    ``"none"``): ``{distance: {"passes", "correct"}}``. ``verdicts``: each maze's verdict (with
+    ``cells`` and ``headings``), by maze name."""
+    out: dict[str, dict[str, int]] = {}
+    keys = [str(k) for k in range(_FAR)] + [f"{_FAR}+", "none"]
+    for maze in mazes:
+        v = verdicts[maze.name]
+        cells, headings = np.asarray(v["cells"]), np.asarray(v["headings"])
+        right = np.asarray(v["exits"]) == np.asarray(v["expected"])
+        memo: dict[tuple[int, int, int], int | None] = {}
+        for idx in zip(*np.nonzero(headings >= 0), strict=True):
+            r, c = (int(x) for x in cells[idx])
+            h = int(headings[idx])
+            if (r, c, h) not in memo:
+                memo[(r, c, h)] = tile_distance(maze, (r, c), h)
+            d = memo[(r, c, h)]
+            key = "none" if d is None else (str(d) if d < _FAR else f"{_FAR}+")
+            row = out.setdefault(key, {"passes": 0, "correct": 0})
+            row["passes"] += 1
+            row["correct"] += int(right[idx])
+    return {k: out[k] for k in keys if k in out}

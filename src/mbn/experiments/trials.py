@@ -212,7 +212,9 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     the controller, ended it), ``exits`` ``(n, J)``: the exit taken at each judged junction
     (-1 where there was none), ``open`` ``(n, J)``: its open exits (a
     :data:`~mbn.world.rules.OPEN_BITS` mask; -1 where there was none) and ``expected``
-    ``(n, J)``: the exit the rule in force takes there (-1 where there was none)."""
+    ``(n, J)``: the exit the rule in force takes there, ``cells`` ``(n, J, 2)`` its grid cell
+    (row, column) and ``headings`` ``(n, J)`` the compass direction the robot entered it by
+    (0..3 = N, E, S, W) (-1 where there was none)."""
     J = spec.junctions
     kept = np.asarray(stats.junction_exit).shape[1]
     n = np.minimum(np.asarray(stats.n_junctions), kept)
@@ -223,13 +225,16 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         )
     fields = {
         name: np.asarray(getattr(stats, f"junction_{name}"))
-        for name in ("exit", "open", "tile", "exit_step", "stalls")
+        for name in ("exit", "open", "tile", "exit_step", "stalls", "cell", "heading")
     }
     if spec.behavior == "tiles" and spec.initial == "none":
         # drop the passes made before the first tile: move the others to the front, in order
         valid = (fields["tile"] > 0) & (np.arange(kept)[None, :] < n[:, None])
         order = np.argsort(~valid, axis=1, kind="stable")
-        fields = {k: np.take_along_axis(v, order, axis=1) for k, v in fields.items()}
+        fields = {
+            k: np.take_along_axis(v, order.reshape(order.shape + (1,) * (v.ndim - 2)), axis=1)
+            for k, v in fields.items()
+        }
         n = valid.sum(1)
     exits = fields["exit"][:, :J]
     opened = fields["open"][:, :J]
@@ -260,6 +265,8 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         "exits": np.where(passed, exits, -1),
         "open": np.where(passed, opened, -1),
         "expected": np.where(passed, rule, -1),
+        "cells": np.where(passed[..., None], fields["cell"][:, :J], -1),
+        "headings": np.where(passed, fields["heading"][:, :J], -1),
     }
 
 

@@ -241,7 +241,11 @@ class GeneralizationStage(Stage):
                     "seconds": judged["seconds"],
                     "verdicts": {m.name: judged["verdicts"][m.name] for m in mazes},
                 }
-                record = split_record(result, breakdown=split in ("test", "zero-shot"))
+                record = split_record(
+                    result,
+                    breakdown=split in ("test", "zero-shot"),
+                    mazes=mazes if j.behavior == "tiles" else None,
+                )
                 record["seen_in_training"] = seen
                 splits[split] = record
                 if split == "test":
@@ -372,6 +376,27 @@ def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
             images=images,
         )
     )
+    distances: dict[str, dict[str, str]] = {}
+    for name, rec in controllers.items():
+        test = rec["splits"].get("test")
+        for d, k in (test or {}).get("tile_distances", {}).items():
+            distances.setdefault(d, {})[name] = f"{k['correct']}/{k['passes']}"
+    if distances:
+        tiled = [n for n in names if any(n in v for v in distances.values())]
+        sections.append(
+            Section(
+                "Generalization: the tile's distance before the junction",
+                [
+                    "An MBN's judged junction passes on the test split taken by the rule in "
+                    "force, by how many free cells lay between the nearest tile in the corridor "
+                    "it came along and the junction (none: no tile in that corridor)."
+                ],
+                table=(
+                    ["tile cells before", *tiled],
+                    [[d, *(v.get(n, "-") for n in tiled)] for d, v in distances.items()],
+                ),
+            )
+        )
     worst_images = []
     try:
         trajectories = rundir.load_trajectories(WORST_RECORD)
