@@ -14,7 +14,8 @@ __all__ = ["BehavioursGeneralization"]
 
 class BehavioursGeneralization(GeneralizationStage):
     """The programs of ``[programs] rules`` (run by ``im_full_programs.json``) and the
-    three-behaviour MBN (``mbn3.json``)."""
+    three-behaviour MBN (``mbn3.json``), in ``tiles3`` and, beside the two-behaviour MBN of
+    ``mbn reproduce`` (forgetting), in ``tiles2``."""
 
     key_id = 17
     needs = ("programs", "mbn3")
@@ -24,4 +25,6 @@ class BehavioursGeneralization(GeneralizationStage):
         return (
             *(Judged(r.replace("-", "_"), "im_full_programs", r, r) for r in rules),
             Judged("mbn3", "mbn3", "tiles"),
+            # the paper's two tiles: what adding the third behaviour costs the first two
+            Judged("mbn3_tiles2", "mbn3", "tiles", family="tiles2"),
         )

@@ -105,12 +105,14 @@ class GeneralizationSettings(Settings):
 @dataclass(frozen=True)
 class Judged:
     """One controller the stage judges: its name in the record, its file (``controllers/
-    FILE.json``), the behaviour it is judged as and the stored program it runs."""
+    FILE.json``), the behaviour it is judged as, the stored program it runs and the family it is
+    judged in (default: ``grid``, or for an MBN the family of its tile kinds)."""
 
     name: str
     file: str
     behavior: str
     program: str | None = None
+    family: str | None = None
 
 
 #: The reproduction's controllers.
@@ -212,7 +214,7 @@ class GeneralizationStage(Stage):
                 noise=noise,
             )
             tile_rules = tuple(loaded.tile_rules or ("right", "left"))
-            family = tile_family(tile_rules) if j.behavior == "tiles" else "grid"
+            family = j.family or (tile_family(tile_rules) if j.behavior == "tiles" else "grid")
             initial = (loaded.initial_rule or "right") if j.behavior == "tiles" else "right"
             trial = TrialSpec(
                 behavior=j.behavior,
