@@ -4,7 +4,8 @@ The documentation cites runs for its figures; their folders (checkpoints, record
 out of the repository, but the files the figures are read from are kept under ``evidence/``, so
 that a reader can check every cited number (``evidence/README.md``):
 
-- a run folder: ``run.json``, ``results.json``, ``timings.json``, ``report.md``;
+- a run folder: ``run.json``, ``results.json`` (without indentation), ``timings.json``,
+  ``report.md``;
 - a sweep folder: ``sweep.json``, ``sweep.md`` and, for each ``seed-K``, the run files above.
 
 Usage::
@@ -19,6 +20,7 @@ Existing files of that name are replaced; the total size kept is printed (keep i
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -49,8 +51,12 @@ def keep(folder: Path, name: str, evidence: Path = EVIDENCE) -> tuple[Path, int]
     size = 0
     for rel in files:
         (target / rel).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(folder / rel, target / rel)
-        size += (folder / rel).stat().st_size
+        if rel.name == "results.json":  # the same data without indentation (a third the size)
+            data = json.loads((folder / rel).read_text())
+            (target / rel).write_text(json.dumps(data, separators=(",", ":")) + "\n")
+        else:
+            shutil.copyfile(folder / rel, target / rel)
+        size += (target / rel).stat().st_size
     return target, size
 
 
