@@ -174,9 +174,11 @@ def test_the_episodes_settings_choose_the_followers_training_task():
             section=sections.__getitem__, seeds={"crossroad_jitter": 17}, key=jax.random.key(0)
         )
 
-    paper = training_task(ctx(), "right", 4)
+    paper = training_task(ctx(kind="crossroads"), "right", 4)
     assert isinstance(paper, CrossroadTask) and paper.variants == 4 and paper.seed == 17
-    assert training_fitness(ctx(), "right", 4, lambda t: t) == paper
+    assert training_fitness(ctx(kind="crossroads"), "right", 4, lambda t: t) == paper
+    # the default: maze episodes (docs/reproduce.md, "Which protocol")
+    assert isinstance(training_task(ctx(pool=8), "right", 4), MazeTask)
     maze = training_task(ctx(kind="maze", family="grid", pool=12, mazes=4, starts=3), "left", 4)
     assert isinstance(maze, MazeTask)
     assert (maze.rule, maze.pool, maze.mazes, maze.starts, maze.seed) == ("left", 12, 4, 3, 17)

@@ -32,7 +32,7 @@ class Ctx:
 
 
 def test_crossroad_runs_validate_in_the_named_mazes():
-    ctx = Ctx(EpisodeSettings(), ValidationSettings())
+    ctx = Ctx(EpisodeSettings(kind="crossroads"), ValidationSettings())
     assert validation_maze_names(ctx) == ["validation", "validation2"]
     assert validation_maze_names(ctx, "tiles", ("x",)) == ["validation", "validation2", "x"]
     # an experiment without [episodes] is a crossroad run
@@ -92,6 +92,8 @@ def test_maze_runs_need_the_pooled_rate_and_the_share_of_mazes(successes, meets)
     assert record["mazes_at_target"] == sum(s >= 19 for s in successes)
     assert record["meets_target"] is meets
     # a crossroad run judges the pooled rate alone
-    plain = validation_record(Ctx(EpisodeSettings(), ValidationSettings()), verdict)
+    plain = validation_record(
+        Ctx(EpisodeSettings(kind="crossroads"), ValidationSettings()), verdict
+    )
     assert "mazes" not in plain
     assert plain["meets_target"] == (sum(successes) / 200 >= 0.95)

@@ -95,8 +95,9 @@ class EpisodeSettings(Settings):
     # runs recorded before this section existed were evolved on the crossroads
     recorded_before: ClassVar[dict[str, Any]] = {"kind": "crossroads"}
     kind: str = setting(
-        "crossroads",
-        doc="crossroads: the paper's seven crossroads; maze: episodes drawn from a maze family",
+        "maze",
+        doc="maze: episodes drawn from a maze family's train split (docs/generalization.md); "
+        "crossroads: the paper's seven crossroads (docs/configs/paper.toml)",
         choices=("crossroads", "maze"),
         source="paper 3.1; docs/generalization.md",
     )
@@ -114,7 +115,7 @@ class EpisodeSettings(Settings):
         source="docs/generalization.md",
     )
     mazes: int = setting(
-        8,
+        4,
         doc="mazes of the pool in one draw of episodes",
         low=1,
         high=10_000,
@@ -289,7 +290,13 @@ QUICK: dict[str, dict[str, Any]] = {
     "lf": {"generations": 20, "variants": 1, "finalists": 1, "rounds": 1},
     "pm": {"generations": 30, "variants": 1},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
-    "validation": {"jitter_per_mark": 1, "attempts": 1},
+    "validation": {
+        "jitter_per_mark": 1,
+        "attempts": 1,
+        "split_mazes": 2,
+        "split_jitter_per_mark": 1,
+    },
+    "episodes": {"pool": 16},
     "generalization": {"test_mazes": 5, "gap_mazes": 3},
 }
 
