@@ -21,13 +21,12 @@ def test_a_split_is_judged_maze_by_maze_as_each_maze_alone(quick_run, capsys):
     """``--maze FAMILY/SPLIT:A-B``: one line per maze and the pooled figures; each maze's row is
     what evaluating that maze alone gives (the same trials, batched with the others)."""
     out, _ = quick_run
-    rf = out / "controllers" / "rf.json"
-    # 25 s: some trials reach their third junction, some run out of time
-    common = ["--controller", rf, "--behavior", "right", "--seconds", 25, "--json"]
+    lf = out / "controllers" / "lf.json"  # the quick run's LF: some trials pass, some fail
+    common = ["--controller", lf, "--behavior", "left", "--seconds", 60, "--json"]
     status, out, _ = run(capsys, *common, "--maze", "grid/validation:0-2")
     assert status == 0
     data = json.loads(out)
-    assert data["split"] == "grid/validation:0-2" and data["seconds"] == 25
+    assert data["split"] == "grid/validation:0-2" and data["seconds"] == 60
     assert [r["maze"] for r in data["mazes"]] == [f"grid:{s}" for s in range(1_000_000, 1_000_003)]
     for row in data["mazes"]:
         status, alone, _ = run(capsys, *common, "--maze", row["maze"])
