@@ -290,7 +290,8 @@ QUICK: dict[str, dict[str, Any]] = {
     "pm": {"generations": 30, "variants": 1},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
     "validation": {"jitter_per_mark": 1, "attempts": 1},
-    "generalization": {"test_mazes": 5, "gap_mazes": 3},
+    # no worst-maze rerun: a compilation per controller kind saved (its picture: a test of its own)
+    "generalization": {"test_mazes": 5, "gap_mazes": 3, "worst_maze": False},
 }
 
 
