@@ -120,9 +120,7 @@ def test_the_quick_run_judges_its_controllers_on_every_split(quick_run):
             assert p["successes"] == sum(m["successes"] for m in record["mazes"])
             assert p["wilson95"][0] <= p["success_rate"] <= p["wilson95"][1]
             assert record["failures"]["failed"] == p["trials"] - p["successes"]
-        worst = rec["worst_test_maze"]
-        rates = [m["successes"] / m["trials"] for m in splits["test"]["mazes"]]
-        assert worst["maze"] == splits["test"]["mazes"][int(np.argmin(rates))]["maze"]
+        assert "worst_test_maze" not in rec  # the quick preset: no rerun
     # the MBN's passes by the tile's distance: the same passes as by junction kind
     test = data["mbn"]["splits"]["test"]
     assert sum(v["passes"] for v in test["tile_distances"].values()) == sum(
@@ -174,3 +172,42 @@ def test_tile_distances_count_the_free_cells_back_to_the_nearest_tile():
         "0": {"passes": 1, "correct": 1},
         "none": {"passes": 1, "correct": 0},
     }
+
+
+def test_the_worst_test_maze_is_run_again_with_its_steps_recorded(quick_run, tmp_path):
+    """``[generalization] worst_maze``: the test maze with the fewest successes run again,
+    every other step recorded, the same verdicts; the report draws its trials."""
+    from mbn.controllers import make_controller, read_controller_spec
+    from mbn.experiments.generalization import evaluate_mazes
+    from mbn.experiments.pipeline.rundir import RunDir
+    from mbn.experiments.reproduce.stages.generalization import (
+        WORST_FIELDS,
+        WORST_RECORD,
+        _worst_maze,
+        generalization_sections,
+    )
+    from mbn.experiments.trials import TrialSpec
+    from mbn.world.mazes.load import load_mazes
+
+    out, _ = quick_run
+    loaded = make_controller(read_controller_spec(out / "controllers" / "lf.json"), None)
+    mazes, _ = load_mazes("grid/test:0-2")
+    trial = TrialSpec(behavior="left")
+    result = evaluate_mazes(mazes, trial, loaded, seconds=60.0, verdicts=True)
+    maze, trajectory, record = _worst_maze(mazes, result, trial, loaded, None)
+    rates = [r["success_rate"] for r in result["mazes"]]
+    assert maze.name == record["maze"] == mazes[int(np.argmin(rates))].name
+    assert (
+        record["details"]["success"]
+        == result["verdicts"][maze.name]["success"].astype(int).tolist()
+    )
+    assert np.asarray(trajectory.pose).shape[:1] == (len(record["details"]["success"]),)
+    # the report's picture of it
+    rundir = RunDir(tmp_path)
+    (tmp_path / "figures").mkdir()
+    (tmp_path / "records").mkdir()
+    rundir.save_trajectories(WORST_RECORD, {"lf": trajectory}, WORST_FIELDS)
+    data = {"controllers": {"lf": {"family": "grid", "splits": {}, "worst_test_maze": record}}}
+    sections = generalization_sections(rundir, data)
+    assert sections[-1].title == "Generalization: the worst test maze"
+    assert (tmp_path / "figures" / "generalization_worst_lf.png").stat().st_size > 0

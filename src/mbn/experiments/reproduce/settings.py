@@ -297,7 +297,8 @@ QUICK: dict[str, dict[str, Any]] = {
         "split_jitter_per_mark": 1,
     },
     "episodes": {"pool": 16},
-    "generalization": {"test_mazes": 5, "gap_mazes": 3},
+    # no worst-maze rerun: a compilation per controller kind saved (its picture: a test of its own)
+    "generalization": {"test_mazes": 5, "gap_mazes": 3, "worst_maze": False},
 }
 
 
