@@ -237,8 +237,10 @@ class GeneralizationStage(Stage):
                 if wanted:
                     parts.append((split, *split_mazes(ctx, family, split, count)))
             every = [m for _, mazes, _ in parts for m in mazes]
-            judged = evaluate_mazes(every, trial, loaded, key=key, verdicts=True)
             splits: dict[str, Any] = {}
+            if not every:  # no column wanted ([generalization] splits empty)
+                parts = []
+            judged = evaluate_mazes(every, trial, loaded, key=key, verdicts=True) if every else {}
             start = 0
             for split, mazes, seen in parts:
                 rows = judged["mazes"][start : start + len(mazes)]
