@@ -10,6 +10,7 @@ of it.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,7 @@ from mbn.experiments.trials import (
     MAX_STALL_FRACTION,
     TrialGroup,
     TrialSpec,
+    join_verdicts,
     route_seconds,
     run_trial_groups,
     summary,
@@ -157,15 +159,15 @@ def failure_causes(verdict: dict[str, np.ndarray]) -> dict[str, int]:
     }
 
 
-def performance_profile(rates: list[float], xs: np.ndarray | None = None) -> dict[str, list[float]]:
+def performance_profile(
+    rates: Sequence[float], xs: np.ndarray | None = None
+) -> dict[str, list[float]]:
     """The fraction of mazes whose success reaches at least ``x``, for each ``x`` of ``xs``
     (default 0.50, 0.51, ..., 1.00): one curve of the report's performance profile."""
     xs = np.round(np.linspace(0.5, 1.0, 51), 2) if xs is None else np.asarray(xs)
     r = np.asarray(rates, float)
-    return {
-        "x": [float(x) for x in xs],
-        "fraction": [float((r >= x - 1e-12).mean()) if r.size else 0.0 for x in xs],
-    }
+    fraction = (r[None, :] >= xs[:, None] - 1e-12).mean(1) if r.size else np.zeros(len(xs))
+    return {"x": [float(x) for x in xs], "fraction": [float(f) for f in fraction]}
 
 
 def meets_generalization(record: dict[str, Any]) -> bool:
@@ -189,10 +191,7 @@ def split_record(
     generalization targets are met, and, ``breakdown``, the judged passes by junction kind (and,
     given the split's ``mazes`` with tiles, by the tile's distance before the junction)."""
     verdicts = result["verdicts"]
-    joined = {
-        k: np.concatenate([np.asarray(v[k]) for v in verdicts.values()])
-        for k in ("success", "correct", "judged", "stall", "timed_out", "open", "exits", "expected")
-    }
+    joined = join_verdicts(list(verdicts.values()))
     pooled = result["pooled"]
     lo, hi = wilson_interval(pooled["successes"], pooled["trials"])
     record: dict[str, Any] = {
@@ -249,8 +248,6 @@ def generalization_claims(data: dict[str, Any] | None) -> list[dict[str, Any]]:
     return rows
 
 
-#: Grid steps (row, column) of the compass headings N, E, S, W (row 0 is north).
-_STEPS = ((-1, 0), (0, 1), (1, 0), (0, -1))
 #: Tiles further than this before a junction are counted together ("4+").
 _FAR = 4
 
@@ -260,7 +257,7 @@ def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | None:
     corridor the robot came along (entering ``cell`` by ``heading``: 0..3 = N, E, S, W): 0 for
     a tile in the cell just before it; None where no tile lies in that corridor before its
     previous junction or corner."""
-    from mbn.world.junctions import cell_of
+    from mbn.world.junctions import STEPS, cell_of
 
     grid = np.asarray(maze.grid) != "#"
     rows, cols = grid.shape
@@ -269,14 +266,14 @@ def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | None:
         return 0 <= r < rows and 0 <= c < cols and bool(grid[r, c])
 
     tiles = {cell_of(maze, t.x, t.y) for t in maze.tiles}
-    dr, dc = _STEPS[heading]
+    dr, dc = STEPS[heading]
     r, c = cell[0] - dr, cell[1] - dc  # the cell it came from
     k = 0
     while free(r, c):
         if (r, c) in tiles:
             return k
         # on along the corridor only through a straight cell (two free neighbours, in line)
-        neighbours = sum(free(r + a, c + b) for a, b in _STEPS)
+        neighbours = sum(free(r + a, c + b) for a, b in STEPS)
         if neighbours != 2 or not (free(r + dr, c + dc) and free(r - dr, c - dc)):
             return None
         r, c = r - dr, c - dc

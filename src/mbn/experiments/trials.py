@@ -53,6 +53,7 @@ __all__ = [
     "TrialSpec",
     "agreement",
     "as_test_record",
+    "join_verdicts",
     "judge",
     "longest_route",
     "rate_record",
@@ -62,6 +63,7 @@ __all__ = [
     "run_trials",
     "summary",
     "trial_starts",
+    "verdict_details",
 ]
 
 #: The behaviours named on the command line: the rules with names, and the MBN's tiles.
@@ -268,6 +270,23 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         "cells": np.where(passed[..., None], fields["cell"][:, :J], -1),
         "headings": np.where(passed, fields["heading"][:, :J], -1),
     }
+
+
+def verdict_details(verdict: dict[str, np.ndarray]) -> dict[str, list[Any]]:
+    """What a run records of each trial of a verdict, for its pictures: ``success``,
+    ``correct``, ``judged``, ``stall`` (5 decimals) and ``timed_out``, as JSON lists."""
+    return {
+        "success": verdict["success"].astype(int).tolist(),
+        "correct": verdict["correct"].astype(int).tolist(),
+        "judged": verdict["judged"].astype(int).tolist(),
+        "stall": np.round(verdict["stall"].astype(float), 5).tolist(),
+        "timed_out": verdict["timed_out"].astype(int).tolist(),
+    }
+
+
+def join_verdicts(verdicts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Verdicts of the same kind of trials (e.g. in several mazes) as one, trials in order."""
+    return {key: np.concatenate([np.asarray(v[key]) for v in verdicts]) for key in verdicts[0]}
 
 
 def agreement(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mbn.experiments.generalization import performance_profile as profile
 from mbn.viz.style import new_figure, save_png
 
 __all__ = ["performance_profile", "performance_profile_panels"]
@@ -28,9 +29,8 @@ def performance_profile(
     ax = fig.add_subplot(1, 1, 1)
     xs = np.linspace(0.0, 1.0, 201)
     for name, rates in curves.items():
-        r = np.asarray(rates, float)
-        ys = [(r >= x - 1e-12).mean() if r.size else 0.0 for x in xs]
-        ax.step(xs, ys, where="post", label=f"{name} ({len(r)} mazes)", lw=1.4)
+        ys = profile(rates, xs)["fraction"]
+        ax.step(xs, ys, where="post", label=f"{name} ({len(rates)} mazes)", lw=1.4)
     ax.axvline(target, color="0.4", ls=":", lw=1)
     ax.axhline(share, color="0.4", ls=":", lw=1)
     ax.plot([target], [share], "o", color="0.3", ms=4)
@@ -70,8 +70,7 @@ def performance_profile_panels(
     for k, (name, curves) in enumerate(profiles.items()):
         ax = fig.add_subplot(rows, cols, k + 1)
         for label, rates in curves.items():
-            r = np.asarray(rates, float)
-            ys = [(r >= x - 1e-12).mean() if r.size else 0.0 for x in xs]
+            ys = profile(rates, xs)["fraction"]
             ax.step(xs, ys, where="post", lw=1.0, alpha=0.8, label=label)
         ax.axvline(target, color="0.4", ls=":", lw=1)
         ax.axhline(share, color="0.4", ls=":", lw=1)

@@ -44,6 +44,7 @@ __all__ = [
     "EXITS",
     "EXIT_CODES",
     "HEADINGS",
+    "STEPS",
     "JunctionPass",
     "RoutePass",
     "cell_of",
@@ -65,8 +66,8 @@ EXITS = ("back", "right", "straight", "left")
 #: Small-integer code of each exit, as in :func:`junction_tables`.
 EXIT_CODES = {name: code for code, name in enumerate(EXITS)}
 
-# (d_row, d_col) of a move in each compass direction; row 0 is north
-_STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))
+#: (d_row, d_col) of a move in each compass direction of :data:`HEADINGS`; row 0 is north.
+STEPS = ((-1, 0), (0, 1), (1, 0), (0, -1))
 # relative turn (compass offset from the entry heading) of each exit, and the rule orders
 _TURN = {"straight": 0, "right": 1, "back": 2, "left": 3}
 
@@ -91,7 +92,7 @@ def mask_neighbours(free: np.ndarray) -> np.ndarray:
     padded = np.pad(free, 1, constant_values=False)
     rows, cols = free.shape
     out = np.empty((rows, cols, 4), dtype=bool)
-    for h, (dr, dc) in enumerate(_STEP):
+    for h, (dr, dc) in enumerate(STEPS):
         out[..., h] = padded[1 + dr : 1 + dr + rows, 1 + dc : 1 + dc + cols]
     return out
 
@@ -477,7 +478,7 @@ def _walk(
         if not open_dirs[h]:  # a closed cell
             return None
         was = float(along[h % 2][r, c])
-        r, c = r + _STEP[h][0], c + _STEP[h][1]
+        r, c = r + STEPS[h][0], c + STEPS[h][1]
         length += (was + float(along[h % 2][r, c])) / 2  # centre to centre
         if follow_tiles and (r, c) in tile_rule:
             current, source = tile_rule[(r, c)]

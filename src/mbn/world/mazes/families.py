@@ -57,6 +57,7 @@ import numpy as np
 
 from mbn.errors import MbnInputError
 from mbn.world.junctions import (
+    STEPS,
     decision_cells,
     free_neighbours,
     mask_neighbours,
@@ -118,7 +119,6 @@ ZERO_SHOT: dict[str, tuple[str, ...]] = {
 _USES = {"train": ("train", "validation"), "validation": ("validation",), "test": ("test",)}
 
 _N, _E, _S, _W = range(4)
-_STEP = ((-1, 0), (0, 1), (1, 0), (0, -1))  # (d_row, d_col) of N E S W; row 0 is north
 #: The ``.maze`` start mark facing each compass direction (index N E S W).
 START_MARKS = {_N: "^", _E: ">", _S: "v", _W: "<"}
 
@@ -479,7 +479,7 @@ def run_to_end(straight: np.ndarray, r: int, c: int, h: int) -> int:
     (excluded) in direction ``h`` up to the first cell that is not one (the corridor's end: a
     decision cell or a dead end)."""
     n = 0
-    dr, dc = _STEP[h]
+    dr, dc = STEPS[h]
     r, c = r + dr, c + dc
     while 0 <= r < straight.shape[0] and 0 <= c < straight.shape[1] and straight[r, c]:
         n += 1
@@ -501,7 +501,7 @@ def place_tiles(
     def allowed(r: int, c: int) -> bool:
         if not straight[r, c] or (r, c) in tiles:
             return False
-        return all((r + dr, c + dc) not in tiles for dr, dc in _STEP)
+        return all((r + dr, c + dc) not in tiles for dr, dc in STEPS)
 
     for kind in fam.tile_kinds:
         for k in range(fam.near_tiles):
@@ -511,7 +511,7 @@ def place_tiles(
                 for h in range(4):
                     if not nb[r, c, h]:
                         continue
-                    dr, dc = _STEP[h]
+                    dr, dc = STEPS[h]
                     cells = [(r + dr * (i + 1), c + dc * (i + 1)) for i in range(d + 1)]
                     if all(
                         0 <= rr < free.shape[0] and 0 <= cc < free.shape[1] and straight[rr, cc]
@@ -729,7 +729,7 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
                 continue
             n = run_to_end(straight, r, c, h)
             runs.append(n)
-            dr, dc = _STEP[h]
+            dr, dc = STEPS[h]
             end = (r + dr * (n + 1), c + dc * (n + 1))
             if count[end] >= 3:
                 before.append(n)
@@ -752,7 +752,7 @@ def _all_connected(free: np.ndarray) -> bool:
     seen[stack[0]] = True
     while stack:
         r, c = stack.pop()
-        for dr, dc in _STEP:
+        for dr, dc in STEPS:
             rr, cc = r + dr, c + dc
             inside = 0 <= rr < free.shape[0] and 0 <= cc < free.shape[1]
             if inside and free[rr, cc] and not seen[rr, cc]:
@@ -768,7 +768,7 @@ def _junction_after_corner(free: np.ndarray, corners: np.ndarray, count: np.ndar
         for h in range(4):
             if not nb[r, c, h]:
                 continue
-            dr, dc = _STEP[h]
+            dr, dc = STEPS[h]
             for i in (1, 2):
                 rr, cc = int(r) + dr * i, int(c) + dc * i
                 if not (0 <= rr < free.shape[0] and 0 <= cc < free.shape[1]) or not free[rr, cc]:

@@ -482,7 +482,9 @@ def validation_mazes(
 def _joined(verdicts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
     """Verdicts of the same trial spec in several mazes as one (trials in maze order; ``maze``:
     each trial's maze, by index)."""
-    out = {key: np.concatenate([np.asarray(v[key]) for v in verdicts]) for key in verdicts[0]}
+    from mbn.experiments.trials import join_verdicts
+
+    out = join_verdicts(verdicts)
     out["maze"] = np.concatenate(
         [np.full(len(np.asarray(v["success"])), m, np.int32) for m, v in enumerate(verdicts)]
     )

@@ -156,7 +156,7 @@ def _worst_maze(
     record)``, the record naming the maze and each trial's verdict."""
     import jax
 
-    from mbn.experiments.trials import TrialGroup, run_trial_groups
+    from mbn.experiments.trials import TrialGroup, run_trial_groups, verdict_details
 
     rates = [r["success_rate"] for r in result["mazes"]]
     m = int(np.argmin(rates))
@@ -179,13 +179,7 @@ def _worst_maze(
     record = {
         "maze": maze.name,
         "success_rate": rates[m],
-        "details": {
-            "success": v["success"].astype(int).tolist(),
-            "correct": v["correct"].astype(int).tolist(),
-            "judged": v["judged"].astype(int).tolist(),
-            "stall": np.round(v["stall"].astype(float), 5).tolist(),
-            "timed_out": v["timed_out"].astype(int).tolist(),
-        },
+        "details": verdict_details(v),
     }
     return maze, trajectory, record
 

@@ -31,7 +31,13 @@ from mbn.experiments.reproduce.protocol import (
     test_specs,
 )
 from mbn.experiments.reproduce.stages.common import TEST_NOISE_KEY, noise_key, run_noise
-from mbn.experiments.trials import TrialGroup, TrialSpec, run_trial_groups, summary
+from mbn.experiments.trials import (
+    TrialGroup,
+    TrialSpec,
+    run_trial_groups,
+    summary,
+    verdict_details,
+)
 from mbn.experiments.trials import agreement as same_exits
 from mbn.networks.ctrnn import firing_rate
 from mbn.paper import published_lf, published_rf
@@ -197,16 +203,7 @@ class TestsStage(Stage):
                 agreement[f"{im_name}{suffix}"] = same_exits(
                     verdicts[f"{im_name}{suffix}"], verdicts[f"{net_name}{suffix}"]
                 )
-        details = {
-            name: {
-                "success": verdicts[name]["success"].astype(int).tolist(),
-                "correct": verdicts[name]["correct"].astype(int).tolist(),
-                "judged": verdicts[name]["judged"].astype(int).tolist(),
-                "stall": np.round(verdicts[name]["stall"].astype(float), 5).tolist(),
-                "timed_out": verdicts[name]["timed_out"].astype(int).tolist(),
-            }
-            for name in TEST_NAMES
-        }
+        details = {name: verdict_details(verdicts[name]) for name in TEST_NAMES}
         ctx.rundir.save_trajectories("test_trajectories", trajectories, TRAJECTORY_FIELDS)
         start = _record_mbn(ctx, specs["mbn"][0], mazes[0], ran["mbn"][""])
         return {
