@@ -25,7 +25,8 @@ EPILOG = """\
 """
 
 _REPRODUCE_EPILOG = """\
-stages: multiplier, rf, lf_search, lf, im, pm, tests, then results.json and the report.
+stages: multiplier, rf, lf_search, lf, im, pm, tests, generalization, then results.json and the
+report.
 Every DE generation is checkpointed in DIR/checkpoints: after an interruption (Ctrl-C, kill -9,
 a power cut) `mbn reproduce --out DIR --resume` continues where the run stopped and ends with the
 same results.json as an uninterrupted run.
