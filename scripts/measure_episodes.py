@@ -1,8 +1,9 @@
 """Measure how the followers' maze episodes are drawn: every N generations, and how many.
 
 For each arm (a named ``[episodes]`` / ``[followers]`` override of ``mbn reproduce``'s defaults)
-and each seed, run the ``rf`` stage of ``mbn reproduce`` (with the multiplier it needs) into
-``OUT/ARM/seed-S``, then judge its right-follower on the ``grid`` family's **validation** split
+and each seed, run the ``rf`` stage of ``mbn reproduce`` (with the multiplier it needs; with
+``--lf`` the LF search and LF as well) into ``OUT/ARM/seed-S``, then judge its right-follower
+(and left-follower) on the ``grid`` family's **validation** split
 (100 mazes, every start mark once, as ``mbn evaluate --maze grid/validation``). One JSON line per
 arm and seed is appended to ``OUT/measure.jsonl``: the validation figures, the stage's seconds
 and robot-steps. Done pairs are skipped, so the script resumes where it stopped (a stage resumes
@@ -32,6 +33,12 @@ ARMS: dict[str, dict[str, dict[str, Any]]] = {
     "n10": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10}},
     "n50": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 50}},
     "n10-32ep": {"episodes": {"kind": "maze", "mazes": 8, "starts": 4, "redraw": 10}},
+    # draws of 3 mazes x 3 starts: 9 episodes of 60 s, a genome's evaluation about as long as
+    # the seven crossroads' 28 episodes of 20 s
+    "n0-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 0}},
+    "n1-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 1}},
+    "n10-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 10}},
+    "n50-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 50}},
     "crossroads": {"episodes": {"kind": "crossroads"}},
 }
 
@@ -59,7 +66,7 @@ def _done(out: Path) -> set[tuple[str, int]]:
     return {(r["arm"], r["seed"]) for r in map(json.loads, path.read_text().splitlines())}
 
 
-def measure(out: Path, arm: str, seed: int) -> dict[str, Any]:
+def measure(out: Path, arm: str, seed: int, lf: bool = False) -> dict[str, Any]:
     from mbn.config import read_toml
     from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.generalization import evaluate_mazes
@@ -82,17 +89,22 @@ def measure(out: Path, arm: str, seed: int) -> dict[str, Any]:
         config=config,
         resume=(folder / "run.json").exists(),
         log=lambda _m: None,
-        stages=["rf"],
+        stages=["rf", "lf_search", "lf"] if lf else ["rf"],
         workers=2,
     )
     wall = time.perf_counter() - t0
     timings = json.loads((folder / "timings.json").read_text())
     rf = json.loads((folder / "stages" / "rf.json").read_text())
     mazes, split = load_mazes("grid/validation")
-    with scope(ROBOT):  # as `mbn evaluate` judges
-        loaded = make_controller(read_controller_spec(folder / "controllers" / "rf.json"), None)
-        judged = evaluate_mazes(mazes, TrialSpec(behavior="right"), loaded)
-    return {
+
+    def judge(name: str, behavior: str) -> dict[str, Any]:
+        with scope(ROBOT):  # as `mbn evaluate` judges
+            spec = read_controller_spec(folder / "controllers" / f"{name}.json")
+            loaded = make_controller(spec, None)
+            return evaluate_mazes(mazes, TrialSpec(behavior=behavior), loaded)
+
+    judged = judge("rf", "right")
+    row: dict[str, Any] = {
         "arm": arm,
         "seed": seed,
         "settings": ARMS[arm],
@@ -105,6 +117,15 @@ def measure(out: Path, arm: str, seed: int) -> dict[str, Any]:
         "best_fitness": rf["best_fitness"],
         "wall_seconds_this_call": round(wall, 1),
     }
+    if lf:
+        judged_lf = judge("lf", "left")
+        row["lf"] = {
+            "pooled": judged_lf["pooled"],
+            "mazes_at_95": judged_lf["mazes_at_95"],
+            "seconds": {k: timings["stages"][k] for k in ("lf_search", "lf")},
+            "robot_steps": {k: timings["robot_steps"][k] for k in ("lf_search", "lf")},
+        }
+    return row
 
 
 def summary(out: Path) -> None:
@@ -112,16 +133,28 @@ def summary(out: Path) -> None:
     arms = sorted({r["arm"] for r in rows}, key=list(ARMS).index)
     print(
         "| arm | seeds | pooled (each seed) | mazes at >= 95 % (each seed) "
-        "| RF robot-steps (M, mean) |"
+        "| RF robot-steps (M, mean) | LF pooled (each seed) | LF mazes at >= 95 % "
+        "| LF search + LF robot-steps (M, mean) |"
     )
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for arm in arms:
         rs = sorted((r for r in rows if r["arm"] == arm), key=lambda r: r["seed"])
         pooled = ", ".join(f"{r['pooled']['success_rate']:.1%}" for r in rs)
         at = ", ".join(str(r["mazes_at_95"]) for r in rs)
         steps = sum(r["rf_robot_steps"] for r in rs) / len(rs) / 1e6
         seeds = ",".join(str(r["seed"]) for r in rs)
-        print(f"| {arm} | {seeds} | {pooled} | {at} | {steps:.0f} |")
+        lfs = [r["lf"] for r in rs if "lf" in r]
+        lf_pooled = ", ".join(f"{x['pooled']['success_rate']:.1%}" for x in lfs) or "-"
+        lf_at = ", ".join(str(x["mazes_at_95"]) for x in lfs) or "-"
+        lf_steps = (
+            f"{sum(sum(x['robot_steps'].values()) for x in lfs) / len(lfs) / 1e6:.0f}"
+            if lfs
+            else "-"
+        )
+        print(
+            f"| {arm} | {seeds} | {pooled} | {at} | {steps:.0f} | {lf_pooled} | {lf_at} "
+            f"| {lf_steps} |"
+        )
 
 
 def main() -> int:
@@ -130,6 +163,11 @@ def main() -> int:
     p.add_argument("--seeds", default="0-4")
     p.add_argument("--arms", default=",".join(ARMS), help="comma-separated arms (default all)")
     p.add_argument("--summary", action="store_true", help="print the table of what is measured")
+    p.add_argument(
+        "--lf",
+        action="store_true",
+        help="also run the LF search and LF, and judge LF on the validation split (left)",
+    )
     args = p.parse_args()
     if args.summary:
         summary(args.out)
@@ -144,13 +182,19 @@ def main() -> int:
         for arm in arms:
             if (arm, seed) in _done(args.out):
                 continue
-            row = measure(args.out, arm, seed)
+            row = measure(args.out, arm, seed, lf=args.lf)
             with open(args.out / "measure.jsonl", "a") as f:
                 f.write(json.dumps(row) + "\n")
             print(
                 f"{arm} seed {seed}: {row['pooled']['success_rate']:.1%} pooled, "
                 f"{row['mazes_at_95']} mazes at >= 95 %, {row['rf_robot_steps'] / 1e6:.0f} M "
-                f"robot-steps, {row['rf_seconds']:.0f} s",
+                f"robot-steps, {row['rf_seconds']:.0f} s"
+                + (
+                    f"; LF {row['lf']['pooled']['success_rate']:.1%} pooled, "
+                    f"{row['lf']['mazes_at_95']} mazes at >= 95 %"
+                    if "lf" in row
+                    else ""
+                ),
                 flush=True,
             )
     return 0
