@@ -28,17 +28,41 @@ from typing import Any
 
 #: The arms: name -> settings sections. ``redraw`` 0 draws the episodes once (never again).
 ARMS: dict[str, dict[str, dict[str, Any]]] = {
-    "n0": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 0}},
-    "n1": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 1}},
-    "n10": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10}},
-    "n50": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 50}},
-    "n10-32ep": {"episodes": {"kind": "maze", "mazes": 8, "starts": 4, "redraw": 10}},
+    # draws of 4 mazes x 4 starts; the LF search on every start of a draw (as before
+    # ``search_starts`` existed)
+    "n0": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 0, "search_starts": 4}},
+    "n1": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 1, "search_starts": 4}},
+    "n10": {
+        "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10, "search_starts": 4}
+    },
+    "n50": {
+        "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 50, "search_starts": 4}
+    },
+    "n10-32ep": {
+        "episodes": {"kind": "maze", "mazes": 8, "starts": 4, "redraw": 10, "search_starts": 4}
+    },
     # draws of 3 mazes x 3 starts: 9 episodes of 60 s, a genome's evaluation about as long as
     # the seven crossroads' 28 episodes of 20 s
-    "n0-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 0}},
-    "n1-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 1}},
-    "n10-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 10}},
-    "n50-9ep": {"episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 50}},
+    "n0-9ep": {
+        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 0, "search_starts": 3}
+    },
+    "n1-9ep": {
+        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 1, "search_starts": 3}
+    },
+    "n10-9ep": {
+        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 10, "search_starts": 3}
+    },
+    "n50-9ep": {
+        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 50, "search_starts": 3}
+    },
+    # 4 x 4, N = 10, cheaper: the LF search on 2 starts of each maze, RF evolved 150 generations
+    # (its training fitness levels off by about generation 40 on maze episodes), each LF
+    # finalist 35
+    "lean": {
+        "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10, "search_starts": 2},
+        "rf": {"generations": 150},
+        "lf": {"generations": 35},
+    },
     "crossroads": {"episodes": {"kind": "crossroads"}},
 }
 

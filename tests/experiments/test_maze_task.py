@@ -182,6 +182,10 @@ def test_the_episodes_settings_choose_the_followers_training_task():
     maze = training_task(ctx(kind="maze", family="grid", pool=12, mazes=4, starts=3), "left", 4)
     assert isinstance(maze, MazeTask)
     assert (maze.rule, maze.pool, maze.mazes, maze.starts, maze.seed) == ("left", 12, 4, 3, 17)
+    # the LF search's fewer starts of each maze: only the starts change
+    fewer = training_task(ctx(kind="maze", pool=12, mazes=4, starts=3), "left", 2, starts=1)
+    assert isinstance(fewer, MazeTask)
+    assert dataclasses.replace(fewer, starts=3) == maze
     redrawn = training_fitness(ctx(kind="maze", pool=12, mazes=4, redraw=5), "left", 4, lambda t: t)
     assert isinstance(redrawn, Redrawn)
     assert [redrawn.at(g).draw for g in (0, 4, 5, 12)] == [0, 0, 1, 2]

@@ -93,7 +93,8 @@ class EpisodeSettings(Settings):
 
     section = "episodes"
     # runs recorded before this section existed were evolved on the crossroads
-    recorded_before: ClassVar[dict[str, Any]] = {"kind": "crossroads"}
+    # (and maze runs recorded before ``search_starts`` searched on every start of a draw: 4)
+    recorded_before: ClassVar[dict[str, Any]] = {"kind": "crossroads", "search_starts": 4}
     kind: str = setting(
         "maze",
         doc="maze: episodes drawn from a maze family's train split (docs/generalization.md); "
@@ -127,6 +128,14 @@ class EpisodeSettings(Settings):
         low=1,
         high=10,
         source="docs/generalization.md",
+    )
+    search_starts: int = setting(
+        2,
+        doc="start marks of each maze in one draw of the LF search (as the crossroads' search "
+        "runs 2 starts per crossroad where RF and LF run 4)",
+        low=1,
+        high=10,
+        source="docs/generalization.md (cost)",
     )
     seconds: float = setting(
         60.0,

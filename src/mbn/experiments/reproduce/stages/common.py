@@ -133,10 +133,12 @@ def training_task(
     variants: int,
     approaches: tuple[str, ...] = ("south",),
     draw: int = 0,
+    starts: int | None = None,
 ) -> Task:
     """The followers' training task (``[episodes]``): the crossroads (:func:`task`), or draw
     ``draw`` of episodes in mazes of a family's train split (a :class:`MazeTask` seeded by the
-    run's ``crossroad_jitter`` seed, under the run's noise)."""
+    run's ``crossroad_jitter`` seed, under the run's noise; ``starts`` start marks of each maze,
+    default ``[episodes] starts``)."""
     episodes = ctx.section("episodes")
     if episodes.kind == "crossroads":
         return task(ctx, rule, variants, approaches)
@@ -145,7 +147,7 @@ def training_task(
         family=episodes.family,
         pool=episodes.pool,
         mazes=episodes.mazes,
-        starts=episodes.starts,
+        starts=episodes.starts if starts is None else starts,
         seconds=episodes.seconds,
         stall_weight=episodes.stall_weight,
         seed=ctx.seeds["crossroad_jitter"],
@@ -161,11 +163,12 @@ def training_fitness(
     variants: int,
     make: Any,
     approaches: tuple[str, ...] = ("south",),
+    starts: int | None = None,
 ) -> Any:
     """``make(task)`` of the followers' training task: on the crossroads as it is; on maze
     episodes a :class:`~mbn.experiments.evolve.Redrawn` fitness whose episodes are drawn again
-    every ``[episodes] redraw`` generations."""
-    first = training_task(ctx, rule, variants, approaches)
+    every ``[episodes] redraw`` generations (``starts``: as :func:`training_task`)."""
+    first = training_task(ctx, rule, variants, approaches, starts=starts)
     if not isinstance(first, MazeTask):
         return make(first)
     return Redrawn(lambda d: make(first.redrawn(d)), ctx.section("episodes").redraw)

@@ -28,6 +28,7 @@ from mbn.experiments.pipeline import DERun, Stage, StageContext
 from mbn.experiments.reproduce.stages.common import (
     SCORING_DRAW,
     de_config,
+    maze_episodes,
     read_network,
     stage_perturbations,
     training_fitness,
@@ -106,6 +107,10 @@ def search_triples(
     approaches = ctx.section("lf").approaches
     cands = [Connection.parse(c) for c in s.candidates]
     triples = list(itertools.combinations(cands, 3))
+    # on maze episodes the search runs fewer starts of each maze, as on the crossroads it runs
+    # s.variants (2) starts of each where RF and LF run 4
+    maze = maze_episodes(ctx)
+    starts = maze.search_starts if maze is not None else None
     noise = stage_perturbations(ctx, 3)
     config = de_config(ctx, 3, followers.weight_bound)
     runs = [DERun(checkpoint(t), config, jax.random.fold_in(key, t)) for t in range(len(triples))]
@@ -123,7 +128,11 @@ def search_triples(
         done = ctx.evolve_group(
             [runs[t] for t in alive],
             training_fitness(
-                ctx, "left", s.variants, lambda t, g=group: connection_group_fitness(rf, t, g)
+                ctx,
+                "left",
+                s.variants,
+                lambda t, g=group: connection_group_fitness(rf, t, g),
+                starts=starts,
             ),
             end,
             f"LF search: {len(alive)} triples side by side"
@@ -133,7 +142,9 @@ def search_triples(
     # The final populations scored with perturbed copies too, on the crossroads entered round a
     # corner as in a maze: an LF that keeps its behaviour when its weights move is one the
     # interpreter can emulate. One batch of every triple's, in parts as DE's.
-    final_task = training_task(ctx, "left", s.variants, approaches, draw=SCORING_DRAW)
+    final_task = training_task(
+        ctx, "left", s.variants, approaches, draw=SCORING_DRAW, starts=starts
+    )
     choose = connection_group_fitness(rf, final_task, triples)
     final = join_rows(tuple(results[t].state.population for t in range(len(triples))))
     owner = put(np.repeat(np.arange(len(triples)), config.popsize))
