@@ -97,3 +97,29 @@ def test_maze_runs_need_the_pooled_rate_and_the_share_of_mazes(successes, meets)
     )
     assert "mazes" not in plain
     assert plain["meets_target"] == (sum(successes) / 200 >= 0.95)
+
+
+def test_the_shipped_paper_config_differs_from_the_defaults_only_in_the_crossroad_protocol():
+    """``docs/configs/paper.toml`` is the paper's protocol: the crossroads and the followers'
+    generations there, every other setting the default (docs/reproduce.md, "Which protocol")."""
+    from pathlib import Path
+
+    from mbn.config import read_toml
+    from mbn.experiments.behaviours import NEW_BEHAVIOURS
+    from mbn.experiments.reproduce import REPRODUCE
+
+    paper_file = Path(__file__).parents[3] / "docs" / "configs" / "paper.toml"
+    for experiment in (REPRODUCE, NEW_BEHAVIOURS):
+        default = experiment.config().to_dict()
+        paper = experiment.config(document=read_toml(paper_file)).to_dict()
+        changed = {
+            (section, key): value
+            for section, table in paper.items()
+            for key, value in table.items()
+            if default[section][key] != value
+        }
+        assert changed == {
+            ("episodes", "kind"): "crossroads",
+            ("rf", "generations"): 300,
+            ("lf", "generations"): 70,
+        }

@@ -305,7 +305,7 @@ QUICK: dict[str, dict[str, Any]] = {
         "split_mazes": 2,
         "split_jitter_per_mark": 1,
     },
-    "episodes": {"pool": 16},
+    "episodes": {"pool": 16, "mazes": 2, "starts": 2, "search_starts": 1},
     # no worst-maze rerun: a compilation per controller kind saved (its picture: a test of its own)
     "generalization": {"test_mazes": 5, "gap_mazes": 3, "worst_maze": False},
 }

@@ -107,11 +107,13 @@ class LFSettings(Settings):
     # runs recorded before ``enough`` existed evolved every finalist of a round
     recorded_before: ClassVar[dict[str, Any]] = {"enough": 1.0}
     generations: int = setting(
-        70,
+        35,
         doc="DE generations of each finalist",
         low=0,
         high=100_000,
-        source="docs/reproduce.md (a finalist's fitness levels off within about 60)",
+        source="docs/generalization.md (on maze episodes a finalist starts level: the LF "
+        "search's population); the paper's protocol: 70 (docs/configs/paper.toml; a "
+        "finalist's fitness levels off within about 60 there, docs/reproduce.md)",
     )
     finalists: int = setting(
         3,

@@ -21,7 +21,12 @@ class RFSettings(Settings):
 
     section = "rf"
     generations: int = setting(
-        300, doc="DE generations", low=0, high=100_000, source="docs/reproduce.md"
+        150,
+        doc="DE generations",
+        low=0,
+        high=100_000,
+        source="docs/generalization.md (on maze episodes RF's fitness levels off by about "
+        "generation 40); the paper's protocol: 300 (docs/configs/paper.toml)",
     )
     variants: int = setting(
         4,
