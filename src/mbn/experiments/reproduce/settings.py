@@ -150,7 +150,7 @@ class EpisodeSettings(Settings):
         doc="generations between two draws of episodes (0: never, one draw for the whole run)",
         low=0,
         high=100_000,
-        source="docs/generalization.md (to be chosen by the N measurement)",
+        source="docs/generalization.md (the N measurement)",
     )
     stall_weight: float = setting(
         1.0,
