@@ -63,6 +63,15 @@ ARMS: dict[str, dict[str, dict[str, Any]]] = {
         "rf": {"generations": 150},
         "lf": {"generations": 35},
     },
+    # the same, drawn again every N generations for other N: never, every generation, 50
+    **{
+        f"lean-n{n}": {
+            "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": n, "search_starts": 2},
+            "rf": {"generations": 150},
+            "lf": {"generations": 35},
+        }
+        for n in (0, 1, 50)
+    },
     "crossroads": {"episodes": {"kind": "crossroads"}},
 }
 
