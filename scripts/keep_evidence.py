@@ -12,6 +12,7 @@ Usage::
 
     python scripts/keep_evidence.py runs/pvd              # -> evidence/runs/pvd/
     python scripts/keep_evidence.py runs/s0 --name reproduce-s0
+    python scripts/keep_evidence.py runs/s0 --name s0-times --only run.json,timings.json
 
 Existing files of that name are replaced; the total size kept is printed (keep it to a few MB:
 ``tests/test_evidence.py`` checks the folder's size).
@@ -40,9 +41,14 @@ def summary_files(folder: Path) -> list[Path]:
     return found
 
 
-def keep(folder: Path, name: str, evidence: Path = EVIDENCE) -> tuple[Path, int]:
-    """Copy the summary files of ``folder`` to ``evidence/NAME``; returns it and the bytes."""
+def keep(
+    folder: Path, name: str, evidence: Path = EVIDENCE, only: tuple[str, ...] | None = None
+) -> tuple[Path, int]:
+    """Copy the summary files of ``folder`` to ``evidence/NAME`` (``only``: those of these
+    names, in the folder and in each seed's); returns it and the bytes."""
     files = summary_files(folder)
+    if only is not None:
+        files = [f for f in files if f.name in only]
     if not any(f.name in ("run.json", "sweep.json") for f in files):
         raise SystemExit(f"keep_evidence: {folder}: neither a run (run.json) nor a sweep")
     target = evidence / name
@@ -64,8 +70,20 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folder", type=Path, help="a run or sweep folder")
     parser.add_argument("--name", help="the name under evidence/runs (default: the folder's)")
+    parser.add_argument(
+        "--only",
+        help="keep only these files, comma-separated (e.g. run.json,timings.json for a run "
+        "whose times alone are cited)",
+    )
     args = parser.parse_args(argv)
-    target, size = keep(args.folder, args.name or args.folder.name)
+    only = None
+    if args.only:
+        only = tuple(n.strip() for n in args.only.split(","))
+        unknown = sorted(set(only) - set(RUN_FILES) - set(SWEEP_FILES))
+        if unknown:
+            known = ", ".join(RUN_FILES + SWEEP_FILES)
+            parser.error(f"--only: {', '.join(unknown)} not a summary file ({known})")
+    target, size = keep(args.folder, args.name or args.folder.name, only=only)
     total = sum(p.stat().st_size for p in EVIDENCE.rglob("*") if p.is_file())
     print(
         f"{target.relative_to(TOP)}: {size / 1e3:.0f} kB kept; "
