@@ -307,13 +307,7 @@ QUICK: dict[str, dict[str, Any]] = {
     },
     "episodes": {"pool": 16, "mazes": 2, "starts": 2, "search_starts": 1},
     # no worst-maze rerun: a compilation per controller kind saved (its picture: a test of its own)
-    # one batch: a quick run's judging is compilation more than steps
-    "generalization": {
-        "test_mazes": 5,
-        "gap_mazes": 3,
-        "worst_maze": False,
-        "zero_shot_batch": False,
-    },
+    "generalization": {"test_mazes": 5, "gap_mazes": 3, "worst_maze": False},
 }
 
 

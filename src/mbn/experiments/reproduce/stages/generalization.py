@@ -20,7 +20,7 @@ and ``zero-shot``, so that whoever tunes on it never sees them.
 Every start mark of every maze, ``repeats`` times (the first from the mark, the others jittered
 by the run's ``test_jitter`` seed), three junctions judged; a controller's mazes run in two
 batches, the generated splits' and the zero-shot suite's, each under the longest of its mazes'
-own time limits (``[generalization] zero_shot_batch``; the quick preset: one batch).
+own time limits (``[generalization] zero_shot_batch``).
 """
 
 from __future__ import annotations
