@@ -213,32 +213,54 @@ def test_the_worst_test_maze_is_run_again_with_its_steps_recorded(quick_run, tmp
     assert (tmp_path / "figures" / "generalization_worst_lf.png").stat().st_size > 0
 
 
-def test_the_zero_shot_suite_is_judged_in_a_batch_of_its_own_under_its_own_time_limit(
-    quick_run,
-):
-    """``[generalization] zero_shot_batch``: the generated mazes run under the longest of their
-    own time limits, the zero-shot suite under the longest of its own, each maze's row what
-    judging its batch alone gives."""
+def test_the_zero_shot_suite_is_judged_in_a_batch_of_its_own():
+    """``[generalization] zero_shot_batch``: the generated splits in one batch, the zero-shot
+    suite in another (each under its own longest time limit), in the columns' order; off: one
+    batch; no empty batch."""
+    from mbn.experiments.reproduce.stages.generalization import judging_batches
+
+    parts = [("train", ["a"], True), ("test", ["b", "c"], False), ("zero-shot", ["z"], False)]
+    assert judging_batches(parts, True) == [parts[:2], parts[2:]]
+    assert judging_batches(parts, False) == [parts]
+    assert judging_batches(parts[:2], True) == [parts[:2]]
+    assert judging_batches(parts[2:], True) == [parts[2:]]
+    assert judging_batches([], True) == judging_batches([], False) == []
+
+
+@pytest.mark.slow  # the stage run again on a copy of the quick run (about 2 min on 2 cores)
+def test_the_stage_judges_the_zero_shot_suite_under_its_own_time_limit(quick_run, tmp_path):
+    """With ``zero_shot_batch`` the generated mazes run under the longest of their own time
+    limits, the zero-shot suite under the longest of its own, each maze's row what judging its
+    batch alone gives."""
+    import shutil
+
     from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.generalization import evaluate_mazes
+    from mbn.experiments.pipeline.rundir import RunDir
+    from mbn.experiments.pipeline.runner import run_stage
+    from mbn.experiments.reproduce import REPRODUCE
     from mbn.experiments.trials import TrialSpec, route_seconds
-    from mbn.world.mazes.load import load_maze, load_mazes
+    from mbn.world.mazes.load import load_mazes
 
     out, _ = quick_run
-    results = json.loads((out / "results.json").read_text())
-    assert results["config"]["generalization"]["zero_shot_batch"] is True
-    splits = results["stages"]["generalization"]["controllers"]["lf"]["splits"]
+    folder = tmp_path / "run"
+    shutil.copytree(out, folder)
+    rundir = RunDir(folder)
+    manifest = rundir.read_manifest()
+    table = manifest["config"]["generalization"]
+    table.update(zero_shot_batch=True, splits=["validation", "zero-shot"], gap_mazes=2)
+    config = REPRODUCE.config_from_dict(manifest["config"], "test")
+    rundir.stage_file("generalization").unlink()
+    data = run_stage(REPRODUCE, rundir, "generalization", seed=manifest["seed"], config=config)
+    splits = data["controllers"]["lf"]["splits"]
+    assert set(splits) == {"validation", "zero-shot"}
     spec = TrialSpec(behavior="left")
-    generated = [
-        load_maze(row["maze"])
-        for split in ("train", "validation", "test")
-        for row in splits[split]["mazes"]
-    ]
+    validation, _ = load_mazes("grid/validation:0-1")
     zero, _ = load_mazes("grid/zero-shot")
-    limit = max(route_seconds(m, spec) for m in generated)
-    assert {splits[s]["seconds"] for s in ("train", "validation", "test")} == {limit}
-    assert splits["zero-shot"]["seconds"] == max(route_seconds(m, spec) for m in zero) > limit
-    loaded = make_controller(read_controller_spec(out / "controllers" / "lf.json"), None)
+    assert splits["validation"]["seconds"] == max(route_seconds(m, spec) for m in validation)
+    assert splits["zero-shot"]["seconds"] == max(route_seconds(m, spec) for m in zero)
+    assert splits["zero-shot"]["seconds"] > splits["validation"]["seconds"]
+    loaded = make_controller(read_controller_spec(folder / "controllers" / "lf.json"), None)
     alone = evaluate_mazes(zero, spec, loaded)
     keys = ("maze", "trials", "successes", "timed_out")
     assert splits["zero-shot"]["mazes"] == [{k: r[k] for k in keys} for r in alone["mazes"]]

@@ -307,7 +307,14 @@ QUICK: dict[str, dict[str, Any]] = {
     },
     "episodes": {"pool": 16, "mazes": 2, "starts": 2, "search_starts": 1},
     # no worst-maze rerun: a compilation per controller kind saved (its picture: a test of its own)
-    "generalization": {"test_mazes": 5, "gap_mazes": 3, "worst_maze": False},
+    # one batch: a quick run's judging is compilation more than steps (a batch more per
+    # controller kind cost it about 18 s cold)
+    "generalization": {
+        "test_mazes": 5,
+        "gap_mazes": 3,
+        "worst_maze": False,
+        "zero_shot_batch": False,
+    },
 }
 
 

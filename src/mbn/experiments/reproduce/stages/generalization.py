@@ -20,7 +20,7 @@ and ``zero-shot``, so that whoever tunes on it never sees them.
 Every start mark of every maze, ``repeats`` times (the first from the mark, the others jittered
 by the run's ``test_jitter`` seed), three junctions judged; a controller's mazes run in two
 batches, the generated splits' and the zero-shot suite's, each under the longest of its mazes'
-own time limits (``[generalization] zero_shot_batch``).
+own time limits (``[generalization] zero_shot_batch``; the quick preset: one batch).
 """
 
 from __future__ import annotations
@@ -159,6 +159,20 @@ def split_mazes(ctx: StageContext, family: str, split: str, count: int) -> tuple
     return [families.generate(family, s) for s in seeds], False
 
 
+def judging_batches(
+    parts: list[tuple[str, list[Any], bool]], zero_shot_batch: bool
+) -> list[list[tuple[str, list[Any], bool]]]:
+    """The batches a controller's columns (``(split, mazes, seen)``, in order) are judged in:
+    the generated splits' together and the zero-shot suite apart (``zero_shot_batch``; each
+    batch runs under the longest of its own mazes' time limits), else all in one; no empty
+    batch."""
+    if not zero_shot_batch:
+        return [parts] if parts else []
+    generated = [p for p in parts if p[0] != "zero-shot"]
+    zero = [p for p in parts if p[0] == "zero-shot"]
+    return [b for b in (generated, zero) if b]
+
+
 def _worst_maze(
     mazes: list[Any], result: dict[str, Any], trial: TrialSpec, loaded: Any, key: Any
 ) -> tuple[Any, Any, dict[str, Any]]:
@@ -245,14 +259,7 @@ class GeneralizationStage(Stage):
             # zero-shot maze needs up to 370 s, a generated one about 115 s): one compiled
             # rollout per controller kind and batch
             judged_by_split: dict[str, dict[str, Any]] = {}
-            batches = (
-                [
-                    [p for p in parts if p[0] != "zero-shot"],
-                    [p for p in parts if p[0] == "zero-shot"],
-                ]
-                if s.zero_shot_batch
-                else [parts]
-            )
+            batches = judging_batches(parts, s.zero_shot_batch)
             for batch in batches:
                 every = [m for _, mazes, _ in batch for m in mazes]
                 if not every:
