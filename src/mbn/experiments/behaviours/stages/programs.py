@@ -76,7 +76,12 @@ class ProgramsSettings(Settings):
         source="docs/behaviours.md",
     )
     generations: int = setting(
-        300, doc="DE generations per rule", low=0, high=100_000, source="as [rf] generations"
+        300,
+        doc="DE generations per rule",
+        low=0,
+        high=100_000,
+        source="the paper's RF budget; on maze episodes a program's fitness levels off only "
+        "after 150-220 generations (docs/generalization.md, The N measurement)",
     )
     variants: int = setting(
         4, doc="starts per crossroad", low=1, high=100, source="as [rf] variants"
