@@ -26,53 +26,43 @@ import time
 from pathlib import Path
 from typing import Any
 
+
+def _arm(
+    mazes: int, starts: int, redraw: int, search_starts: int, rf: int = 300, lf: int = 70
+) -> dict[str, dict[str, Any]]:
+    """The settings of a maze-episode arm: draws of ``mazes`` x ``starts``, drawn again every
+    ``redraw`` generations, the LF search on ``search_starts`` starts of each maze, RF evolved
+    ``rf`` generations and each LF finalist ``lf`` (pinned: the defaults changed after the
+    first arms were run with 300 and 70)."""
+    episodes = {"kind": "maze", "mazes": mazes, "starts": starts, "redraw": redraw}
+    return {
+        "episodes": {**episodes, "search_starts": search_starts},
+        "rf": {"generations": rf},
+        "lf": {"generations": lf},
+    }
+
+
 #: The arms: name -> settings sections. ``redraw`` 0 draws the episodes once (never again).
 ARMS: dict[str, dict[str, dict[str, Any]]] = {
     # draws of 4 mazes x 4 starts; the LF search on every start of a draw (as before
     # ``search_starts`` existed)
-    "n0": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 0, "search_starts": 4}},
-    "n1": {"episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 1, "search_starts": 4}},
-    "n10": {
-        "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10, "search_starts": 4}
-    },
-    "n50": {
-        "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 50, "search_starts": 4}
-    },
-    "n10-32ep": {
-        "episodes": {"kind": "maze", "mazes": 8, "starts": 4, "redraw": 10, "search_starts": 4}
-    },
+    **{f"n{n}": _arm(4, 4, n, 4) for n in (0, 1, 10, 50)},
+    "n10-32ep": _arm(8, 4, 10, 4),
     # draws of 3 mazes x 3 starts: 9 episodes of 60 s, a genome's evaluation about as long as
     # the seven crossroads' 28 episodes of 20 s
-    "n0-9ep": {
-        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 0, "search_starts": 3}
-    },
-    "n1-9ep": {
-        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 1, "search_starts": 3}
-    },
-    "n10-9ep": {
-        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 10, "search_starts": 3}
-    },
-    "n50-9ep": {
-        "episodes": {"kind": "maze", "mazes": 3, "starts": 3, "redraw": 50, "search_starts": 3}
-    },
+    **{f"n{n}-9ep": _arm(3, 3, n, 3) for n in (0, 1, 10, 50)},
     # 4 x 4, N = 10, cheaper: the LF search on 2 starts of each maze, RF evolved 150 generations
     # (its training fitness levels off by about generation 40 on maze episodes), each LF
-    # finalist 35
-    "lean": {
-        "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": 10, "search_starts": 2},
-        "rf": {"generations": 150},
-        "lf": {"generations": 35},
-    },
+    # finalist 35 (the defaults since)
+    "lean": _arm(4, 4, 10, 2, rf=150, lf=35),
     # the same, drawn again every N generations for other N: never, every generation, 50
-    **{
-        f"lean-n{n}": {
-            "episodes": {"kind": "maze", "mazes": 4, "starts": 4, "redraw": n, "search_starts": 2},
-            "rf": {"generations": 150},
-            "lf": {"generations": 35},
-        }
-        for n in (0, 1, 50)
+    **{f"lean-n{n}": _arm(4, 4, n, 2, rf=150, lf=35) for n in (0, 1, 50)},
+    # the paper's protocol (docs/configs/paper.toml)
+    "crossroads": {
+        "episodes": {"kind": "crossroads"},
+        "rf": {"generations": 300},
+        "lf": {"generations": 70},
     },
-    "crossroads": {"episodes": {"kind": "crossroads"}},
 }
 
 

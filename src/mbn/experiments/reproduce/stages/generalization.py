@@ -259,11 +259,8 @@ class GeneralizationStage(Stage):
             # zero-shot maze needs up to 370 s, a generated one about 115 s): one compiled
             # rollout per controller kind and batch
             judged_by_split: dict[str, dict[str, Any]] = {}
-            batches = judging_batches(parts, s.zero_shot_batch)
-            for batch in batches:
+            for batch in judging_batches(parts, s.zero_shot_batch):
                 every = [m for _, mazes, _ in batch for m in mazes]
-                if not every:
-                    continue
                 judged = evaluate_mazes(every, trial, loaded, key=key, verdicts=True)
                 start = 0
                 for split, mazes, _ in batch:
