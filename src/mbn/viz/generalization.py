@@ -28,9 +28,13 @@ def performance_profile(
     fig = new_figure(figsize=(6.4, 4.0))
     ax = fig.add_subplot(1, 1, 1)
     xs = np.linspace(0.0, 1.0, 201)
-    for name, rates in curves.items():
+    # a line style per curve too: a controller and the interpreter running its program often
+    # draw the same steps, one over the other
+    styles = ("-", "--", "-.", ":")
+    for k, (name, rates) in enumerate(curves.items()):
         ys = profile(rates, xs)["fraction"]
-        ax.step(xs, ys, where="post", label=f"{name} ({len(rates)} mazes)", lw=1.4)
+        label = f"{name} ({len(rates)} mazes)"
+        ax.step(xs, ys, where="post", label=label, lw=1.4, ls=styles[k % len(styles)])
     ax.axvline(target, color="0.4", ls=":", lw=1)
     ax.axhline(share, color="0.4", ls=":", lw=1)
     ax.plot([target], [share], "o", color="0.3", ms=4)
