@@ -13,17 +13,17 @@ import re
 import pytest
 
 from mbn.cli.main import main
-from mbn.cli.run import experiment
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import prepare, replace_section, run_experiment
+from mbn.experiments.registry import find, registered
 from mbn.experiments.reproduce import REPRODUCE
 
-EXPERIMENTS = ("reproduce", "new-behaviours", "noise", "ablations", "programs-vs-dynamics")
+EXPERIMENTS = tuple(registered())
 
 
 def _experiment(name):
-    return REPRODUCE if name == "reproduce" else experiment(name)
+    return find(name).load()
 
 
 def _argv(name, config, out):

@@ -122,11 +122,13 @@ def available_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def reuse_source(path: Path | None) -> Any:
-    """``--reuse DIR`` read (:func:`mbn.experiments.pipeline.reuse.read_source`), or None."""
+def reuse_source(path: Path | None, experiment: Any = None) -> Any:
+    """``--reuse DIR`` read (:func:`mbn.experiments.pipeline.reuse.read_source`), or None; the
+    source run's experiment is ``experiment`` (the one about to run) where its ``kind`` is the
+    source's, else the registered one of that kind."""
     if path is None:
         return None
     from mbn.experiments.pipeline.reuse import read_source
-    from mbn.experiments.sweep.specs import experiment_of_kind
+    from mbn.experiments.registry import of_kind
 
-    return read_source(path, experiment_of_kind)
+    return read_source(path, lambda kind: of_kind(kind, also=experiment))

@@ -159,7 +159,7 @@ def run_reproduce(args: argparse.Namespace) -> int:
         progress=not args.quiet and sys.stderr.isatty(),
         log=(lambda _m: None) if args.quiet else print,
         workers=args.threads,
-        reuse=reuse_source(args.reuse),
+        reuse=reuse_source(args.reuse, REPRODUCE),
         allow_other_code=args.allow_other_code,
     )
     if not args.quiet:

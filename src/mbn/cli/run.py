@@ -18,7 +18,7 @@ from mbn.cli.args import (
 )
 from mbn.precision import ROBOT
 
-__all__ = ["EPILOG", "EXPERIMENTS", "add_commands", "experiment"]
+__all__ = ["EPILOG", "add_commands", "experiment"]
 
 EPILOG = """\
   mbn run new-behaviours --out runs/nb        new behaviours by programs alone
@@ -26,21 +26,9 @@ EPILOG = """\
   mbn run ablations --out runs/ablations      ablations of the program path
   mbn run programs-vs-dynamics --out runs/pvd
                                               programs against dynamics (one seed)
+  mbn run my_pkg.my_module:EXPERIMENT --out runs/mine
+                                              an experiment of your own
 """
-
-#: The experiments ``mbn run`` knows, with a line each.
-EXPERIMENTS = {
-    "new-behaviours": "a fully programmable interpreter of the run's RF, and new behaviours "
-    "by its programs alone (docs/behaviours.md)",
-    "noise": "the reproduction's controllers under each channel of the noise model, level by "
-    "level (docs/noise.md)",
-    "ablations": "the MBN with parts of its program path changed: wrong or frozen program, exact "
-    "products, the multipliers' time constant and size (docs/ablations.md)",
-    "programs-vs-dynamics": "new rules learned by program search on the fixed interpreter, by "
-    "a new CTRNN and by RF re-evolved, and the three-behaviour task by the MBN and by a "
-    "monolithic CTRNN, same DE and budget: evaluations to success (docs/contest.md; over seeds "
-    "with mbn sweep)",
-}
 
 _EPILOG = """\
 experiments:
@@ -62,29 +50,18 @@ examples:
 
 
 def experiment(name: str) -> Any:
-    """The registered experiment called ``name``."""
-    if name == "new-behaviours":
-        from mbn.experiments.behaviours import NEW_BEHAVIOURS
+    """The experiment ``name``, registered or a reference (``registry.find``)."""
+    from mbn.experiments.registry import find
 
-        return NEW_BEHAVIOURS
-    if name == "noise":
-        from mbn.experiments.noise import NOISE
-
-        return NOISE
-    if name == "ablations":
-        from mbn.experiments.ablations import ABLATIONS
-
-        return ABLATIONS
-    if name == "programs-vs-dynamics":
-        from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
-
-        return PROGRAMS_VS_DYNAMICS
-    raise KeyError(name)
+    return find(name).load()
 
 
 def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     """Add ``run`` to the ``mbn`` sub-parsers."""
-    width = max(map(len, EXPERIMENTS)) + 4
+    from mbn.experiments.registry import registered
+
+    experiments = {k: r.help for k, r in registered().items()}
+    width = max(map(len, experiments)) + 4
     listing = "\n".join(
         textwrap.fill(
             f"  {k:<{width - 2}}{v}",
@@ -92,17 +69,23 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
             subsequent_indent=" " * width,
             break_on_hyphens=False,
         )
-        for k, v in EXPERIMENTS.items()
+        for k, v in experiments.items()
     )
     cmd = sub.add_parser(
         "run",
-        help="a registered experiment beyond the paper's (new-behaviours, noise, ablations, "
-        "programs-vs-dynamics)",
+        help="a registered experiment (new-behaviours, noise, ablations, programs-vs-dynamics, "
+        "reproduce), or one of your own by its reference (package.module:ATTRIBUTE)",
         description="Run a registered experiment, stage by stage, checkpointed and resumable.",
         epilog=_EPILOG.format(experiments=listing),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    cmd.add_argument("experiment", choices=sorted(EXPERIMENTS), help="the experiment")
+    cmd.add_argument(
+        "experiment",
+        metavar="EXPERIMENT",
+        help="a registered experiment's name (below), or the reference of one of your own: "
+        "package.module:ATTRIBUTE or path/to/file.py:ATTRIBUTE (an "
+        "mbn.experiments.pipeline.experiment.Experiment)",
+    )
     cmd.add_argument(
         "--out",
         type=Path,
@@ -155,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     if args.print_config:
         sys.stdout.write(config.to_toml(f"mbn run {args.experiment}: the effective config"))
         return 0
-    out = args.out if args.out is not None else Path("runs") / args.experiment
+    out = args.out if args.out is not None else Path("runs") / exp.name
     run_experiment(
         exp,
         out,
@@ -166,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet and sys.stderr.isatty(),
         log=(lambda _m: None) if args.quiet else print,
         workers=args.threads,
-        reuse=reuse_source(args.reuse),
+        reuse=reuse_source(args.reuse, exp),
         allow_other_code=args.allow_other_code,
     )
     if not args.quiet:

@@ -11,11 +11,7 @@ from mbn.cli.args import ALLOW_OTHER_CODE_HELP, positive_int
 from mbn.errors import MbnInputError
 from mbn.precision import ROBOT
 
-__all__ = ["EPILOG", "EXPERIMENT_NAMES", "add_commands", "seed_list"]
-
-#: What ``--experiment`` takes (``mbn.experiments.sweep.specs.SWEEP_EXPERIMENTS``; named here so
-#: that ``mbn --help`` imports no experiment).
-EXPERIMENT_NAMES = ("ablations", "new-behaviours", "noise", "programs-vs-dynamics", "reproduce")
+__all__ = ["EPILOG", "add_commands", "seed_list"]
 
 EPILOG = """\
   mbn sweep --seeds 0-9 --out runs/sweep        10 seeds on a local Ray, one per core
@@ -68,6 +64,8 @@ def seed_list(text: str) -> tuple[int, ...]:
 
 def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     """Add ``sweep`` to the ``mbn`` sub-parsers."""
+    from mbn.experiments.registry import registered
+
     sw = sub.add_parser(
         "sweep",
         help="one reproduction per seed on Ray, and statistics over the seeds",
@@ -86,13 +84,15 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="the seeds: 0-9, 3 or 0,2,5-7 (at most 1000); required unless --summarize",
     )
     sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="the sweep folder")
+    names = ", ".join(n for n in registered() if n != "reproduce")
     sw.add_argument(
         "--experiment",
-        choices=EXPERIMENT_NAMES,
         default=None,
+        metavar="NAME",
         help="the experiment each seed runs: reproduce (default, `mbn reproduce`), "
-        "new-behaviours, programs-vs-dynamics, ablations or noise (`mbn run NAME`; "
-        "programs-vs-dynamics compared over the seeds: docs/contest.md)",
+        f"{names} (`mbn run NAME`; programs-vs-dynamics compared over the seeds: "
+        "docs/contest.md), or one of your own by its reference, package.module:ATTRIBUTE or "
+        'path/to/file.py:ATTRIBUTE (docs/architecture.md, "Your own experiment")',
     )
     sw.add_argument(
         "--config",

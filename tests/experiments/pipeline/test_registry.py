@@ -75,7 +75,13 @@ def test_a_toy_stage_in_a_temporary_registry_runs_through_the_runner(tmp_path):
     folder = tmp_path / "run"
     on_disk = json.loads((folder / "results.json").read_text())
     assert on_disk == json.loads(json.dumps(results))
-    assert set(json.loads((folder / "timings.json").read_text())["stages"]) == {"toy", "after"}
+    # an experiment with no report of its own gets the plain one (its time recorded as any)
+    assert set(json.loads((folder / "timings.json").read_text())["stages"]) == {
+        "toy",
+        "after",
+        "report",
+    }
+    assert "| toy | 3 values |" in (folder / "report.md").read_text()
     assert (folder / "records" / "toy.npz").exists()
     # resuming keeps what is done: the stage does not run again, the results are the same
     again = run_experiment(experiment, folder, seed=7, config=config, resume=True, log=lines.append)

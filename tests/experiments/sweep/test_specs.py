@@ -5,26 +5,28 @@ from __future__ import annotations
 
 import pytest
 
-from mbn.cli.sweep import EXPERIMENT_NAMES
 from mbn.errors import MbnInputError
+from mbn.experiments.registry import registered
 from mbn.experiments.sweep.run import SweepSettings, check_sweep_dir, write_sweep
 from mbn.experiments.sweep.specs import (
     NEW_BEHAVIOURS_SPEC,
     NEW_BEHAVIOURS_TARGETS,
     REPRODUCE_SPEC,
-    SWEEP_EXPERIMENTS,
     sweep_spec,
 )
 from mbn.experiments.sweep.summary import seed_verdict, summarize
 from mbn.experiments.sweep.targets import TARGETS, measure
 
 
-def test_the_command_line_offers_every_experiment_a_sweep_runs():
-    assert tuple(sorted(SWEEP_EXPERIMENTS)) == EXPERIMENT_NAMES
+def test_every_registered_experiment_has_its_sweep_view_named_after_it():
+    for name, registration in registered().items():
+        spec = sweep_spec(name)
+        assert spec.name == name and spec.load() is registration.load()
+        assert spec.command == ("mbn reproduce" if name == "reproduce" else f"mbn run {name}")
     assert sweep_spec(None) is REPRODUCE_SPEC and REPRODUCE_SPEC.targets == TARGETS
     assert sweep_spec("ablations").load().name == "ablations"
     assert sweep_spec("noise").load().name == "noise"
-    with pytest.raises(MbnInputError, match="--experiment nope: not an experiment a sweep runs"):
+    with pytest.raises(MbnInputError, match="experiment 'nope': not a registered experiment"):
         sweep_spec("nope")
 
 

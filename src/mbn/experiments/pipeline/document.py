@@ -12,7 +12,14 @@ from typing import Any
 
 from mbn.io import atomic_open
 
-__all__ = ["Section", "claims_section", "markdown", "self_contained_html", "write_document"]
+__all__ = [
+    "Section",
+    "claims_section",
+    "markdown",
+    "plain_report",
+    "self_contained_html",
+    "write_document",
+]
 
 
 @dataclass
@@ -124,3 +131,31 @@ def write_document(root: Path, name: str, title: str, secs: list[Section]) -> No
         handle.write(markdown(title, secs) + "\n")
     with atomic_open(root / f"{name}.html") as handle:
         handle.write(self_contained_html(title, secs, root) + "\n")
+
+
+def plain_report(
+    root: Path, title: str, summaries: list[tuple[str, str]], results: dict[str, Any]
+) -> None:
+    """The report of an experiment that writes none of its own (``report.md``, ``report.html``):
+    each stage's one-line summary and seconds, the tests of ``results`` (successes of trials)
+    and its claims."""
+    seconds = results.get("seconds") or {}
+    secs = [
+        Section(
+            "Stages",
+            table=(
+                ["stage", "summary", "seconds"],
+                [[name, line, str(seconds.get(name, "-"))] for name, line in summaries],
+            ),
+        )
+    ]
+    tests = results.get("tests") or {}
+    if tests:
+        rows = [
+            [name, f"{t['successes']} / {t['trials']}", f"{100 * t['success_rate']:.1f} %"]
+            for name, t in tests.items()
+        ]
+        secs.append(Section("Tests", table=(["test", "successes", "success"], rows)))
+    if results.get("claims"):
+        secs.append(claims_section(results["claims"]))
+    write_document(root, "report", title, secs)

@@ -31,6 +31,7 @@ import jax
 from mbn.config import Settings
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.context import StageContext
+from mbn.experiments.pipeline.document import plain_report
 from mbn.experiments.pipeline.experiment import Experiment
 from mbn.experiments.pipeline.progress import Progress
 from mbn.experiments.pipeline.registry import Registry, Stage
@@ -263,6 +264,9 @@ def collect_results(
     }
     if experiment.results is not None:
         results.update(experiment.results(rundir, stages, config))
+    # what a sweep reads of every run (none where the experiment judges no test, makes no claim)
+    results.setdefault("tests", {})
+    results.setdefault("claims", [])
     return results
 
 
@@ -346,13 +350,23 @@ def run_experiment(
         t0, n0 = time.perf_counter(), robot_steps()
         results = collect_results(experiment, rundir, seed, config)
         write_json_atomic(rundir.results, results)
+        bars.stage("report")
         if experiment.report is not None:
-            bars.stage("report")
             experiment.report(rundir)
-            bars.stage(None)
-            timings["report"] = round(time.perf_counter() - t0, 2)
-            steps["report"] = robot_steps() - n0
-            rundir.write_timings(timings, steps)
+        else:
+            summaries = [
+                (s.name, s.summary(rundir.read_stage(s.name))) for s in experiment.registry
+            ]
+            plain_report(
+                rundir.root,
+                f"mbn run {experiment.name}: seed {seed}",
+                summaries,
+                {**results, "seconds": timings},
+            )
+        bars.stage(None)
+        timings["report"] = round(time.perf_counter() - t0, 2)
+        steps["report"] = robot_steps() - n0
+        rundir.write_timings(timings, steps)
         bars.update(overall, completed=len(experiment.registry) + 1, info="done")
     return results
 

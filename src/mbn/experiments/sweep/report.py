@@ -25,7 +25,12 @@ from mbn.experiments.sweep.run import (
     write_sweep,
 )
 from mbn.experiments.sweep.seeds import format_seeds
-from mbn.experiments.sweep.specs import REPRODUCE_SPEC, SweepSpec, sweep_spec
+from mbn.experiments.sweep.specs import (
+    REPRODUCE_SPEC,
+    SweepSpec,
+    sweep_spec,
+    with_recorded_tests,
+)
 from mbn.experiments.sweep.summary import summarize
 from mbn.io import read_json
 from mbn.viz.sweep import de_bands, rate_boxes
@@ -180,23 +185,26 @@ def _sections(
     )
     secs.append(_seeds_section(data, seeds))
     claims = summ["claims"]
-    secs.append(
-        Section(
-            "Claims over runs",
-            [
-                f"Each claim of the claims table, and in how many of the {summ['finished']} "
-                "finished runs it holds (each run judges it by the criterion shown)."
-            ],
-            table=(
-                ["claim", "criterion", "runs reproducing it"],
-                [[c["claim"], c["criterion"], _claim_count(c)] for c in claims],
-            ),
-            status=[
-                None if c.get("judged", c["runs"]) == 0 else c["hold"] == c.get("judged", c["runs"])
-                for c in claims
-            ],
+    if claims or not summ["finished"]:  # runs that make no claim (a lab's own may make none)
+        secs.append(
+            Section(
+                "Claims over runs",
+                [
+                    f"Each claim of the claims table, and in how many of the {summ['finished']} "
+                    "finished runs it holds (each run judges it by the criterion shown)."
+                ],
+                table=(
+                    ["claim", "criterion", "runs reproducing it"],
+                    [[c["claim"], c["criterion"], _claim_count(c)] for c in claims],
+                ),
+                status=[
+                    None
+                    if c.get("judged", c["runs"]) == 0
+                    else c["hold"] == c.get("judged", c["runs"])
+                    for c in claims
+                ],
+            )
         )
-    )
     secs.append(Section("Figures", [], images=images))
     return secs
 
@@ -234,6 +242,7 @@ def summarize_folder(out: Path) -> dict[str, Any]:
         for s in seeds
         if runs[s] is None and data.get("runs", {}).get(str(s), {}).get("state") == "failed"
     }
+    spec = with_recorded_tests(spec, runs)
     summ = summarize(runs, errors, spec)
     done_seeds = [s for s in seeds if runs[s] is not None]
     for seed, names in finished_taken(out, done_seeds).items():

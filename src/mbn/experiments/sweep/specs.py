@@ -1,18 +1,21 @@
 """What a sweep knows of each experiment it can run: the experiment, its per-run targets, the
 tests its report tabulates and plots, and where its stages record their DE curves.
 
-``mbn sweep --experiment NAME``: ``reproduce`` (the default: the paper's experiment, targets
+Each registered experiment (:mod:`mbn.experiments.registry`) names its view here:
+``reproduce`` (the default: the paper's experiment, targets
 :data:`~mbn.experiments.sweep.targets.TARGETS`), ``new-behaviours`` (``docs/behaviours.md``:
 the fully programmable interpreter, the new rules by programs alone and the three-behaviour MBN;
 targets :data:`NEW_BEHAVIOURS_TARGETS`, the issue's per-run targets of each section) or
 ``programs-vs-dynamics`` (``docs/contest.md``: no per-run target; its comparison over runs is
 the spec's ``analysis``), ``ablations`` (``docs/ablations.md``: no per-run target; each
 ablation's success over the runs) and ``noise`` (``docs/noise.md``: no per-run target; each
-channel level by level over the runs, the spec's ``analysis``).
+channel level by level over the runs, the spec's ``analysis``). An experiment that names none
+gets :func:`plain_spec`: every test its runs recorded, no per-run target.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
@@ -32,16 +35,18 @@ if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section
     from mbn.experiments.pipeline.experiment import Experiment
     from mbn.experiments.pipeline.rundir import RunDir
+    from mbn.experiments.registry import Registration
 
 __all__ = [
     "ABLATIONS_SPEC",
     "DEFAULT_EXPERIMENT",
     "NEW_BEHAVIOURS_TARGETS",
     "NOISE_SPEC",
-    "SWEEP_EXPERIMENTS",
     "SweepSpec",
     "experiment_of_kind",
+    "plain_spec",
     "sweep_spec",
+    "with_recorded_tests",
 ]
 
 #: The experiment a sweep runs unless told otherwise (and a ``sweep.json`` that names none).
@@ -68,6 +73,8 @@ class SweepSpec:
             stage have no record of them.
         analysis: statistics over the finished runs beyond the per-test ones, ``(folder,
             {seed: results.json}) -> (statistics, report sections, figures)`` (``None``: none).
+        every_recorded_test: ``tests`` is every test the finished runs recorded, in the order
+            of the first run that has each (:func:`with_recorded_tests`), not a fixed list.
     """
 
     name: str
@@ -88,6 +95,7 @@ class SweepSpec:
         ]
         | None
     ) = None
+    every_recorded_test: bool = False
 
 
 def stage_history(rundir: RunDir, stage: str) -> list[float] | None:
@@ -118,16 +126,15 @@ def _reproduce_curve(rundir: RunDir, stage: str) -> list[float] | None:
     return [b for b, _ in cp.history]
 
 
-def _load_reproduce() -> Experiment:
-    from mbn.experiments.reproduce import REPRODUCE
+def _registered(name: str) -> Callable[[], Experiment]:
+    """How a spec loads its experiment: the registry's entry for ``name``."""
 
-    return REPRODUCE
+    def load() -> Experiment:
+        from mbn.experiments.registry import find
 
+        return find(name).load()
 
-def _load_new_behaviours() -> Experiment:
-    from mbn.experiments.behaviours import NEW_BEHAVIOURS
-
-    return NEW_BEHAVIOURS
+    return load
 
 
 _FOLLOWERS = ("rf", "lf", "im_rf", "im_lf", "mbn", "published_rf", "published_lf")
@@ -165,7 +172,7 @@ REPRODUCE_SPEC = SweepSpec(
     "least 98 % of the jittered trials. The published weights have no target.",
     de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
-    load=_load_reproduce,
+    load=_registered("reproduce"),
 )
 
 
@@ -246,14 +253,8 @@ NEW_BEHAVIOURS_SPEC = SweepSpec(
         "mbn3": "PM of the three-behaviour MBN",
     },
     curve=stage_history,
-    load=_load_new_behaviours,
+    load=_registered("new-behaviours"),
 )
-
-
-def _load_contest() -> Experiment:
-    from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
-
-    return PROGRAMS_VS_DYNAMICS
 
 
 def _contest_analysis(
@@ -283,15 +284,9 @@ CONTEST_SPEC = SweepSpec(
     "controllers, the MBN (`programs`) and the monolithic CTRNN, judged by the last tile's rule.",
     de_stages={"rf": "RF (12 genes)"},
     curve=stage_history,
-    load=_load_contest,
+    load=_registered("programs-vs-dynamics"),
     analysis=_contest_analysis,
 )
-
-
-def _load_ablations() -> Experiment:
-    from mbn.experiments.ablations import ABLATIONS
-
-    return ABLATIONS
 
 
 #: The ablations of ``mbn run ablations`` (``AblationsSettings.variants``' default, in order;
@@ -331,14 +326,8 @@ ABLATIONS_SPEC = SweepSpec(
     "of ablation V with RF's and LF's program, where V changes it.",
     de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
-    load=_load_ablations,
+    load=_registered("ablations"),
 )
-
-
-def _load_noise() -> Experiment:
-    from mbn.experiments.noise import NOISE
-
-    return NOISE
 
 
 def _noise_analysis(
@@ -373,34 +362,64 @@ NOISE_SPEC = SweepSpec(
     "them: below); the sections below give each channel level by level over the runs.",
     de_stages=REPRODUCE_DE_STAGES,
     curve=_reproduce_curve,
-    load=_load_noise,
+    load=_registered("noise"),
     analysis=_noise_analysis,
 )
 
-#: The experiments a sweep can run, by name.
-SWEEP_EXPERIMENTS: dict[str, SweepSpec] = {
-    s.name: s
-    for s in (REPRODUCE_SPEC, NEW_BEHAVIOURS_SPEC, CONTEST_SPEC, ABLATIONS_SPEC, NOISE_SPEC)
-}
+
+def plain_spec(registration: Registration) -> SweepSpec:
+    """The sweep's view of an experiment that names none: every test its runs recorded (a
+    Wilson interval and the spread over the seeds each), no per-run target, no DE curve."""
+    return SweepSpec(
+        name=registration.name,
+        title=f"mbn sweep: {registration.name} over seeds",
+        command=registration.run_command,
+        targets=(),
+        tests=(),
+        groups=(),
+        targets_text="No test has a per-run target: the experiment names none (its "
+        "registration gives no sweep view); every test its runs recorded is tabulated.",
+        de_stages={},
+        curve=stage_history,
+        load=registration.load,
+        every_recorded_test=True,
+    )
+
+
+def with_recorded_tests(spec: SweepSpec, runs: Mapping[int, Mapping[str, Any] | None]) -> SweepSpec:
+    """``spec`` with its tests made concrete: for a spec of every recorded test, the tests of
+    the finished runs' ``results.json`` (in the order of the first run that has each, one
+    group); any other spec as it is."""
+    if not spec.every_recorded_test:
+        return spec
+    names: dict[str, None] = {}
+    for results in runs.values():
+        for name in (results or {}).get("tests", {}) or {}:
+            names.setdefault(name, None)
+    tests = tuple(names)
+    return dataclasses.replace(spec, tests=tests, groups=(("Tests", tests),) if tests else ())
 
 
 def sweep_spec(name: str | None) -> SweepSpec:
-    """The sweep's view of experiment ``name`` (``None``: :data:`DEFAULT_EXPERIMENT`)."""
-    key = DEFAULT_EXPERIMENT if name is None else name
-    try:
-        return SWEEP_EXPERIMENTS[key]
-    except KeyError:
-        known = ", ".join(sorted(SWEEP_EXPERIMENTS))
+    """The sweep's view of experiment ``name`` (a registered name or a reference; ``None``:
+    :data:`DEFAULT_EXPERIMENT`)."""
+    from mbn.experiments.registry import find, load_object
+
+    registration = find(DEFAULT_EXPERIMENT if name is None else name)
+    if registration.sweep is None:
+        return plain_spec(registration)
+    value = load_object(registration.sweep)
+    if not isinstance(value, SweepSpec):
         raise MbnInputError(
-            f"--experiment {key}: not an experiment a sweep runs ({known})"
-        ) from None
+            f"experiment {registration.name}: its sweep {registration.sweep} is a "
+            f"{type(value).__name__}, not a SweepSpec (mbn.experiments.sweep.specs.SweepSpec)"
+        )
+    return value
 
 
 def experiment_of_kind(kind: str) -> Experiment | None:
     """The experiment whose runs record ``kind`` in their ``run.json`` (``mbn.reproduce``), or
     None (how ``--reuse`` finds a source run's stages)."""
-    for spec in SWEEP_EXPERIMENTS.values():
-        experiment = spec.load()
-        if experiment.kind == kind:
-            return experiment
-    return None
+    from mbn.experiments.registry import of_kind
+
+    return of_kind(kind)
