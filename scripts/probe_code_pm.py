@@ -40,8 +40,8 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     from mbn.evolution.de import DEConfig, minimize
-    from mbn.experiments.behaviours.stages.mbn3 import code_pm_fitness
-    from mbn.experiments.reproduce.settings import DESettings
+    from mbn.experiments.stages.mbn3 import code_pm_fitness
+    from mbn.experiments.stages.settings import DESettings
 
     genome, fitness = code_pm_fitness(3, args.switch)
     de = DESettings()  # the default [de], as the stage's de_config reads it

@@ -102,7 +102,7 @@ def latched_codes(controller: Path) -> np.ndarray:
     import jax.numpy as jnp
 
     from mbn.controllers import read_controller_spec
-    from mbn.experiments.behaviours.stages.mbn3 import latched_codes as latched
+    from mbn.experiments.stages.mbn3 import latched_codes as latched
 
     spec = read_controller_spec(controller)
     pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), spec.program_module)

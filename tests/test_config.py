@@ -13,8 +13,8 @@ from mbn.cli.main import main
 from mbn.config import Settings, read_toml, setting, settings_to_dict
 from mbn.errors import MbnInputError
 from mbn.experiments.reproduce import REPRODUCE
-from mbn.experiments.reproduce.settings import QUICK
-from mbn.experiments.reproduce.stages.lf import LFSettings
+from mbn.experiments.stages.lf import LFSettings
+from mbn.experiments.stages.settings import QUICK
 
 
 @dataclass(frozen=True)

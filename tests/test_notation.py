@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from mbn.experiments.reproduce.stages.im import IMStage
-from mbn.experiments.reproduce.stages.lf import LFStage
-from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
+from mbn.experiments.stages.im import IMStage
+from mbn.experiments.stages.lf import LFStage
+from mbn.experiments.stages.lf_search import LFSearchStage
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name, connection_names, connection_with_code
 

@@ -180,7 +180,7 @@ def test_the_worst_test_maze_is_run_again_with_its_steps_recorded(quick_run, tmp
     from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.generalization import evaluate_mazes
     from mbn.experiments.pipeline.rundir import RunDir
-    from mbn.experiments.reproduce.stages.generalization import (
+    from mbn.experiments.stages.generalization import (
         WORST_FIELDS,
         WORST_RECORD,
         _worst_maze,
@@ -217,7 +217,7 @@ def test_the_zero_shot_suite_is_judged_in_a_batch_of_its_own():
     """``[generalization] zero_shot_batch``: the generated splits in one batch, the zero-shot
     suite in another (each under its own longest time limit), in the columns' order; off: one
     batch; no empty batch."""
-    from mbn.experiments.reproduce.stages.generalization import judging_batches
+    from mbn.experiments.stages.generalization import judging_batches
 
     parts = [("train", ["a"], True), ("test", ["b", "c"], False), ("zero-shot", ["z"], False)]
     assert judging_batches(parts, True) == [parts[:2], parts[2:]]

@@ -155,12 +155,12 @@ def test_the_episodes_settings_choose_the_followers_training_task():
 
     from mbn.experiments.crossroads import CrossroadTask
     from mbn.experiments.evolve import Redrawn
-    from mbn.experiments.reproduce.settings import (
+    from mbn.experiments.stages.common import training_fitness, training_task
+    from mbn.experiments.stages.settings import (
         EpisodeSettings,
         FollowerSettings,
         ValidationSettings,
     )
-    from mbn.experiments.reproduce.stages.common import training_fitness, training_task
     from mbn.world.sensors import NoiseConfig
 
     def ctx(**episodes):

@@ -6,7 +6,7 @@ An experiment is registered by one line, with the place of its
 (nothing is imported until a run needs it, as Gymnasium's ``register(id, entry_point=...)``)::
 
     register("new-behaviours", "mbn.experiments.behaviours:NEW_BEHAVIOURS", help="...",
-             sweep="mbn.experiments.sweep.specs:NEW_BEHAVIOURS_SPEC")
+             sweep="mbn.experiments.behaviours.sweep:NEW_BEHAVIOURS_SPEC")
 
 An experiment kept outside ``mbn`` runs without registering it, by its reference wherever a name
 goes (``mbn run my_pkg.my_module:EXPERIMENT``, ``mbn run path/to/file.py:EXPERIMENT``, ``mbn sweep
@@ -258,7 +258,7 @@ register(
     "mbn.experiments.reproduce:REPRODUCE",
     help="the paper's experiment: RF, LF, the interpreter, the program module and the MBN, "
     "with the paper's tests (docs/reproduce.md; also `mbn reproduce`)",
-    sweep="mbn.experiments.sweep.specs:REPRODUCE_SPEC",
+    sweep="mbn.experiments.reproduce.sweep:REPRODUCE_SPEC",
     command="mbn reproduce",
 )
 register(
@@ -266,21 +266,21 @@ register(
     "mbn.experiments.behaviours:NEW_BEHAVIOURS",
     help="a fully programmable interpreter of the run's RF, and new behaviours by its programs "
     "alone (docs/behaviours.md)",
-    sweep="mbn.experiments.sweep.specs:NEW_BEHAVIOURS_SPEC",
+    sweep="mbn.experiments.behaviours.sweep:NEW_BEHAVIOURS_SPEC",
 )
 register(
     "noise",
     "mbn.experiments.noise:NOISE",
     help="the reproduction's controllers under each channel of the noise model, level by level "
     "(docs/noise.md)",
-    sweep="mbn.experiments.sweep.specs:NOISE_SPEC",
+    sweep="mbn.experiments.noise.sweep:NOISE_SPEC",
 )
 register(
     "ablations",
     "mbn.experiments.ablations:ABLATIONS",
     help="the MBN with parts of its program path changed: wrong or frozen program, exact "
     "products, the multipliers' time constant and size (docs/ablations.md)",
-    sweep="mbn.experiments.sweep.specs:ABLATIONS_SPEC",
+    sweep="mbn.experiments.ablations.sweep:ABLATIONS_SPEC",
 )
 register(
     "programs-vs-dynamics",
@@ -288,5 +288,5 @@ register(
     help="new rules learned by program search on the fixed interpreter, by a new CTRNN and by "
     "RF re-evolved, and the three-behaviour task by the MBN and by a monolithic CTRNN, same DE "
     "and budget: evaluations to success (docs/contest.md; over seeds with mbn sweep)",
-    sweep="mbn.experiments.sweep.specs:CONTEST_SPEC",
+    sweep="mbn.experiments.contest.sweep:CONTEST_SPEC",
 )

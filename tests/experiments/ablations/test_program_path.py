@@ -13,9 +13,9 @@ import shutil
 import pytest
 
 from mbn.experiments.ablations import ABLATIONS
-from mbn.experiments.ablations.stages.program_path import VARIANTS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages.ablations import VARIANTS
 
 #: The ablations the CI fixture runs.
 CI_VARIANTS = tuple(v for v in VARIANTS if v not in ("tau_20", "tau_50"))
@@ -65,7 +65,7 @@ def test_the_ablations_are_tests_a_sweep_tabulates(ablations):
     ablations`` compares them over seeds): the MBN's, and the interpreter's where it changes;
     the sweep's report tabulates each of them."""
     from mbn.experiments.ablations import ablation_tests
-    from mbn.experiments.sweep.specs import ABLATIONS_SPEC
+    from mbn.experiments.ablations.sweep import ABLATIONS_SPEC
     from mbn.experiments.sweep.summary import summarize
 
     _, data = ablations

@@ -10,9 +10,9 @@ import pytest
 
 from mbn.controllers import read_controller_spec
 from mbn.experiments.behaviours import NEW_BEHAVIOURS
-from mbn.experiments.behaviours.stages.im_full import FULL_CONNECTIONS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages.im_full import FULL_CONNECTIONS
 from mbn.networks.programmable import differing_connections
 from tests.conftest import once
 

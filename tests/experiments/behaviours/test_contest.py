@@ -14,6 +14,7 @@ import shutil
 import jax
 import numpy as np
 import pytest
+from mbn.experiments.contest.stages import contest as contest_module
 
 from mbn.controllers import (
     CTRNNControllerSpec,
@@ -23,14 +24,13 @@ from mbn.controllers import (
 )
 from mbn.errors import MbnInputError
 from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
-from mbn.experiments.contest.stages import contest as contest_module
-from mbn.experiments.contest.stages.contest import (
+from mbn.experiments.pipeline import RunDir
+from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages.contest import (
     CONTENDERS,
     ContestSettings,
     neighbour_population,
 )
-from mbn.experiments.pipeline import RunDir
-from mbn.experiments.pipeline.runner import replace_section, run_stage
 from mbn.networks.ctrnn import CTRNN
 from mbn.paper import published_rf
 
@@ -225,7 +225,7 @@ def test_a_contest_interrupted_mid_run_resumes_to_the_same_data(im_full_run, tmp
 
 @pytest.mark.slow
 def test_the_sweep_finds_every_test_it_tabulates(contest_run):
-    from mbn.experiments.sweep.specs import CONTEST_SPEC
+    from mbn.experiments.contest.sweep import CONTEST_SPEC
 
     _, data = contest_run
     mine = [t for t in CONTEST_SPEC.tests if "straight_right" in t]

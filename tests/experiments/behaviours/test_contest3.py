@@ -20,9 +20,9 @@ from mbn.controllers import (
 )
 from mbn.errors import MbnInputError
 from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
-from mbn.experiments.contest.stages.contest3 import CONTENDERS3, TASK, Contest3Settings
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages.contest3 import CONTENDERS3, TASK, Contest3Settings
 from mbn.world.mazes.builtin import CROSSROAD_KINDS
 
 

@@ -11,7 +11,7 @@ import pytest
 from mbn.controllers import read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.behaviours import NEW_BEHAVIOURS
-from mbn.experiments.behaviours.stages.im_full import (
+from mbn.experiments.stages.im_full import (
     FULL_CONNECTIONS,
     IMFullSettings,
     nested_sets,

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from mbn.errors import MbnInputError
-from mbn.experiments.contest.monolithic import (
+from mbn.experiments.crossroads import CrossroadTask
+from mbn.experiments.evolve import Genome, crossroad_fitness
+from mbn.experiments.stages.monolithic import (
     MonolithicGenome,
     monolithic_fitness,
     priming_inputs,
 )
-from mbn.experiments.crossroads import CrossroadTask
-from mbn.experiments.evolve import Genome, crossroad_fitness
 from mbn.world.engine import CameraConfig
 
 CAMERA = CameraConfig(range=0.8)

@@ -12,8 +12,8 @@ import pytest
 from mbn.controllers import read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.behaviours import NEW_BEHAVIOURS
-from mbn.experiments.behaviours.stages.programs import ProgramsSettings, program_network
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages.programs import ProgramsSettings, program_network
 from mbn.world.mazes.load import load_maze
 
 
@@ -113,7 +113,7 @@ def test_the_quick_experiment_runs_end_to_end_and_resumes(tmp_path):
         assert results["tests"][name]["trials"] > 0
     # every per-run target of a sweep of this experiment finds its record (mbn sweep
     # --experiment new-behaviours)
-    from mbn.experiments.sweep.specs import NEW_BEHAVIOURS_SPEC
+    from mbn.experiments.behaviours.sweep import NEW_BEHAVIOURS_SPEC
     from mbn.experiments.sweep.targets import measure
 
     for target in NEW_BEHAVIOURS_SPEC.targets:
@@ -153,9 +153,9 @@ def test_approaches_are_checked_and_reach_the_programs_crossroads(monkeypatch):
     """``[programs] approaches`` (default the paper's crossroads, entered from the south) is
     checked, and the program search's episodes are the crossroads entered those ways."""
     import jax
-
     from mbn.experiments.behaviours.stages import programs as stage
-    from mbn.experiments.reproduce.settings import FollowerSettings
+
+    from mbn.experiments.stages.settings import FollowerSettings
     from mbn.networks.multiplier import load_default
     from mbn.networks.programmable import all_connections, build_interpreter
     from mbn.paper import published_rf
@@ -201,10 +201,10 @@ def test_with_maze_episodes_programs_are_scored_on_redrawn_maze_episodes():
     """``[episodes] kind = "maze"``: a program's fitness is the rule's on episodes drawn from
     the train split of the family, drawn again every ``redraw`` generations."""
     import jax
-
     from mbn.experiments.behaviours.stages import programs as stage
+
     from mbn.experiments.evolve import Redrawn
-    from mbn.experiments.reproduce.settings import EpisodeSettings, FollowerSettings
+    from mbn.experiments.stages.settings import EpisodeSettings, FollowerSettings
     from mbn.networks.multiplier import load_default
     from mbn.networks.programmable import all_connections, build_interpreter
     from mbn.paper import published_rf

@@ -14,9 +14,9 @@ import pytest
 from mbn.errors import MbnInputError
 from mbn.experiments.noise import NOISE
 from mbn.experiments.noise.report import claims
-from mbn.experiments.noise.stages.levels import CONTROLLERS, NoiseLevelsSettings
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages.noise_levels import CONTROLLERS, NoiseLevelsSettings
 
 
 @pytest.fixture(scope="session")
@@ -103,7 +103,7 @@ def test_the_levels_over_runs(levels, tmp_path):
     runs' median, quartiles and pooled trials; a controller that does not read a channel has no
     curve; the report has a section and a figure per channel."""
     from mbn.experiments.noise.over_runs import CONTROLLER_NAMES, noise_over_runs, noise_tests
-    from mbn.experiments.sweep.specs import NOISE_SPEC
+    from mbn.experiments.noise.sweep import NOISE_SPEC
     from mbn.experiments.sweep.summary import summarize
 
     _, data = levels

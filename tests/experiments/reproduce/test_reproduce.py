@@ -15,8 +15,8 @@ from mbn.cli.main import main
 from mbn.control.ctrnn import NETWORK_SUBSTEPS
 from mbn.controllers import load_controller
 from mbn.experiments.reproduce import RUN_KIND
-from mbn.experiments.reproduce.protocol import TEST_NAMES
-from mbn.experiments.reproduce.settings import INTERPRETER_SUBSTEPS
+from mbn.experiments.stages.protocol import TEST_NAMES
+from mbn.experiments.stages.settings import INTERPRETER_SUBSTEPS
 from tests.conftest import kill_when_written
 
 from .conftest import reproduce as _reproduce

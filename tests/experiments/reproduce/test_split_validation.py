@@ -7,20 +7,20 @@ import numpy as np
 import pytest
 
 from mbn.errors import MbnInputError
-from mbn.experiments.reproduce.settings import EpisodeSettings, ValidationSettings
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     _joined,
     _validation_trial,
     validation_maze_names,
     validation_record,
 )
+from mbn.experiments.stages.settings import EpisodeSettings, ValidationSettings
 from mbn.world.mazes import families
 from mbn.world.mazes.load import load_maze
 
 
 class Ctx:
     def __init__(self, episodes: EpisodeSettings | None, validation: ValidationSettings):
-        from mbn.experiments.reproduce.stages.tests import TestsSettings
+        from mbn.experiments.stages.tests import TestsSettings
 
         self._sections = {"validation": validation, "tests": TestsSettings()}
         if episodes is not None:

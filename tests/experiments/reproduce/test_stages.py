@@ -195,7 +195,7 @@ def test_lf_evolves_the_searchs_best_triples_and_keeps_the_best_that_validates(q
     """With ``finalists`` = 2 and a target every candidate meets, the LF stage evolves the
     search's chosen triple and its next best by the search's robust score, on the kept RF, in one
     round, and keeps the one whose worst validation figure is best (the fitter of equals)."""
-    from mbn.experiments.reproduce.stages.lf import VALIDATION_KEYS
+    from mbn.experiments.stages.lf import VALIDATION_KEYS
 
     rundir, seed, config = _copy(quick_run, tmp_path)
     search = rundir.read_stage("lf_search")
@@ -344,7 +344,7 @@ def test_a_stage_whose_candidate_fails_validation_evolves_another_and_keeps_the_
 def _candidate(fitness: float, *figures: int, trials: int = 80) -> dict:
     """An LF candidate's record: LF alone, IM with LF's and RF's programs (successes), then the
     agreements with LF and RF (same branches), all met."""
-    from mbn.experiments.reproduce.stages.lf import VALIDATION_KEYS
+    from mbn.experiments.stages.lf import VALIDATION_KEYS
 
     out: dict = {"fitness": fitness}
     for key, k in zip(VALIDATION_KEYS, figures, strict=True):
@@ -361,7 +361,7 @@ def test_candidates_that_validate_are_ranked_by_their_worst_validation_figure_th
     """Seed 7 of runs/sweep-v4: of three LF finalists that met every validation target, the
     fittest (40.7) had the interpreter take LF's exits in 78 of 80 trials and failed the test
     (95.5 %); another (38.55) had 80 of 80 everywhere. The latter ranks first now."""
-    from mbn.experiments.reproduce.stages.lf import candidate_rank
+    from mbn.experiments.stages.lf import candidate_rank
 
     fit = _candidate(40.7, 80, 78, 80, 78, 80)
     careful = _candidate(38.55, 80, 80, 80, 80, 80)
@@ -389,7 +389,7 @@ def test_an_lf_round_stops_at_a_finalist_that_validates_well_enough(quick_run, t
 
 
 def test_good_enough_asks_every_target_met_and_every_figure_at_least_enough():
-    from mbn.experiments.reproduce.stages.lf import good_enough
+    from mbn.experiments.stages.lf import good_enough
 
     perfect = _candidate(30.0, 80, 80, 80, 80, 80)
     near = _candidate(30.0, 80, 80, 80, 79, 80)  # agreement 79/80 = 0.9875
@@ -403,7 +403,7 @@ def test_good_enough_asks_every_target_met_and_every_figure_at_least_enough():
 
 
 def test_rung_ends_of_successive_halving():
-    from mbn.experiments.reproduce.stages.lf_search import rung_ends
+    from mbn.experiments.stages.lf_search import rung_ends
 
     assert rung_ends(100, 2) == [25, 50, 100]
     assert rung_ends(100, 0) == [100]

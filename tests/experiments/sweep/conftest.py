@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from mbn.experiments.reproduce.protocol import TEST_NAMES
+from mbn.experiments.stages.protocol import TEST_NAMES
 from mbn.experiments.sweep.run import SWEEP_KIND, seed_dir
 
 TRIALS = {"": 10, "_jitter": 200, "_heldout": 204}

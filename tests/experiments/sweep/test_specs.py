@@ -6,14 +6,11 @@ from __future__ import annotations
 import pytest
 
 from mbn.errors import MbnInputError
+from mbn.experiments.behaviours.sweep import NEW_BEHAVIOURS_SPEC, NEW_BEHAVIOURS_TARGETS
 from mbn.experiments.registry import registered
+from mbn.experiments.reproduce.sweep import REPRODUCE_SPEC
 from mbn.experiments.sweep.run import SweepSettings, check_sweep_dir, write_sweep
-from mbn.experiments.sweep.specs import (
-    NEW_BEHAVIOURS_SPEC,
-    NEW_BEHAVIOURS_TARGETS,
-    REPRODUCE_SPEC,
-    sweep_spec,
-)
+from mbn.experiments.sweep.specs import sweep_spec
 from mbn.experiments.sweep.summary import seed_verdict, summarize
 from mbn.experiments.sweep.targets import TARGETS, measure
 

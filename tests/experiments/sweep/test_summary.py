@@ -61,7 +61,7 @@ def test_targets_are_compared_exactly():
 
 
 def _results(**overrides):
-    from mbn.experiments.reproduce.protocol import TEST_NAMES
+    from mbn.experiments.stages.protocol import TEST_NAMES
 
     tests = {}
     for name in TEST_NAMES:

@@ -13,12 +13,12 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.ablations.report import claims, write_report
-from mbn.experiments.ablations.stages.program_path import AblationsStage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
-from mbn.experiments.reproduce import SHARED, controller_stages
-from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.reproduce.settings import derived_seeds
-from mbn.experiments.reproduce.stages.tests import TestsSettings
+from mbn.experiments.stages.ablations import AblationsStage
+from mbn.experiments.stages.compose import SHARED, controller_stages
+from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
+from mbn.experiments.stages.settings import derived_seeds
+from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import as_test_record
 
 __all__ = ["ABLATIONS", "RUN_KIND", "STAGES", "ablation_tests"]

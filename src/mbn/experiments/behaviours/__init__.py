@@ -28,16 +28,19 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.behaviours.report import claims, write_report
-from mbn.experiments.behaviours.stages.generalization import BehavioursGeneralization
-from mbn.experiments.behaviours.stages.im_full import IMFullStage
-from mbn.experiments.behaviours.stages.mbn3 import MBN3Stage
-from mbn.experiments.behaviours.stages.programs import ProgramsStage
-from mbn.experiments.behaviours.stages.tests3 import Tests3Stage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
-from mbn.experiments.reproduce.settings import (
+from mbn.experiments.stages.generalization3 import BehavioursGeneralization
+from mbn.experiments.stages.im_full import IMFullStage
+from mbn.experiments.stages.lf import LFStage
+from mbn.experiments.stages.lf_search import LFSearchStage
+from mbn.experiments.stages.mbn3 import MBN3Stage
+from mbn.experiments.stages.multiplier import MultiplierStage
+from mbn.experiments.stages.programs import ProgramsStage
+from mbn.experiments.stages.rf import RFStage
+from mbn.experiments.stages.settings import (
     QUICK as REPRODUCE_QUICK,
 )
-from mbn.experiments.reproduce.settings import (
+from mbn.experiments.stages.settings import (
     DESettings,
     EpisodeSettings,
     FollowerSettings,
@@ -45,11 +48,8 @@ from mbn.experiments.reproduce.settings import (
     ValidationSettings,
     derived_seeds,
 )
-from mbn.experiments.reproduce.stages.lf import LFStage
-from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
-from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
-from mbn.experiments.reproduce.stages.rf import RFStage
-from mbn.experiments.reproduce.stages.tests import TestsSettings
+from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.tests3 import Tests3Stage
 
 __all__ = ["NEW_BEHAVIOURS", "RUN_KIND", "STAGES"]
 

@@ -11,11 +11,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from mbn.controllers import MBNControllerSpec, read_controller_spec
-from mbn.experiments.behaviours.stages.im_full import AGREEMENT_TARGET, ROBUST_TARGET
 from mbn.experiments.generalization import generalization_claims
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, write_document
-from mbn.experiments.reproduce.stages.generalization import generalization_sections
+from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
 from mbn.notation import connection_name

@@ -20,14 +20,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from mbn.experiments.behaviours.stages.im_full import IMFullStage
-from mbn.experiments.behaviours.stages.tests3 import Tests3Settings
 from mbn.experiments.contest.report import claims, write_report
-from mbn.experiments.contest.stages.contest import CONTENDERS, ContestStage
-from mbn.experiments.contest.stages.contest3 import Contest3Stage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
-from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.reproduce.settings import (
+from mbn.experiments.stages.contest import CONTENDERS, ContestStage
+from mbn.experiments.stages.contest3 import Contest3Stage
+from mbn.experiments.stages.im_full import IMFullStage
+from mbn.experiments.stages.lf import LFStage
+from mbn.experiments.stages.lf_search import LFSearchStage
+from mbn.experiments.stages.multiplier import MultiplierStage
+from mbn.experiments.stages.rf import RFStage
+from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
+from mbn.experiments.stages.settings import (
     DESettings,
     EpisodeSettings,
     FollowerSettings,
@@ -35,11 +38,8 @@ from mbn.experiments.reproduce.settings import (
     ValidationSettings,
     derived_seeds,
 )
-from mbn.experiments.reproduce.stages.lf import LFStage
-from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
-from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
-from mbn.experiments.reproduce.stages.rf import RFStage
-from mbn.experiments.reproduce.stages.tests import TestsSettings
+from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.tests3 import Tests3Settings
 
 __all__ = ["CONTENDERS", "PROGRAMS_VS_DYNAMICS", "RUN_KIND", "STAGES"]
 

@@ -15,12 +15,12 @@ from typing import Any
 
 from mbn.experiments.noise.over_runs import noise_tests
 from mbn.experiments.noise.report import claims, write_report
-from mbn.experiments.noise.stages.levels import NoiseLevelsStage
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
-from mbn.experiments.reproduce import SHARED, controller_stages
-from mbn.experiments.reproduce.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.reproduce.settings import derived_seeds
-from mbn.experiments.reproduce.stages.tests import TestsSettings
+from mbn.experiments.stages.compose import SHARED, controller_stages
+from mbn.experiments.stages.noise_levels import NoiseLevelsStage
+from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
+from mbn.experiments.stages.settings import derived_seeds
+from mbn.experiments.stages.tests import TestsSettings
 
 __all__ = ["NOISE", "RUN_KIND", "STAGES"]
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from mbn.experiments.noise.stages.levels import CONTROLLERS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
+from mbn.experiments.stages.noise_levels import CONTROLLERS
 from mbn.io import read_json
 from mbn.viz.noise import LABELS
 

@@ -14,8 +14,8 @@ Stages (paper section 3; ``docs/reproduce.md`` describes each and every deviatio
 8. ``generalization``: the same controllers in mazes drawn from their family (train,
    validation and test splits) and on the zero-shot suite (``docs/generalization.md``).
 
-Each stage is one module of :mod:`mbn.experiments.reproduce.stages`; :data:`STAGES` lists them
-in order (adding a stage: one module and one line here). The run folder, resume and
+Each stage is one module of the stage library, :mod:`mbn.experiments.stages`; :data:`STAGES`
+lists them in order (adding a stage: one module there and one line here). The run folder, resume and
 ``results.json`` are :mod:`mbn.experiments.pipeline`'s; the claims table and the report are
 built from the run folder.
 """
@@ -24,48 +24,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir, Stage
+from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.reproduce.claims import claims
 from mbn.experiments.reproduce.report import write_report
-from mbn.experiments.reproduce.settings import (
-    QUICK,
-    DESettings,
-    EpisodeSettings,
-    FollowerSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    derived_seeds,
-)
-from mbn.experiments.reproduce.stages.generalization import ReproduceGeneralization
-from mbn.experiments.reproduce.stages.im import IMStage
-from mbn.experiments.reproduce.stages.lf import LFStage
-from mbn.experiments.reproduce.stages.lf_search import LFSearchStage
-from mbn.experiments.reproduce.stages.multiplier import MultiplierStage
-from mbn.experiments.reproduce.stages.pm import PMStage
-from mbn.experiments.reproduce.stages.rf import RFStage
-from mbn.experiments.reproduce.stages.tests import TestsStage
-from mbn.world.sensors import NoiseConfig
+from mbn.experiments.stages.compose import SHARED, controller_stages
+from mbn.experiments.stages.generalization import ReproduceGeneralization
+from mbn.experiments.stages.settings import QUICK, derived_seeds
+from mbn.experiments.stages.tests import TestsStage
 
-__all__ = ["REPRODUCE", "RUN_KIND", "SHARED", "STAGES", "controller_stages"]
+__all__ = ["REPRODUCE", "RUN_KIND", "STAGES"]
 
 RUN_KIND = "mbn.reproduce"
-
-#: The sections every experiment built on the reproduction's controllers shares.
-SHARED = (
-    DESettings,
-    FollowerSettings,
-    EpisodeSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    NoiseConfig,
-)
-
-
-def controller_stages() -> list[Stage]:
-    """The stages that make the reproduction's controllers (multiplier to PM), in order: an
-    experiment that studies them runs these with the same stage keys, so that for one seed
-    they are ``mbn reproduce --seed``'s."""
-    return [MultiplierStage(), RFStage(), LFSearchStage(), LFStage(), IMStage(), PMStage()]
 
 
 #: The stages of the paper's experiment, in the order they run.

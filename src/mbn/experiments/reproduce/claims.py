@@ -11,8 +11,8 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.generalization import generalization_claims
-from mbn.experiments.reproduce.protocol import WHO
-from mbn.experiments.reproduce.stages.multiplier import GRID_POINTS
+from mbn.experiments.stages.multiplier import GRID_POINTS
+from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, WHO
 from mbn.notation import connection_names
 
 __all__ = [
@@ -23,10 +23,6 @@ __all__ = [
     "claims",
 ]
 
-#: Success rate required from jittered starts and on the held-out maze.
-ROBUST_TARGET = 0.95
-#: Share of jittered trials in which the interpreter takes the same branches as its network.
-AGREEMENT_TARGET = 0.98
 #: Largest error of the multiplier on the 101 x 101 grid counted as "multiplies".
 MULTIPLIER_MAX_ERROR = 0.02
 #: The paper's words on its 3-neuron multiplier (section 2.1).

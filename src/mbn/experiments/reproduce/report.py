@@ -15,9 +15,9 @@ from mbn.controllers import MBNControllerSpec, read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.experiments.reproduce.protocol import TESTED
-from mbn.experiments.reproduce.settings import InterpreterSettings
-from mbn.experiments.reproduce.stages.generalization import generalization_sections
+from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.protocol import TESTED
+from mbn.experiments.stages.settings import InterpreterSettings
 from mbn.io import read_json
 from mbn.networks.programmable import differing_connections
 from mbn.notation import connection_names

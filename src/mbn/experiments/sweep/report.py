@@ -26,7 +26,6 @@ from mbn.experiments.sweep.run import (
 )
 from mbn.experiments.sweep.seeds import format_seeds
 from mbn.experiments.sweep.specs import (
-    REPRODUCE_SPEC,
     SweepSpec,
     sweep_spec,
     with_recorded_tests,
@@ -35,19 +34,16 @@ from mbn.experiments.sweep.summary import summarize
 from mbn.io import read_json
 from mbn.viz.sweep import de_bands, rate_boxes
 
-__all__ = ["DE_STAGES", "TITLE", "de_curves", "summarize_folder", "summary_line"]
-
-TITLE = REPRODUCE_SPEC.title
-
-#: The stages whose DE best-fitness curves a reproduction's report draws, and their titles.
-DE_STAGES = REPRODUCE_SPEC.de_stages
+__all__ = ["de_curves", "summarize_folder", "summary_line"]
 
 
 def de_curves(
-    out: Path, seeds: list[int], spec: SweepSpec = REPRODUCE_SPEC
+    out: Path, seeds: list[int], spec: SweepSpec | None = None
 ) -> dict[str, dict[int, list[float]]]:
     """``stage -> seed -> best fitness per generation`` of the finished seeds, as recorded in
-    their folders (stages without a record are left out)."""
+    their folders (stages without a record are left out); ``spec``: the experiment's sweep
+    view (default: the reproduction's)."""
+    spec = spec or sweep_spec(None)
     curves: dict[str, dict[int, list[float]]] = {name: {} for name in spec.de_stages}
     for s in seeds:
         rundir = RunDir(seed_dir(out, s))

@@ -11,8 +11,8 @@ held-out maze                 ``tests.{rf,...,mbn}_heldout``              >= 95 
 interpreter agreement         ``stages.tests.agreement.im_{rf,lf}_jitter`` >= 98 %
 ============================  ==========================================  ===========
 
-The thresholds are those of the claims table (:data:`~mbn.experiments.reproduce.claims.
-ROBUST_TARGET`, :data:`~mbn.experiments.reproduce.claims.AGREEMENT_TARGET`), compared exactly
+The thresholds are those of the claims table (:data:`~mbn.experiments.stages.protocol.
+ROBUST_TARGET`, :data:`~mbn.experiments.stages.protocol.AGREEMENT_TARGET`), compared exactly
 (as fractions: 190/200 meets 95 %).
 """
 
@@ -22,8 +22,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from mbn.experiments.reproduce.claims import AGREEMENT_TARGET, ROBUST_TARGET
-from mbn.experiments.reproduce.protocol import WHO
+from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, WHO
 
 __all__ = [
     "GENERALIZATION_TARGETS",

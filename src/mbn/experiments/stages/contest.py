@@ -50,23 +50,24 @@ from mbn.controllers import (
 )
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
-from mbn.experiments.behaviours.stages.programs import (
-    check_digest,
-    program_de_config,
-    program_fitness,
-    program_network,
-)
-from mbn.experiments.behaviours.stages.tests3 import trial_specs
 from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.protocol import SUFFIXES
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     MADE_BY,
     de_config,
     read_network,
     stage_perturbations,
     task,
 )
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.programs import (
+    check_digest,
+    program_de_config,
+    program_fitness,
+    program_network,
+)
+from mbn.experiments.stages.protocol import SUFFIXES
+from mbn.experiments.stages.tests3 import trial_specs
 from mbn.experiments.trials import (
     TrialGroup,
     agreement,
@@ -401,7 +402,7 @@ def contend(
 
 class ContestStage(Stage):
     name = "contest"
-    key_id = 14
+    key_id = KEYS["contest"]
     needs = ("rf", "im_full")
     settings = ContestSettings
 

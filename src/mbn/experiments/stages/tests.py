@@ -23,14 +23,15 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.named import mbn_tile_rules, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.protocol import (
+from mbn.experiments.stages.common import TEST_NOISE_KEY, noise_key, run_noise
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.protocol import (
     SUFFIXES,
     TEST_NAMES,
     TESTED,
     protocol_block,
     test_specs,
 )
-from mbn.experiments.reproduce.stages.common import TEST_NOISE_KEY, noise_key, run_noise
 from mbn.experiments.trials import (
     TrialGroup,
     TrialSpec,
@@ -108,7 +109,7 @@ def _same_settings(a: LoadedController, b: LoadedController, na: str, nb: str) -
 
 class TestsStage(Stage):
     name = "tests"
-    key_id = 7
+    key_id = KEYS["tests"]
     outputs = ("records/test_trajectories.npz", "records/mbn_recording.npz")
     needs = ("rf", "lf", "im", "pm")
     settings = TestsSettings

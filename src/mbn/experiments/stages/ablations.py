@@ -29,7 +29,8 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.protocol import test_specs
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.protocol import test_specs
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.experiments.trials import agreement as same_exits
 from mbn.networks.ctrnn import CTRNN, euler_steps, firing_rate
@@ -173,7 +174,7 @@ def _agreements(
 
 class AblationsStage(Stage):
     name = "ablations"
-    key_id = 13
+    key_id = KEYS["ablations"]
     needs = ("rf", "lf", "im", "pm")
     settings = AblationsSettings
 

@@ -9,7 +9,8 @@ import numpy as np
 
 from mbn.controllers import save_controller
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.stages.common import MADE_BY, interpreter_of, read_network
+from mbn.experiments.stages.common import MADE_BY, interpreter_of, read_network
+from mbn.experiments.stages.keys import KEYS
 from mbn.networks.multiplier import load_multiplier
 from mbn.notation import connection_name, connection_names
 
@@ -18,7 +19,7 @@ __all__ = ["IMStage"]
 
 class IMStage(Stage):
     name = "im"
-    key_id = 5
+    key_id = KEYS["im"]
     outputs = ("controllers/im.json",)
     needs = ("multiplier", "rf", "lf")
 

@@ -22,10 +22,11 @@ from mbn.controllers import (
     make_controller,
     read_controller_spec,
 )
-from mbn.experiments.behaviours.stages.programs import check_digest
 from mbn.experiments.named import trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.protocol import SUFFIXES
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.programs import check_digest
+from mbn.experiments.stages.protocol import SUFFIXES
 from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
@@ -74,7 +75,7 @@ def trial_specs(
 
 class Tests3Stage(Stage):
     name = "tests3"
-    key_id = 11
+    key_id = KEYS["tests3"]
     needs = ("im_full", "programs", "mbn3")
     outputs = ("records/mbn3_marks.npz",)
     settings = Tests3Settings

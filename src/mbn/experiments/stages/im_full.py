@@ -23,8 +23,9 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.protocol import SUFFIXES, test_specs
-from mbn.experiments.reproduce.stages.common import MADE_BY, read_network, rf_lf_programs
+from mbn.experiments.stages.common import MADE_BY, read_network, rf_lf_programs
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, SUFFIXES, test_specs
 from mbn.experiments.trials import agreement, run_loaded_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import load_multiplier
@@ -48,10 +49,6 @@ FULL_CONNECTIONS = (
     "WE[1,0]",
     "WE[1,2]",
 )
-#: The agreement an interpreter must reach with the network it emulates (the tests' target).
-AGREEMENT_TARGET = 0.98
-#: The success rate of the jittered and held-out tests (the tests' target).
-ROBUST_TARGET = 0.95
 
 
 @dataclass(frozen=True)
@@ -151,7 +148,7 @@ def _spec(
 
 class IMFullStage(Stage):
     name = "im_full"
-    key_id = 8
+    key_id = KEYS["im_full"]
     outputs = ("controllers/im_full.json",)
     needs = ("multiplier", "rf", "lf")
     settings = IMFullSettings

@@ -41,12 +41,13 @@ from mbn.experiments.generalization import (
     split_record,
 )
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     maze_episodes,
     noise_key,
     run_noise,
     tile_family,
 )
+from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.trials import TrialSpec
 
 __all__ = [
@@ -324,7 +325,7 @@ class GeneralizationStage(Stage):
 class ReproduceGeneralization(GeneralizationStage):
     """``mbn reproduce``'s: RF, LF, the interpreter with each program, the MBN."""
 
-    key_id = 16
+    key_id = KEYS["generalization"]
     needs = ("rf", "lf", "im", "pm")
     judged = REPRODUCE_JUDGED
 

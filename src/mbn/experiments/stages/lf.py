@@ -22,7 +22,7 @@ from mbn.controllers import CTRNNControllerSpec
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     SCORE_KEYS,
     evolve_follower,
     interpreter_of,
@@ -34,11 +34,12 @@ from mbn.experiments.reproduce.stages.common import (
     validation_verdict,
     validation_verdicts,
 )
-from mbn.experiments.reproduce.stages.lf_search import (
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.lf_search import (
     search_checkpoint,
     search_triples,
 )
-from mbn.experiments.reproduce.stages.rf import evolution_summary
+from mbn.experiments.stages.rf import evolution_summary
 from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection
@@ -168,7 +169,7 @@ class LFSettings(Settings):
 
 class LFStage(Stage):
     name = "lf"
-    key_id = 4
+    key_id = KEYS["lf"]
     outputs = ("controllers/lf.json",)
     needs = ("multiplier", "rf", "lf_search")
     settings = LFSettings

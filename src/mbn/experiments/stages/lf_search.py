@@ -25,7 +25,7 @@ from mbn.experiments.evolve import (
 )
 from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import DERun, Stage, StageContext
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     SCORING_DRAW,
     de_config,
     maze_episodes,
@@ -34,6 +34,7 @@ from mbn.experiments.reproduce.stages.common import (
     training_fitness,
     training_task,
 )
+from mbn.experiments.stages.keys import KEYS
 from mbn.host import put
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name, connection_names
@@ -181,7 +182,7 @@ def best_triple(rows: list[dict[str, Any]]) -> int:
 
 class LFSearchStage(Stage):
     name = "lf_search"
-    key_id = 3
+    key_id = KEYS["lf_search"]
     needs = ("rf",)
     settings = LFSearchSettings
 

@@ -12,7 +12,7 @@ evaluations (``[contest] generations``) and the same checks as the ``contest`` s
   tile kind, evolved once without the robot (``[contest3] pm_generations``; its evaluations,
   robot-free, are reported apart) and whose readout's columns are the three programs;
 * ``monolithic``: one CTRNN of ``[contest3] neurons`` neurons reading I1..I3 and the three tile
-  kinds (:mod:`mbn.experiments.contest.monolithic`), evolved for the three rules at once.
+  kinds (:mod:`mbn.experiments.stages.monolithic`), evolved for the three rules at once.
 
 Every ``[contest] check_every`` generations the best so far is run on the three-tile test maze
 as the whole controller it stands for — the MBN with the candidate program; the monolithic
@@ -46,16 +46,17 @@ from mbn.controllers import (
     save_controller,
 )
 from mbn.errors import MbnInputError
-from mbn.experiments.behaviours.stages.mbn3 import code_mbn, evolve_code_pm
-from mbn.experiments.behaviours.stages.programs import (
-    check_digest,
-    program_de_config,
-    program_fitness,
-    program_network,
+from mbn.experiments.evolve import robust_fitness
+from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.program_module import MemoryReward
+from mbn.experiments.stages.common import (
+    MADE_BY,
+    de_config,
+    read_network,
+    stage_perturbations,
+    task,
 )
-from mbn.experiments.behaviours.stages.tests3 import trial_specs
-from mbn.experiments.contest.monolithic import MonolithicGenome, monolithic_fitness
-from mbn.experiments.contest.stages.contest import (
+from mbn.experiments.stages.contest import (
     TRAJECTORY_FIELDS,
     Contender,
     ContestSettings,
@@ -63,16 +64,16 @@ from mbn.experiments.contest.stages.contest import (
     contend,
     final_tests,
 )
-from mbn.experiments.evolve import robust_fitness
-from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.program_module import MemoryReward
-from mbn.experiments.reproduce.stages.common import (
-    MADE_BY,
-    de_config,
-    read_network,
-    stage_perturbations,
-    task,
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.mbn3 import code_mbn, evolve_code_pm
+from mbn.experiments.stages.monolithic import MonolithicGenome, monolithic_fitness
+from mbn.experiments.stages.programs import (
+    check_digest,
+    program_de_config,
+    program_fitness,
+    program_network,
 )
+from mbn.experiments.stages.tests3 import trial_specs
 from mbn.experiments.trials import summary
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import CROSSROAD_KINDS
@@ -173,7 +174,7 @@ class Contest3Settings(Settings):
 
 class Contest3Stage(Stage):
     name = "contest3"
-    key_id = 15
+    key_id = KEYS["contest3"]
     needs = ("rf", "im_full")
     settings = Contest3Settings
 

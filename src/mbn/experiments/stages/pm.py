@@ -34,15 +34,16 @@ from mbn.experiments.program_module import (
     pm_program_fitness,
     start_mismatch,
 )
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     MADE_BY,
     de_config,
     read_network,
     stage_perturbations,
     validate,
 )
-from mbn.experiments.reproduce.stages.lf import ATTEMPT_KEY
-from mbn.experiments.reproduce.stages.rf import evolution_summary
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.lf import ATTEMPT_KEY
+from mbn.experiments.stages.rf import evolution_summary
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 from mbn.world.sensors import NoiseConfig
@@ -152,7 +153,7 @@ class PMSettings(Settings):
 
 class PMStage(Stage):
     name = "pm"
-    key_id = 6
+    key_id = KEYS["pm"]
     outputs = ("controllers/mbn.json",)
     needs = ("rf", "lf", "im")
     settings = PMSettings

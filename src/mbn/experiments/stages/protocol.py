@@ -8,7 +8,21 @@ from typing import Any
 
 from mbn.experiments.trials import MAX_STALL_FRACTION, TrialSpec
 
-__all__ = ["SUFFIXES", "TESTED", "TEST_NAMES", "WHO", "protocol_block", "test_specs"]
+__all__ = [
+    "AGREEMENT_TARGET",
+    "ROBUST_TARGET",
+    "SUFFIXES",
+    "TESTED",
+    "TEST_NAMES",
+    "WHO",
+    "protocol_block",
+    "test_specs",
+]
+
+#: Success rate required from jittered starts and on the held-out maze.
+ROBUST_TARGET = 0.95
+#: Share of jittered trials in which the interpreter takes the same branches as its network.
+AGREEMENT_TARGET = 0.98
 
 #: Controllers tested and the rule each is judged by.
 TESTED: tuple[tuple[str, str], ...] = (

@@ -14,8 +14,9 @@ import jax
 from mbn.config import Settings, setting
 from mbn.controllers import make_controller, read_controller_spec
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.protocol import TESTED, test_specs
-from mbn.experiments.reproduce.stages.common import run_noise
+from mbn.experiments.stages.common import run_noise
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.protocol import TESTED, test_specs
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.world.mazes.load import load_maze
 from mbn.world.sensors import NoiseConfig
@@ -108,7 +109,7 @@ class NoiseLevelsSettings(Settings):
 
 class NoiseLevelsStage(Stage):
     name = "noise_levels"
-    key_id = 12
+    key_id = KEYS["noise_levels"]
     needs = ("rf", "im", "pm")
     settings = NoiseLevelsSettings
 

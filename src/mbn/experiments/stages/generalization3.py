@@ -1,12 +1,13 @@
 """Stage ``generalization`` of ``mbn run new-behaviours``: the new rules' programs through the
 fixed full interpreter and the three-behaviour MBN in mazes drawn from their family (train,
 validation, test splits) and on the zero-shot suite (as ``mbn reproduce``'s stage:
-:mod:`mbn.experiments.reproduce.stages.generalization`)."""
+:mod:`mbn.experiments.stages.generalization`)."""
 
 from __future__ import annotations
 
 from mbn.experiments.pipeline import StageContext
-from mbn.experiments.reproduce.stages.generalization import GeneralizationStage, Judged
+from mbn.experiments.stages.generalization import GeneralizationStage, Judged
+from mbn.experiments.stages.keys import KEYS
 from mbn.world.rules import parse_rule
 
 __all__ = ["BehavioursGeneralization"]
@@ -17,7 +18,7 @@ class BehavioursGeneralization(GeneralizationStage):
     three-behaviour MBN (``mbn3.json``), in ``tiles3`` and, beside the two-behaviour MBN of
     ``mbn reproduce`` (forgetting), in ``tiles2``."""
 
-    key_id = 17
+    key_id = KEYS["generalization3"]
     needs = ("programs", "mbn3")
 
     def controllers(self, ctx: StageContext) -> tuple[Judged, ...]:

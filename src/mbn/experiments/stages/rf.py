@@ -9,7 +9,8 @@ from typing import Any
 from mbn.config import Settings, setting
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.stages.common import evolve_follower
+from mbn.experiments.stages.common import evolve_follower
+from mbn.experiments.stages.keys import KEYS
 from mbn.notation import connection_names
 
 __all__ = ["RFSettings", "RFStage", "evolution_summary"]
@@ -62,7 +63,7 @@ def evolution_summary(
 
 class RFStage(Stage):
     name = "rf"
-    key_id = 2
+    key_id = KEYS["rf"]
     outputs = ("controllers/rf.json",)
     settings = RFSettings
 

@@ -35,7 +35,7 @@ from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
 from mbn.experiments.named import check_not_test_mazes, locate, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.reproduce.stages.common import (
+from mbn.experiments.stages.common import (
     MADE_BY,
     maze_episodes,
     read_network,
@@ -45,6 +45,7 @@ from mbn.experiments.reproduce.stages.common import (
     validation_record,
     validation_verdicts,
 )
+from mbn.experiments.stages.keys import KEYS
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.programmable import Interpreter
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
@@ -180,7 +181,7 @@ def program_fitness(
     networks they encode (exact products), averaged over perturbed copies of the weights, on the
     crossroads entered by ``approaches`` - or, with maze episodes (``[episodes] kind = "maze"``),
     on episodes drawn from the family's train split and drawn again every ``redraw``
-    generations (:func:`~mbn.experiments.reproduce.stages.common.training_fitness`)."""
+    generations (:func:`~mbn.experiments.stages.common.training_fitness`)."""
     genome = Genome.around(base, interp.connections)
     perturbed = stage_perturbations(ctx, genome.size)
     lower, span = interp.lower, interp.upper - interp.lower
@@ -288,7 +289,7 @@ def _best_member(
 
 class ProgramsStage(Stage):
     name = "programs"
-    key_id = 9
+    key_id = KEYS["programs"]
     outputs = ("controllers/im_full_programs.json",)
     needs = ("rf", "im_full")
     settings = ProgramsSettings

@@ -12,6 +12,7 @@ import numpy as np
 from mbn.config import Locator, Settings, setting
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.stages.keys import KEYS
 from mbn.networks.multiplier import (
     SHIPPED,
     dense_grid,
@@ -66,7 +67,7 @@ class MultiplierSettings(Settings):
 
 class MultiplierStage(Stage):
     name = "multiplier"
-    key_id = 1
+    key_id = KEYS["multiplier"]
     outputs = ("controllers/multiplier.json", "records/multiplier_grid.npz")
     settings = MultiplierSettings
 

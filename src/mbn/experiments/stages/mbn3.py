@@ -28,7 +28,6 @@ from mbn.controllers import (
     save_controller,
 )
 from mbn.errors import MbnInputError
-from mbn.experiments.behaviours.stages.programs import check_digest
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.program_module import (
     MemoryReward,
@@ -37,8 +36,10 @@ from mbn.experiments.program_module import (
     latch_after_tile,
     tile_sequences,
 )
-from mbn.experiments.reproduce.stages.common import MADE_BY, de_config, maze_episodes, validate
-from mbn.experiments.reproduce.stages.lf import ATTEMPT_KEY
+from mbn.experiments.stages.common import MADE_BY, de_config, maze_episodes, validate
+from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.lf import ATTEMPT_KEY
+from mbn.experiments.stages.programs import check_digest
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule, parse_rules
@@ -203,7 +204,7 @@ def code_mbn(
 
 class MBN3Stage(Stage):
     name = "mbn3"
-    key_id = 10
+    key_id = KEYS["mbn3"]
     outputs = ("controllers/mbn3.json",)
     needs = ("im_full", "programs")
     settings = MBN3Settings

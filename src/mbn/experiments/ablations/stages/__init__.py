@@ -1,1 +1,0 @@
-"""The stages of ``mbn run ablations`` beyond the reproduction's."""

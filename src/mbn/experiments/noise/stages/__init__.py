@@ -1,1 +1,0 @@
-"""The stages of ``mbn run noise`` beyond the reproduction's."""

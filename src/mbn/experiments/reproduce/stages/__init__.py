@@ -1,2 +1,0 @@
-"""The stages of ``mbn reproduce``, one module each; their order is
-:data:`mbn.experiments.reproduce.STAGES`."""
