@@ -14,7 +14,7 @@ import shutil
 import jax
 import numpy as np
 import pytest
-from mbn.experiments.contest.stages import contest as contest_module
+from mbn.experiments.stages import contest as contest_module
 
 from mbn.controllers import (
     CTRNNControllerSpec,

@@ -19,8 +19,8 @@ Stages:
    from their family (train, validation and test splits) and on the zero-shot suite
    (``docs/generalization.md``).
 
-Each stage is one module (the first four ``mbn.experiments.reproduce.stages``'s, the others
-:mod:`mbn.experiments.behaviours.stages`'s); ``docs/behaviours.md`` describes them.
+Each stage is one module of the stage library, :mod:`mbn.experiments.stages` (the first four
+are the reproduction's); ``docs/behaviours.md`` describes them.
 """
 
 from __future__ import annotations
