@@ -14,7 +14,6 @@ import shutil
 import jax
 import numpy as np
 import pytest
-from mbn.experiments.stages import contest as contest_module
 
 from mbn.controllers import (
     CTRNNControllerSpec,
@@ -26,6 +25,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.contest import PROGRAMS_VS_DYNAMICS
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import replace_section, run_stage
+from mbn.experiments.stages import contest as contest_module
 from mbn.experiments.stages.contest import (
     CONTENDERS,
     ContestSettings,

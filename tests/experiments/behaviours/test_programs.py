@@ -153,8 +153,8 @@ def test_approaches_are_checked_and_reach_the_programs_crossroads(monkeypatch):
     """``[programs] approaches`` (default the paper's crossroads, entered from the south) is
     checked, and the program search's episodes are the crossroads entered those ways."""
     import jax
-    from mbn.experiments.stages import programs as stage
 
+    from mbn.experiments.stages import programs as stage
     from mbn.experiments.stages.settings import FollowerSettings
     from mbn.networks.multiplier import load_default
     from mbn.networks.programmable import all_connections, build_interpreter
@@ -201,9 +201,9 @@ def test_with_maze_episodes_programs_are_scored_on_redrawn_maze_episodes():
     """``[episodes] kind = "maze"``: a program's fitness is the rule's on episodes drawn from
     the train split of the family, drawn again every ``redraw`` generations."""
     import jax
-    from mbn.experiments.stages import programs as stage
 
     from mbn.experiments.evolve import Redrawn
+    from mbn.experiments.stages import programs as stage
     from mbn.experiments.stages.settings import EpisodeSettings, FollowerSettings
     from mbn.networks.multiplier import load_default
     from mbn.networks.programmable import all_connections, build_interpreter
