@@ -16,6 +16,15 @@ The robot (section 3): :func:`load_maze`, :class:`Maze`, :func:`rollout`, :class
 
 Evolution: :class:`DEConfig`. Experiments: :data:`REPRODUCE`, :func:`run_experiment`.
 Precision: :func:`precision_scope`.
+
+Your own experiment (``docs/architecture.md``, "Your own experiment"): :class:`Experiment`, a
+composition of :class:`Stage` objects (a :class:`StageRegistry` of them), each reading its
+:class:`Settings` (fields made by :func:`setting`) through a :class:`StageContext`;
+:func:`register` adds it to the experiments ``mbn run`` and ``mbn sweep`` know, and a
+:class:`SweepSpec` gives its sweep's per-run targets.
+
+The API reference of these names and their modules is built from the docstrings by
+``python scripts/api_docs.py --out build/api`` (pdoc; ``pip install -e '.[docs]'``).
 """
 
 from __future__ import annotations
@@ -26,10 +35,15 @@ from typing import TYPE_CHECKING, Any
 from mbn._version import __version__
 
 if TYPE_CHECKING:
+    from mbn.config import Settings, setting
     from mbn.controllers.load import load_controller
     from mbn.evolution.de import DEConfig
+    from mbn.experiments.pipeline import Experiment, Stage, StageContext
+    from mbn.experiments.pipeline import Registry as StageRegistry
     from mbn.experiments.pipeline.runner import run_experiment
+    from mbn.experiments.registry import register
     from mbn.experiments.reproduce import REPRODUCE
+    from mbn.experiments.sweep.specs import SweepSpec
     from mbn.experiments.trials import TrialSpec, run_trials
     from mbn.networks.ctrnn import CTRNN, firing_rate, make_ctrnn, simulate
     from mbn.networks.multiplier import Multiplier, load_multiplier, multiply
@@ -75,6 +89,14 @@ _SURFACE = {
     "REPRODUCE": ("mbn.experiments.reproduce", "REPRODUCE"),
     "run_experiment": ("mbn.experiments.pipeline.runner", "run_experiment"),
     "precision_scope": ("mbn.precision", "scope"),
+    "Experiment": ("mbn.experiments.pipeline.experiment", "Experiment"),
+    "Stage": ("mbn.experiments.pipeline.registry", "Stage"),
+    "StageRegistry": ("mbn.experiments.pipeline.registry", "Registry"),
+    "StageContext": ("mbn.experiments.pipeline.context", "StageContext"),
+    "Settings": ("mbn.config", "Settings"),
+    "setting": ("mbn.config", "setting"),
+    "register": ("mbn.experiments.registry", "register"),
+    "SweepSpec": ("mbn.experiments.sweep.specs", "SweepSpec"),
 }
 
 __all__ = [
@@ -82,9 +104,15 @@ __all__ = [
     "REPRODUCE",
     "Connection",
     "DEConfig",
+    "Experiment",
     "Maze",
     "Multiplier",
     "RolloutConfig",
+    "Settings",
+    "Stage",
+    "StageContext",
+    "StageRegistry",
+    "SweepSpec",
     "TrialSpec",
     "__version__",
     "build_interpreter",
@@ -99,11 +127,13 @@ __all__ = [
     "precision_scope",
     "published_lf",
     "published_rf",
+    "register",
     "rollout",
     "run_experiment",
     "run_interpreter",
     "run_network",
     "run_trials",
+    "setting",
     "simulate",
 ]
 
