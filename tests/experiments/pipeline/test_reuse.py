@@ -321,7 +321,7 @@ def test_a_section_only_one_run_has_must_hold_its_defaults(tmp_path):
 
 
 def test_a_checkpoint_belongs_to_the_longest_stage_name_it_starts_with():
-    from mbn.experiments.pipeline.reuse import _owner
+    from mbn.experiments.pipeline.reuse import checkpoint_owner as _owner
 
     names = ["rf", "lf_search", "lf"]
     assert _owner("lf_search_03.npz", names) == "lf_search"

@@ -1,7 +1,7 @@
-"""Every stage of ``mbn reproduce`` runs alone against a run folder: in a copy of the quick run
-with that stage's outputs removed, the stage run by itself (its needs read from the folder) writes
-exactly what the whole run wrote; a stage whose needs are missing is refused in one line; the
-report renders from the folder alone, without simulating."""
+"""The stages of ``mbn reproduce`` against a run folder: a stage whose needs are missing is
+refused in one line; the report renders from the folder alone, without simulating. (Each stage
+run alone in a copy of the quick run writes what the whole run wrote: the battery of every
+registered experiment, ``tests/experiments/test_battery.py``.)"""
 
 from __future__ import annotations
 
@@ -16,18 +16,6 @@ from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.runner import run_stage
 from mbn.experiments.reproduce import REPRODUCE, STAGES
-
-#: What each stage writes besides ``stages/NAME.json`` (removed before it runs alone).
-OUTPUTS = {
-    "multiplier": ["controllers/multiplier.json", "records/multiplier_grid.npz"],
-    "rf": ["controllers/rf.json", "checkpoints/rf.npz", "checkpoints/rf_restart1.npz"],
-    "lf_search": ["checkpoints/lf_search_*.npz"],
-    "lf": ["controllers/lf.json", "checkpoints/lf.npz"],
-    "im": ["controllers/im.json"],
-    "pm": ["controllers/mbn.json", "checkpoints/pm.npz"],
-    "tests": ["records/test_trajectories.npz", "records/mbn_recording.npz"],
-    "generalization": ["records/generalization_worst.npz"],
-}
 
 
 def _copy(quick_run, tmp_path):
@@ -52,36 +40,6 @@ def test_the_registry_lists_the_paper_pipeline_in_order():
         "generalization",
     )
     assert [s.key_id for s in STAGES] == [1, 2, 3, 4, 5, 6, 7, 16]
-    assert set(OUTPUTS) == set(STAGES.names)
-
-
-#: The stages CI runs alone; the others (10-20 s each on 2 cores) with ``-m slow``.
-_ALONE_IN_CI = {"multiplier", "im", "pm"}
-
-
-@pytest.mark.parametrize(
-    "name",
-    [n if n in _ALONE_IN_CI else pytest.param(n, marks=pytest.mark.slow) for n in STAGES.names],
-)
-def test_each_stage_runs_alone_against_a_run_folder(quick_run, tmp_path, name):
-    rundir, seed, config = _copy(quick_run, tmp_path)
-    before = rundir.read_stage(name)
-    files = {
-        p.relative_to(rundir.root).as_posix(): p.read_bytes()
-        for pattern in OUTPUTS[name]
-        for p in rundir.root.glob(pattern)
-    }
-    assert files, f"{name} wrote none of {OUTPUTS[name]}"
-    rundir.stage_file(name).unlink()
-    for rel in files:
-        (rundir.root / rel).unlink()
-    data = run_stage(REPRODUCE, rundir, name, seed=seed, config=config)
-    assert json.loads(json.dumps(data)) == before
-    assert rundir.read_stage(name) == before
-    for rel in files:
-        assert (rundir.root / rel).exists(), rel
-        if rel.startswith("controllers/"):
-            assert (rundir.root / rel).read_bytes() == files[rel], rel
 
 
 @pytest.mark.parametrize("name", [s.name for s in STAGES if s.needs])

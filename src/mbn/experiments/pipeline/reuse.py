@@ -48,9 +48,11 @@ if TYPE_CHECKING:
 __all__ = [
     "ReuseSource",
     "check_agreement",
+    "checkpoint_owner",
     "read_source",
     "settings_disagreement",
     "shared_defaults",
+    "stage_checkpoints",
     "take_stages",
     "takeable",
 ]
@@ -183,7 +185,7 @@ def _copy_atomic(src: Path, dst: Path) -> None:
         shutil.copyfileobj(source, target)
 
 
-def _owner(filename: str, names: list[str]) -> str | None:
+def checkpoint_owner(filename: str, names: list[str]) -> str | None:
     """The stage a checkpoint file belongs to: the longest stage name that is its stem or a
     prefix of it followed by ``_`` (``lf_search_03.npz``: ``lf_search``, not ``lf``)."""
     stem = filename.split(".", 1)[0]
@@ -191,7 +193,7 @@ def _owner(filename: str, names: list[str]) -> str | None:
     return max(mine, key=len) if mine else None
 
 
-def _checkpoints(src: RunDir, name: str, names: list[str]) -> list[Path]:
+def stage_checkpoints(src: RunDir, name: str, names: list[str]) -> list[Path]:
     """The checkpoint files of stage ``name`` in ``src`` (``names``: the stages there)."""
     folder = src.root / "checkpoints"
     if not folder.is_dir():
@@ -199,7 +201,7 @@ def _checkpoints(src: RunDir, name: str, names: list[str]) -> list[Path]:
     return sorted(
         p
         for p in folder.iterdir()
-        if p.is_file() and not p.name.startswith(".") and _owner(p.name, names) == name
+        if p.is_file() and not p.name.startswith(".") and checkpoint_owner(p.name, names) == name
     )
 
 
@@ -223,7 +225,7 @@ def take_stages(
         stage = experiment.registry[name]
         for rel in stage.outputs:
             _copy_atomic(src.root / rel, rundir.root / rel)
-        for path in _checkpoints(src, name, stages):  # a partial one of this run's is replaced
+        for path in stage_checkpoints(src, name, stages):  # a partial one of this run's is replaced
             _copy_atomic(path, rundir.root / "checkpoints" / path.name)
         _copy_atomic(src.stage_file(name), rundir.stage_file(name))
     if names:
