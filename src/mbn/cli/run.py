@@ -73,8 +73,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
     )
     cmd = sub.add_parser(
         "run",
-        help="a registered experiment (new-behaviours, noise, ablations, programs-vs-dynamics, "
-        "reproduce), or one of your own by its reference (package.module:ATTRIBUTE)",
+        help=f"a registered experiment ({', '.join(experiments)}), or one of your own by its "
+        "reference (package.module:ATTRIBUTE)",
         description="Run a registered experiment, stage by stage, checkpointed and resumable.",
         epilog=_EPILOG.format(experiments=listing),
         formatter_class=argparse.RawDescriptionHelpFormatter,
