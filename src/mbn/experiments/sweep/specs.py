@@ -127,6 +127,7 @@ def loader(name: str) -> Callable[[], Experiment]:
     return load
 
 
+#: The controllers the tests of the reproduction judge, in the order its report shows them.
 FOLLOWERS = ("rf", "lf", "im_rf", "im_lf", "mbn", "published_rf", "published_lf")
 
 
