@@ -378,12 +378,10 @@ def run_seed(
         source = None
         if reuse is not None:
             from mbn.experiments.pipeline.reuse import read_source
-            from mbn.experiments.sweep.specs import experiment_of_kind
+            from mbn.experiments.registry import of_kind
 
             mine = experiment
-            source = read_source(
-                Path(reuse), lambda kind: mine if kind == mine.kind else experiment_of_kind(kind)
-            )
+            source = read_source(Path(reuse), lambda kind: of_kind(kind, also=mine))
         with scope(ROBOT):  # as the command line runs `mbn reproduce`
             run_experiment(
                 experiment,

@@ -31,7 +31,6 @@ __all__ = [
     "SweepSpec",
     "by_trials",
     "controller_curve",
-    "experiment_of_kind",
     "loader",
     "plain_spec",
     "stage_history",
@@ -198,11 +197,3 @@ def sweep_spec(name: str | None) -> SweepSpec:
             f"{type(value).__name__}, not a SweepSpec (mbn.experiments.sweep.specs.SweepSpec)"
         )
     return value
-
-
-def experiment_of_kind(kind: str) -> Experiment | None:
-    """The experiment whose runs record ``kind`` in their ``run.json`` (``mbn.reproduce``), or
-    None (how ``--reuse`` finds a source run's stages)."""
-    from mbn.experiments.registry import of_kind
-
-    return of_kind(kind)
