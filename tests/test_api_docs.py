@@ -46,3 +46,20 @@ def test_only_the_known_pdoc_bug_is_forgiven():
     # the same message for a class that is not a NamedTuple is a warning like any other
     assert not api_docs._is_namedtuple_bug(bug.replace("rollout.EpisodeStats", "config.Settings"))
     assert not api_docs._is_namedtuple_bug("Error parsing docstring of mbn.config")
+
+
+def test_a_file_left_open_elsewhere_is_not_a_pdoc_warning(tmp_path, monkeypatch):
+    import warnings
+
+    import pdoc
+
+    def build_with(category):
+        def fake_pdoc(*modules, output_directory):
+            warnings.warn("unclosed file <_io.TextIOWrapper>", ResourceWarning, stacklevel=1)
+            warnings.warn("a docstring pdoc cannot read", category, stacklevel=1)
+
+        monkeypatch.setattr(pdoc, "pdoc", fake_pdoc)
+        return _script().build(tmp_path)
+
+    assert build_with(UserWarning) == ["a docstring pdoc cannot read"]
+    assert build_with(ResourceWarning) == []
