@@ -1,11 +1,14 @@
 """Test configuration: float64 by default (tests that need float32 ask for it explicitly), and
 one persistent compilation cache for the session (``mbn.compile_cache``), fresh for each
-session and shared with the commands the tests start (they inherit ``MBN_COMPILE_CACHE``), so
-that a test compiles again only what no earlier test of the session compiled.
+session, for the commands the tests start (they inherit ``MBN_COMPILE_CACHE``): a command
+compiles again only what no earlier command of the session compiled. The test processes
+themselves do not write to it: each keeps what it compiled in memory, and writing every
+program to the disk cost them more than the few that another process could read back (the
+suite took 10 % longer with it, ``benchmarks/README.md``).
 
 The suite runs on every core (pytest-xdist, ``-n auto`` in ``pyproject.toml``; ``-n 0`` runs it
-in one process). The workers share the session's compilation cache, which the first process
-creates (the workers inherit its variable) and removes at the end.
+in one process). The first process creates the session's compilation cache (the workers and the
+commands inherit its variable) and removes it at the end.
 
 A run that several workers' tests read is made once per session: the session's quick
 reproduction (``quick_run``) starts in the background when the tests are collected
@@ -49,7 +52,6 @@ _CACHE = os.environ[_SESSION_CACHE]
 _EARLY = Path(os.environ[_SESSION_EARLY])
 os.environ[compile_cache.VARIABLE] = _CACHE
 os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
-compile_cache.enable()
 
 #: Runs the command after ``--`` with its output in LOG, then writes its exit status and
 #: seconds to DONE (atomically): the record outlives the process that started it.

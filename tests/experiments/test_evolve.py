@@ -117,6 +117,8 @@ def test_a_population_evaluated_in_parts_gets_the_same_values_with_any_number_of
     np.testing.assert_array_equal(one, np.asarray(fitness(population)))
 
 
+@pytest.mark.slow  # one program for many finalists is speed; a genome against its network:
+# test_crossroads.py, test_connection_search_fitness_equals_the_genome_fitness_for_every_triple
 def test_finalists_around_different_networks_share_one_compiled_fitness() -> None:
     """The crossroads' fitness takes the base network and the task's arrays as arguments: the
     genomes of two LF finalists around two RFs (other weights, other connections) run on one

@@ -206,7 +206,7 @@ def test_the_default_time_limit_serves_a_maze_of_long_corridors(quick_run, tmp_p
 def test_the_mbn_starts_in_its_one_colour_state(quick_run):
     """The pm stage records the state its PM latches after a one-colour tile and the rule the
     MBN drives by from there; the tests judge the MBN's junctions before its first tile by it,
-    and ``mbn evaluate`` defaults to it."""
+    and the controller file carries it."""
     out, _ = quick_run
     results = json.loads((out / "results.json").read_text())
     start = results["stages"]["pm"]["initial"]
@@ -220,6 +220,14 @@ def test_the_mbn_starts_in_its_one_colour_state(quick_run):
     loaded = load_controller(out / "controllers" / "mbn.json")
     assert loaded.initial_rule == start["rule"]
     assert results["stages"]["tests"]["protocol"]["mbn_initial"] == start["rule"]
+
+
+@pytest.mark.slow  # two whole evaluations in fresh processes
+def test_mbn_evaluate_starts_the_mbn_in_its_one_colour_state(quick_run):
+    """``mbn evaluate`` defaults to the state the controller file records."""
+    out, _ = quick_run
+    results = json.loads((out / "results.json").read_text())
+    start = results["stages"]["pm"]["initial"]
     # evaluating with the file's rule judges the junctions before the first tile too: at least
     # as many as judging only after it; where the PM latches RF's program (a trained PM: the
     # quick run's need not), not worse than judging only after the first tile

@@ -194,6 +194,7 @@ def straight(tmp_path_factory) -> Path:
     return path
 
 
+@pytest.mark.slow  # three whole evaluations; the twins' grids are compared cell by cell above
 def test_mbn_evaluate_gives_fig4_and_its_moved_twins_the_same_verdicts(tmp_path, capsys, straight):
     """fig4 itself, and centred on the origin as TOML (a grid of 1.2 m cells) and as a Stage
     world (framed by 0.5 m walls: a grid of two widths): the same trials, junction passes and
