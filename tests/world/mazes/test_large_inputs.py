@@ -53,6 +53,7 @@ def _peak(code: str) -> tuple[float, float]:
     return float(seconds), float(mb)
 
 
+@pytest.mark.slow  # a bound on time and memory; the refusals of large inputs stay in CI
 def test_a_1000_by_1000_maze_loads_in_seconds_and_under_1_gb(tmp_path):
     path = _grid_maze(tmp_path / "big.maze", 1000)
     seconds, mb = _peak(
