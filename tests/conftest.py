@@ -6,10 +6,9 @@ themselves do not write to it: each keeps what it compiled in memory, and writin
 program to the disk cost them more than the few that another process could read back (the
 suite took 10 % longer with it, ``benchmarks/README.md``).
 
-The suite runs on every core (pytest-xdist, ``-n auto`` in ``pyproject.toml``, one worker more
-than the cores: :func:`pytest_xdist_auto_num_workers`; ``-n 0`` runs it in one process). The
-first process creates the session's compilation cache (the workers and the commands inherit
-its variable) and removes it at the end.
+The suite runs on every core (pytest-xdist, ``-n auto`` in ``pyproject.toml``; ``-n 0`` runs it
+in one process). The first process creates the session's compilation cache (the workers and the
+commands inherit its variable) and removes it at the end.
 
 A run that several workers' tests read is made once per session: the session's quick
 reproduction (``quick_run``) starts in the background when the tests are collected
@@ -145,11 +144,20 @@ def once(tmp_path_factory, worker_id: str, name: str, build: Callable[[Path], An
         return value
 
 
-def pytest_xdist_auto_num_workers(config):
-    """``-n auto``: one worker more than the cores. Many tests wait on a command they started
-    (``mbn evaluate``, a quick run) or on the session's quick reproduction, and a third worker
-    uses that time: on 2 cores the suite took 4 % less (``benchmarks/README.md``)."""
-    return (os.cpu_count() or 1) + 1
+#: Fixtures that wait on the session's quick reproduction (:func:`start_early`).
+_WAITING = ("quick_run", "im_full_run")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The modules whose tests wait on the session's quick reproduction go last (their order
+    kept), so that the workers run the others while it runs instead of waiting on it: the
+    workers take whole modules in this order (``--dist loadscope``)."""
+
+    def module(item) -> str:
+        return getattr(getattr(item, "module", None), "__name__", "")
+
+    late = {module(i) for i in items if any(f in _WAITING for f in getattr(i, "fixturenames", ()))}
+    items.sort(key=lambda item: module(item) in late)
 
 
 def pytest_sessionfinish(session, exitstatus):
