@@ -122,6 +122,9 @@ def _without_code(content: bytes) -> dict:
     return data
 
 
+# slow: a kill mid-stage is in CI for the pipeline (test_reproduce.py, a quick run killed and
+# resumed) and an outside experiment's resume (test_registry.py, stopped between its stages)
+@pytest.mark.slow
 def test_an_outside_experiment_interrupted_and_resumed_gives_the_same_results(
     tmp_path, outside_ref
 ):
