@@ -106,6 +106,25 @@ def test_the_toy_stage_reads_its_settings_from_a_toml_file(tmp_path):
         run_experiment(experiment, tmp_path / "run", seed=0, config=other, resume=True)
 
 
+def test_an_experiment_sets_a_library_stages_defaults_under_the_quick_preset_and_the_file(
+    tmp_path,
+):
+    from dataclasses import replace
+
+    experiment = replace(
+        _experiment(ToyStage()), defaults={"toy": {"draws": 7}}, quick={"toy": {"draws": 2}}
+    )
+    assert experiment.config()["toy"].draws == 7
+    assert experiment.config(quick=True)["toy"].draws == 2
+    (tmp_path / "s.toml").write_text("[toy]\ndraws = 5\n")
+    assert experiment.config(quick=True, document=read_toml(tmp_path / "s.toml"))["toy"].draws == 5
+    assert _experiment(ToyStage()).config()["toy"].draws == 3  # the setting's own default
+    with pytest.raises(MbnInputError, match=r"toy: defaults: unknown section \[tiles\]"):
+        replace(experiment, defaults={"tiles": {"draws": 1}}).config()
+    with pytest.raises(MbnInputError, match=r"draws: must be >= 1, got 0"):
+        replace(experiment, defaults={"toy": {"draws": 0}}).config()
+
+
 class _Named(Stage):
     def __init__(self, name: str, key_id: int, needs: tuple[str, ...] = ()) -> None:
         self.name = name  # type: ignore[misc]

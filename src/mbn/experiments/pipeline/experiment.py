@@ -30,6 +30,9 @@ class Experiment:
         registry: its stages, in order.
         shared: settings classes shared by several stages (sections before the stages' own;
             :class:`RunSettings` comes first in every experiment).
+        defaults: the experiment's own defaults, ``section -> {setting: value}``, over the
+            settings' (a library stage's section set for this experiment: the rule a
+            ``programs`` stage learns); the quick preset and the file's values come over them.
         quick: the quick preset: ``section -> {setting: value}`` applied under the file's values.
         seeds: the seeds derived from the run's seed (for NumPy edges), recorded in results.
         results: extra entries of ``results.json`` from the stages' data (e.g. tests and claims).
@@ -40,6 +43,7 @@ class Experiment:
     kind: str
     registry: Registry
     shared: tuple[type[Settings], ...] = ()
+    defaults: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     quick: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     seeds: Callable[[int], dict[str, int]] = lambda seed: {"seed": seed}
     results: Results | None = None
@@ -50,10 +54,17 @@ class Experiment:
         return (RunSettings, *self.shared, *stages)
 
     def config(self, *, quick: bool = False, document: TomlDocument | None = None) -> RunConfig:
-        """The effective config: defaults, then the quick preset (when ``quick`` or the file's
+        """The effective config: the settings' defaults, then the experiment's
+        (:attr:`defaults`), then the quick preset (when ``quick`` or the file's
         ``[run] quick = true``), then the file's values. Unknown tables and keys, and bad
         values, are refused in one line naming the file, line and key."""
         types = {cls.section: cls for cls in self.section_types()}
+        for table in self.defaults:
+            if table not in types:
+                raise MbnInputError(
+                    f"{self.name}: defaults: unknown section [{table}] "
+                    f"(the sections of {self.name}: {', '.join(types)})"
+                )
         data = dict(document.data) if document is not None else {}
         for table in data:
             if table not in types:
@@ -67,6 +78,8 @@ class Experiment:
         sections = []
         for name, cls in types.items():
             current: Settings = cls()
+            if self.defaults.get(name):
+                current = from_mapping(cls, dict(self.defaults[name]), base=current)
             if use_quick:
                 preset = dict(self.quick.get(name, {}))
                 if name == "run":
