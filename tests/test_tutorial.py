@@ -104,7 +104,7 @@ def test_the_whole_tutorial_runs(tmp_path):
         done = _run(line, folder)
         assert done.returncode == 0, f"{line}\n{done.stdout}\n{done.stderr}"
     sweep = json.loads((folder / "runs" / "right-left-sweep" / "sweep.json").read_text())
-    assert sorted(run["seed"] for run in sweep["runs"]) == [0, 1]
-    assert all(run["state"] == "done" for run in sweep["runs"])
+    assert sorted(sweep["runs"]) == ["0", "1"]
+    assert all(run["state"] == "done" for run in sweep["runs"].values())
     results = json.loads((folder / "runs" / "right-left" / "results.json").read_text())
     assert "right-left" in results["config"]["programs"]["rules"]
