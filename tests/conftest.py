@@ -144,22 +144,6 @@ def once(tmp_path_factory, worker_id: str, name: str, build: Callable[[Path], An
         return value
 
 
-#: Fixtures that wait on the session's quick reproduction (:func:`start_early`).
-_WAITING = ("quick_run", "im_full_run")
-
-
-def pytest_collection_modifyitems(session, config, items):
-    """The modules whose tests wait on the session's quick reproduction go last (their order
-    kept), so that the workers run the others while it runs instead of waiting on it: the
-    workers take whole modules in this order (``--dist loadscope``)."""
-
-    def module(item) -> str:
-        return getattr(getattr(item, "module", None), "__name__", "")
-
-    late = {module(i) for i in items if any(f in _WAITING for f in getattr(i, "fixturenames", ()))}
-    items.sort(key=lambda item: module(item) in late)
-
-
 def pytest_sessionfinish(session, exitstatus):
     if _OWNER:
         for pid in _EARLY.glob("*/pid"):  # a command still running when the tests ended
