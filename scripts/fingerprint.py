@@ -15,7 +15,10 @@ stage library; the folders' names are the experiments' names.
 
 The code's identity is every ``"code"`` object that holds a ``package_sha256`` (``results.json``
 at its top, a controller file under ``provenance``); each is replaced by ``null`` before hashing.
-Everything else, the versions of the libraries included, is hashed as it was written.
+Everything else, the versions of the libraries included, is hashed as it was written: a record
+compares with runs made where it was made (the same library versions and operating system).
+Elsewhere, make the quick runs at the recording commit too (a git worktree, ``PYTHONPATH`` at
+its ``src``) and compare the two sets of runs with each other.
 """
 
 from __future__ import annotations
