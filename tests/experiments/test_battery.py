@@ -106,12 +106,26 @@ def test_each_stage_runs_alone_in_a_copy_of_its_run(made_run, tmp_path, experime
     for path in stage_checkpoints(rundir, stage, list(exp.registry.names)):
         path.unlink()
     data = run_stage(exp, rundir, stage, seed=manifest["seed"], config=config)
-    assert json.loads(json.dumps(data)) == before
+    assert json.loads(json.dumps(exp.registry[stage].to_json(data))) == before
     assert rundir.read_stage(stage) == before
     for rel, content in outputs.items():
         assert (folder / rel).exists(), rel
         if rel.startswith("controllers/"):
             assert _without_code((folder / rel).read_bytes()) == _without_code(content), rel
+
+
+@pytest.mark.parametrize(("experiment", "stage"), _cases())
+def test_each_stage_reads_its_data_back_as_it_wrote_it(made_run, experiment, stage):
+    """A stage's typed result (its ``result`` record) read from its file and written again
+    gives the file's JSON key for key, in the same order: the record declares every key the
+    stage writes, and nothing is lost on the way."""
+    source, ref = made_run(experiment)
+    spec = find(ref).load().registry[stage]
+    written = RunDir(source).read_stage(stage)
+    data = spec.from_json(written, f"{source}/stages/{stage}.json")
+    if spec.result is not None:
+        assert isinstance(data, spec.result)
+    assert json.dumps(spec.to_json(data)) == json.dumps(written)
 
 
 def _without_code(content: bytes) -> dict:

@@ -124,11 +124,12 @@ def effective_config(config_file: Path | None, quick: bool, retrain: bool = Fals
     from mbn.config import read_toml
     from mbn.experiments.pipeline.runner import replace_section
     from mbn.experiments.reproduce import REPRODUCE
+    from mbn.experiments.stages.multiplier import MultiplierSettings
 
     document = read_toml(config_file) if config_file is not None else None
     config = REPRODUCE.config(quick=quick, document=document)
     if retrain:
-        config = replace_section(config, config["multiplier"].replace(retrain=True))
+        config = replace_section(config, config.get(MultiplierSettings).replace(retrain=True))
     return config
 
 

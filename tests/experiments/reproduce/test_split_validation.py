@@ -14,6 +14,7 @@ from mbn.experiments.stages.common import (
     validation_record,
 )
 from mbn.experiments.stages.settings import EpisodeSettings, ValidationSettings
+from mbn.experiments.stages import tests as tests_stage
 from mbn.world.mazes import families
 from mbn.world.mazes.load import load_maze
 
@@ -27,8 +28,8 @@ class Ctx:
             self._sections["episodes"] = episodes
         self.seeds = {"validation_jitter": 4}
 
-    def section(self, name):
-        return self._sections[name]
+    def section(self, cls):
+        return self._sections[cls.section]
 
 
 def test_crossroad_runs_validate_in_the_named_mazes():
@@ -57,7 +58,7 @@ def test_maze_runs_validate_on_the_first_mazes_of_the_validation_split():
     trial = _validation_trial(ctx, "tiles", "right", mazes, three)
     assert trial.repeats == ValidationSettings().split_jitter_per_mark
     assert trial.tile_rules == three
-    assert trial.seconds >= ctx.section("tests").mbn_seconds
+    assert trial.seconds >= ctx.section(tests_stage.TestsSettings).mbn_seconds
 
 
 def _verdict(rates: list[int], trials: int = 20) -> dict[str, np.ndarray]:

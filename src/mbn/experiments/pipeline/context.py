@@ -6,12 +6,13 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mbn.config import Settings
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState
 from mbn.experiments.pipeline.progress import Progress
@@ -20,6 +21,12 @@ from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
 from mbn.host import put
 
 __all__ = ["DEResult", "DERun", "StageContext", "generation_stats"]
+
+S = TypeVar("S", bound=Settings)
+D = TypeVar("D")
+
+if TYPE_CHECKING:
+    from mbn.experiments.pipeline.registry import Stage
 
 
 @dataclass(frozen=True)
@@ -100,15 +107,28 @@ class StageContext:
         """This stage's settings (its section of the config)."""
         return self.config[self.name]
 
-    def section(self, name: str) -> Any:
-        """A section of the config (shared settings, or another stage's)."""
-        return self.config[name]
+    def section(self, cls: type[S]) -> S:
+        """A section of the config (shared settings, or another stage's) by its settings class:
+        ``ctx.section(DESettings)`` is the run's ``[de]``, typed."""
+        return self.config.get(cls)
 
-    def read(self, name: str) -> dict[str, Any]:
-        """The data of a stage this one needs."""
+    @overload
+    def read(self, stage: str) -> dict[str, Any]: ...
+
+    @overload
+    def read(self, stage: type[Stage[D]]) -> D: ...
+
+    def read(self, stage: str | type[Stage[Any]]) -> Any:
+        """The data of a stage this one needs: by its class, typed (``ctx.read(RFStage)``, its
+        :attr:`~mbn.experiments.pipeline.registry.Stage.result` record); by its name, the JSON
+        object of ``stages/NAME.json``."""
+        name = stage if isinstance(stage, str) else stage.name
         if name not in self.needs:
             raise RuntimeError(f"stage {self.name} reads {name!r} but does not declare it")
-        return self.rundir.read_stage(name)
+        data = self.rundir.read_stage(name)
+        if isinstance(stage, str):
+            return data
+        return stage.from_json(data, self.rundir.stage_file(name))
 
     def _resumable(self, name: str, config: DEConfig) -> Checkpoint | None:
         """The checkpoint of DE ``name`` if there is a usable one; an unreadable or foreign one

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from mbn.config import Settings, TomlDocument, setting, settings_to_dict, to_toml
 from mbn.precision import PRECISIONS, ROBOT
 
 __all__ = ["RunConfig", "RunSettings", "first_difference"]
+
+S = TypeVar("S", bound=Settings)
 
 
 @dataclass(frozen=True)
@@ -47,9 +49,21 @@ class RunConfig:
                 return s
         raise KeyError(name)
 
+    def get(self, cls: type[S]) -> S:
+        """The section of settings class ``cls``, typed (``config.get(RunSettings)``); a
+        ``KeyError`` naming the section when the run has none."""
+        for s in self.sections:
+            if s.section == cls.section:
+                if not isinstance(s, cls):
+                    raise TypeError(
+                        f"section [{cls.section}] holds a {type(s).__name__}, not a {cls.__name__}"
+                    )
+                return s
+        raise KeyError(cls.section)
+
     @property
     def quick(self) -> bool:
-        return bool(self["run"].quick)
+        return self.get(RunSettings).quick
 
     def where(self, section: str, key: str) -> str:
         """How an error names ``section.key``: with the settings file and line where the value

@@ -218,7 +218,7 @@ def run_stage(
     config: RunConfig,
     progress: Progress | None = None,
     workers: int = 1,
-) -> dict[str, Any]:
+) -> Any:
     """Run one stage against a run folder whose ``needs`` are done; writes ``stages/NAME.json``
     and returns the stage's data."""
     stage = experiment.registry[name]
@@ -229,12 +229,12 @@ def run_stage(
             f"{rundir.root}: stage {name} needs {', '.join(missing)}, which have not run there"
         )
     rundir.create()
-    with scope(config["run"].precision):
+    with scope(config.get(RunSettings).precision):
         ctx = _context(
             experiment, rundir, seed, config, stage, progress or Progress(), print, workers
         )
         data = stage.run(ctx)
-    rundir.write_stage(name, data)
+    rundir.write_stage(name, stage.to_json(data))
     return data
 
 
@@ -321,7 +321,7 @@ def run_experiment(
                 f"no stage {name!r} (the stages: {', '.join(experiment.registry.names)})"
             )
     # without bars (no terminal), plain lines through ``log`` while a stage runs long
-    with Progress(progress, lines=log) as bars, scope(config["run"].precision):
+    with Progress(progress, lines=log) as bars, scope(config.get(RunSettings).precision):
         overall = bars.task(f"mbn {experiment.name}", len(experiment.registry) + 1, quiet=True)
         ran: dict[str, Any] = {}
         for k, stage in enumerate(experiment.registry):
@@ -338,7 +338,7 @@ def run_experiment(
             bars.stage(stage.name)
             data = stage.run(_context(experiment, rundir, seed, config, stage, bars, log, workers))
             bars.stage(None)
-            rundir.write_stage(stage.name, data)
+            rundir.write_stage(stage.name, stage.to_json(data))
             timings[stage.name] = round(time.perf_counter() - t0, 2)
             steps[stage.name] = robot_steps() - n0
             rundir.write_timings(timings, steps)
@@ -355,7 +355,8 @@ def run_experiment(
             experiment.report(rundir)
         else:
             summaries = [
-                (s.name, s.summary(rundir.read_stage(s.name))) for s in experiment.registry
+                (s.name, s.summary(s.from_json(rundir.read_stage(s.name), s.name)))
+                for s in experiment.registry
             ]
             plain_report(
                 rundir.root,

@@ -29,8 +29,10 @@ from mbn.experiments.reproduce.claims import claims
 from mbn.experiments.reproduce.report import write_report
 from mbn.experiments.stages.compose import SHARED, controller_stages
 from mbn.experiments.stages.generalization import ReproduceGeneralization
+from mbn.experiments.stages.lf import LFStage
+from mbn.experiments.stages.multiplier import MultiplierStage
 from mbn.experiments.stages.settings import QUICK, derived_seeds
-from mbn.experiments.stages.tests import TestsStage
+from mbn.experiments.stages.tests import TestsSettings, TestsStage
 
 __all__ = ["REPRODUCE", "RUN_KIND", "STAGES"]
 
@@ -45,7 +47,15 @@ def _results(
     rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
 ) -> dict[str, Any]:
     """The tests and the claims table of ``results.json``."""
-    return {"tests": stages["tests"]["tests"], "claims": claims(stages, config["tests"])}
+    tested = TestsStage.from_json(stages[TestsStage.name])
+    table = claims(
+        MultiplierStage.from_json(stages[MultiplierStage.name]),
+        tested,
+        LFStage.from_json(stages[LFStage.name])["connections"],
+        stages.get(ReproduceGeneralization.name),
+        config.get(TestsSettings),
+    )
+    return {"tests": stages[TestsStage.name]["tests"], "claims": table}
 
 
 #: The experiment ``mbn reproduce`` runs.

@@ -11,8 +11,10 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.generalization import generalization_claims
-from mbn.experiments.stages.multiplier import GRID_POINTS
+from mbn.experiments.stages.multiplier import GRID_POINTS, MultiplierResult
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, WHO
+from mbn.experiments.stages.records import TrialSummary
+from mbn.experiments.stages.tests import TestsResult, TestsSettings
 from mbn.notation import connection_names
 
 __all__ = [
@@ -32,20 +34,25 @@ PAPER_MULTIPLIER_QUOTE = (
 )
 
 
-def _frac(t: dict[str, Any]) -> str:
-    return f"{t['successes']}/{t['trials']}"
+def _frac(t: TrialSummary) -> str:
+    return f"{t.successes}/{t.trials}"
 
 
-def _all(t: dict[str, Any]) -> bool:
-    return t["trials"] > 0 and t["successes"] == t["trials"]
+def _all(t: TrialSummary) -> bool:
+    return t.trials > 0 and t.successes == t.trials
 
 
-def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[str, Any]]:
-    """The claims table from the stages' results (``stages[name]`` as written by the run) and
-    the run's ``[tests]`` settings."""
-    tests = stages["tests"]["tests"]
-    agree = stages["tests"]["agreement"]
-    mul = stages["multiplier"]
+def claims(
+    mul: MultiplierResult,
+    tested: TestsResult,
+    lf_connections: list[str],
+    generalization: dict[str, Any] | None,
+    tests_settings: TestsSettings,
+) -> list[dict[str, Any]]:
+    """The claims table from the stages' results (the multiplier's, the tests', LF's
+    connections and the generalization stage's data, None where the run has none) and the
+    run's ``[tests]`` settings."""
+    tests, agree = tested.tests, tested.agreement
     out: list[dict[str, Any]] = []
 
     def add(claim: str, paper: str, measured: str, ok: bool, criterion: str) -> None:
@@ -59,7 +66,7 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
             }
         )
 
-    paper = mul.get("paper_claim")
+    paper = mul.paper_claim
     if paper is not None:  # runs before the row have no figures for it
         v, g, d = paper["validation"], paper["paper_grid"], paper["dense_grid"]
         add(
@@ -76,32 +83,31 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
             "every validation pair (100 uniform in (0, 1)^2, as the paper's) within 5 % of its "
             "target, none left out however small; the grid figures are shown, not judged",
         )
-    m = mul["metrics"]
+    m = mul.metrics
     add(
-        f"The multiplier the pipeline embeds ({mul['neurons']} neurons) multiplies its two "
+        f"The multiplier the pipeline embeds ({mul.neurons} neurons) multiplies its two "
         "inputs on [0, 1]^2 (section 2.1)",
-        f"3 neurons, within 5 % of the target (row above); this run uses {mul['neurons']}"
-        + (" (docs/reproduce.md, deviations)" if mul["neurons"] != 3 else ""),
-        f"{mul['neurons']}-neuron multiplier ({mul['source']}): max |error| "
+        f"3 neurons, within 5 % of the target (row above); this run uses {mul.neurons}"
+        + (" (docs/reproduce.md, deviations)" if mul.neurons != 3 else ""),
+        f"{mul.neurons}-neuron multiplier ({mul.source}): max |error| "
         f"{m['max_abs_error_grid']:.4f}, mean {m['mean_abs_error_grid']:.4f} on a "
         f"{m['grid_points_per_axis']} x {m['grid_points_per_axis']} grid; "
         f"{m['fraction_within_5pct']:.0%} of {m['num_validation_pairs']} random pairs within 5 %"
         + (
-            f"; relative error at most {mul['paper_grid']['max_rel_error']:.1%} on the paper's "
+            f"; relative error at most {mul.paper_grid['max_rel_error']:.1%} on the paper's "
             "10 x 10 grid"
-            if "paper_grid" in mul
+            if mul.paper_grid is not None
             else ""
         ),
         m["max_abs_error_grid"] <= MULTIPLIER_MAX_ERROR,
         f"max |error| on the grid <= {MULTIPLIER_MAX_ERROR}",
     )
-    lf = stages["lf"]
     rows = [
         ("rf", "DE evolves a right-wall follower (RF) on the crossroads (section 3.1)"),
         (
             "lf",
             "Re-evolving 3 connections of RF gives a left-wall follower (LF) (section 3.1; "
-            f"here {connection_names(lf['connections'])})",
+            f"here {connection_names(lf_connections)})",
         ),
         ("im_rf", "The interpreter (IM) with the RF program behaves as RF (section 3.2)"),
         ("im_lf", "The interpreter (IM) with the LF program behaves as LF (section 3.2)"),
@@ -122,11 +128,11 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
             "all trials succeed",
         )
     for suffix, what in (
-        ("_jitter", f"{tests['rf_jitter']['trials']} jittered starts"),
+        ("_jitter", f"{tests['rf_jitter'].trials} jittered starts"),
         ("_heldout", "the held-out maze"),
     ):
-        parts = [f"{WHO[n]} {tests[n + suffix]['success_rate']:.1%}" for n, _ in rows]
-        ok = all(tests[n + suffix]["success_rate"] >= ROBUST_TARGET for n, _ in rows)
+        parts = [f"{WHO[n]} {tests[n + suffix].success_rate:.1%}" for n, _ in rows]
+        ok = all(tests[n + suffix].success_rate >= ROBUST_TARGET for n, _ in rows)
         add(
             f"The five behaviours hold from {what}",
             "not tested in the paper",
@@ -140,9 +146,9 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
             f"The interpreter with the {net} program takes the same branches as {net} "
             "(it emulates it, section 2)",
             "the interpreter behaves as the network whose program it is given",
-            f"same branches at every judged junction in {a['same_branches']}/{a['trials']} "
-            f"jittered trials ({a['rate']:.1%})",
-            a["rate"] >= AGREEMENT_TARGET,
+            f"same branches at every judged junction in {a.same_branches}/{a.trials} "
+            f"jittered trials ({a.rate:.1%})",
+            a.rate >= AGREEMENT_TARGET,
             f"agreement >= {AGREEMENT_TARGET:.0%}",
         )
     for name, rule in (("published_rf", "right"), ("published_lf", "left")):
@@ -150,11 +156,11 @@ def claims(stages: dict[str, dict[str, Any]], tests_settings: Any) -> list[dict[
         add(
             f"The published weights ({WHO[name]}) are a {rule}-wall follower",
             "the networks of the paper's tests (success in all trials)",
-            f"{_frac(t)} (paper protocol), {tests[name + '_jitter']['success_rate']:.1%} "
-            f"jittered, {tests[name + '_heldout']['success_rate']:.1%} held-out",
+            f"{_frac(t)} (paper protocol), {tests[name + '_jitter'].success_rate:.1%} "
+            f"jittered, {tests[name + '_heldout'].success_rate:.1%} held-out",
             _all(t),
             "all trials succeed",
         )
-    for row in generalization_claims(stages.get("generalization")):
+    for row in generalization_claims(generalization):
         add(row["claim"], row["paper"], row["measured"], row["pass"], row["target"])
     return out

@@ -31,6 +31,8 @@ from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import test_specs
+from mbn.experiments.stages.settings import InterpreterSettings
+from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.experiments.trials import agreement as same_exits
 from mbn.networks.ctrnn import CTRNN, euler_steps, firing_rate
@@ -180,7 +182,7 @@ class AblationsStage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: AblationsSettings = ctx.settings
-        tests = ctx.section("tests")
+        tests = ctx.section(TestsSettings)
         mazes = [load_maze(tests.maze), load_maze(tests.heldout_maze)]
         ctl = ctx.rundir.controller_file
         rf_spec, lf_spec = read_controller_spec(ctl("rf")), read_controller_spec(ctl("lf"))
@@ -225,7 +227,7 @@ class AblationsStage(Stage):
             return verdicts
 
         initial = mbn.initial.rule if mbn.initial is not None else None
-        run_ratio = ctx.section("interpreter").tau_ratio
+        run_ratio = ctx.section(InterpreterSettings).tau_ratio
         run_multiplier = load_multiplier(ctl("multiplier"))
         ratios: dict[str, float] = {"as_run": run_ratio}
         nets = run(

@@ -30,6 +30,14 @@ from mbn.experiments.evolve import (
 )
 from mbn.experiments.maze_task import MazeTask
 from mbn.experiments.pipeline import StageContext
+from mbn.experiments.pipeline.results import Record
+from mbn.experiments.stages.settings import (
+    DESettings,
+    EpisodeSettings,
+    FollowerSettings,
+    InterpreterSettings,
+    ValidationSettings,
+)
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import Multiplier
 from mbn.networks.programmable import Interpreter, build_interpreter, differing_connections
@@ -77,7 +85,7 @@ def run_noise(ctx: StageContext) -> NoiseConfig:
     """The noise the run evolves, validates and tests its controllers under (the ``[noise]``
     section; off, as in an experiment without one, by default: ``docs/noise.md``)."""
     try:
-        noise = ctx.section("noise")
+        noise = ctx.section(NoiseConfig)
     except KeyError:
         return NoiseConfig()
     assert isinstance(noise, NoiseConfig)
@@ -92,7 +100,7 @@ def noise_key(ctx: StageContext, fold: int) -> jax.Array | None:
 def de_config(ctx: StageContext, dims: int, bound: float, init: float | None = None) -> DEConfig:
     """DE/best/1/bin with the run's ``[de]`` settings, genes in ``[-bound, bound]`` and the first
     generation drawn in ``[-init, init]`` (default: the bound)."""
-    de = ctx.section("de")
+    de = ctx.section(DESettings)
     init = bound if init is None else init
     return DEConfig(
         num_dims=dims,
@@ -115,7 +123,7 @@ def task(
     return CrossroadTask(
         rule=rule,
         variants=variants,
-        seconds=ctx.section("followers").episode_seconds,
+        seconds=ctx.section(FollowerSettings).episode_seconds,
         seed=ctx.seeds["crossroad_jitter"],
         approaches=approaches,
         noise=run_noise(ctx),
@@ -139,7 +147,7 @@ def training_task(
     ``draw`` of episodes in mazes of a family's train split (a :class:`MazeTask` seeded by the
     run's ``crossroad_jitter`` seed, under the run's noise; ``starts`` start marks of each maze,
     default ``[episodes] starts``)."""
-    episodes = ctx.section("episodes")
+    episodes = ctx.section(EpisodeSettings)
     if episodes.kind == "crossroads":
         return task(ctx, rule, variants, approaches)
     return MazeTask(
@@ -171,7 +179,7 @@ def training_fitness(
     first = training_task(ctx, rule, variants, approaches, starts=starts)
     if not isinstance(first, MazeTask):
         return make(first)
-    return Redrawn(lambda d: make(first.redrawn(d)), ctx.section("episodes").redraw)
+    return Redrawn(lambda d: make(first.redrawn(d)), ctx.section(EpisodeSettings).redraw)
 
 
 def score(
@@ -200,7 +208,7 @@ def stage_perturbations(
 ) -> jax.Array:
     """The stage's fixed weight perturbations (its key folded with :data:`PERTURBATION_KEY`);
     ``copies`` and ``sigma`` default to the followers'."""
-    followers = ctx.section("followers")
+    followers = ctx.section(FollowerSettings)
     key = jax.random.fold_in(ctx.key, PERTURBATION_KEY)
     copies = followers.perturbation_copies if copies is None else copies
     sigma = followers.perturbation_sigma if sigma is None else sigma
@@ -223,7 +231,7 @@ def interpreter_of(
     (their two values the bounds, paper eq. 2), RF's and LF's programs, run as the
     ``[interpreter]`` settings say: the ``im`` stage's controller, and the one the LF stage
     checks each candidate with."""
-    s = ctx.section("interpreter")
+    s = ctx.section(InterpreterSettings)
     interp = build_interpreter(
         rf, differing_connections(rf, lf, margin=0.0), multiplier, tau_ratio=s.tau_ratio
     )
@@ -272,7 +280,7 @@ def evolve_follower(
     it)."""
     name = name or ctx.name
     key = ctx.key if key is None else key
-    followers = ctx.section("followers")
+    followers = ctx.section(FollowerSettings)
     perturbed = stage_perturbations(ctx, genome.size)
     fitness = training_fitness(
         ctx,
@@ -281,7 +289,7 @@ def evolve_follower(
         lambda t: robust_fitness(crossroad_fitness(genome, t), perturbed),
         approaches,
     )
-    extra = ctx.section("validation").attempts - 1 if validated else 0
+    extra = ctx.section(ValidationSettings).attempts - 1 if validated else 0
     runs: list[dict[str, Any]] = []
     r = 0
     while r < restarts + extra:
@@ -340,9 +348,13 @@ def evolve_follower(
     }
 
 
-def restart_rank(run: dict[str, Any], index: int) -> tuple[Any, ...]:
+def restart_rank(run: dict[str, Any] | Record, index: int) -> tuple[Any, ...]:
     """The key restarts are ranked by (the highest first): those that met the validation target
-    by their fitness, before the others by their success there; the first of equals."""
+    by their fitness, before the others by their success there; the first of equals. ``run``:
+    its record (:class:`~mbn.experiments.stages.records.Restart`, or the stage's result when
+    it kept its only one), or the same as JSON."""
+    if isinstance(run, Record):
+        run = run.to_json()
     v = run.get("validation")
     head = (v["meets_target"], 0.0 if v["meets_target"] else v["success_rate"]) if v else ()
     return (*head, run["best_fitness"], -index)
@@ -394,11 +406,11 @@ def validate(
     return validation_record(ctx, validation_verdict(ctx, spec, behavior, program, extra=extra))
 
 
-def maze_episodes(ctx: StageContext) -> Any:
+def maze_episodes(ctx: StageContext) -> EpisodeSettings | None:
     """The run's ``[episodes]`` settings when its stages select on maze episodes (``kind =
     "maze"``), else None (the paper's crossroads, or an experiment without the section)."""
     try:
-        episodes = ctx.section("episodes")
+        episodes = ctx.section(EpisodeSettings)
     except KeyError:
         return None
     return episodes if episodes.kind == "maze" else None
@@ -414,10 +426,11 @@ def _validation_trial(
     """The trials of the validation mazes: every mark, ``jitter_per_mark`` starts each (on maze
     episodes ``split_jitter_per_mark``; the run's ``validation_jitter`` seed), the tests' time
     limits (on maze episodes, at least the longest of the mazes' own)."""
+    from mbn.experiments.stages.tests import TestsSettings  # tests.py imports this module
     from mbn.experiments.trials import TrialSpec, route_seconds
 
-    t = ctx.section("tests")
-    v = ctx.section("validation")
+    t = ctx.section(TestsSettings)
+    v = ctx.section(ValidationSettings)
     maze_kind = maze_episodes(ctx) is not None
     spec = TrialSpec(
         behavior=behavior,
@@ -461,7 +474,7 @@ def validation_maze_names(
     and ``extra_mazes``; then a stage's own ``extra``."""
     from mbn.world.mazes import families
 
-    v = ctx.section("validation")
+    v = ctx.section(ValidationSettings)
     episodes = maze_episodes(ctx)
     if episodes is None:
         return [v.maze, *v.extra_mazes, *extra]
@@ -566,7 +579,7 @@ def validation_record(ctx: StageContext, verdict: dict[str, np.ndarray]) -> dict
     when the pooled rate and ``maze_share`` of the mazes reach it."""
     from mbn.experiments.trials import summary
 
-    v = ctx.section("validation")
+    v = ctx.section(ValidationSettings)
     out = summary(verdict)
     record = {
         "trials": out["trials"],

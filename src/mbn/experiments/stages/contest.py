@@ -59,6 +59,7 @@ from mbn.experiments.stages.common import (
     stage_perturbations,
     task,
 )
+from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.programs import (
     check_digest,
@@ -67,7 +68,9 @@ from mbn.experiments.stages.programs import (
     program_network,
 )
 from mbn.experiments.stages.protocol import SUFFIXES
-from mbn.experiments.stages.tests3 import trial_specs
+from mbn.experiments.stages.settings import DESettings, FollowerSettings
+from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.tests3 import Tests3Settings, trial_specs
 from mbn.experiments.trials import (
     TrialGroup,
     agreement,
@@ -219,8 +222,8 @@ def _contender(
     variants: int,
 ) -> Contender:
     s: ContestSettings = ctx.settings
-    de = ctx.section("de")
-    bound = ctx.section("followers").weight_bound
+    de = ctx.section(DESettings)
+    bound = ctx.section(FollowerSettings).weight_bound
     interp = spec.interpreter
 
     def as_network(network: Callable[[Any], CTRNN]) -> Callable[[Any], Any]:
@@ -298,7 +301,7 @@ def check(ctx: StageContext, maze: Any, specs: dict[str, Any], loaded: Any) -> d
     if marks["successes"] < marks["trials"]:
         return {"marks": [marks["successes"], marks["trials"]], "jitter": None, "success": False}
     jitter = trials(specs["_jitter"])
-    ok = jitter["success_rate"] >= ctx.section("contest").jitter_target
+    ok = jitter["success_rate"] >= ctx.section(ContestSettings).jitter_target
     return {
         "marks": [marks["successes"], marks["trials"]],
         "jitter": [jitter["successes"], jitter["trials"]],
@@ -354,7 +357,7 @@ def contend(
     generations, each check logged atomically (``checkpoints/NAME.checks.json``) so that a run
     resumes to the same data; it stops at the first successful check where ``[contest]
     stop_when_solved``. Returns the checks and DE's final result."""
-    s: ContestSettings = ctx.section("contest")
+    s: ContestSettings = ctx.section(ContestSettings)
     popsize = c.config.popsize
     marks = sorted({0, *range(0, s.generations + 1, s.check_every), s.generations})
     log = ctx.rundir.checkpoint_file(name).with_suffix(".checks.json")
@@ -412,12 +415,12 @@ class ContestStage(Stage):
         if not isinstance(spec, InterpreterControllerSpec):
             raise MbnInputError(f"{ctx.rundir.controller_file('im_full')}: not an interpreter")
         interp = spec.interpreter
-        digest = ctx.read("im_full")["sha256"]
+        digest = ctx.read(IMFullStage).sha256
         check_digest(interp, digest, "contest")
         rf = read_network(ctx, "rf")
-        tests3 = ctx.section("tests3")
+        tests3 = ctx.section(Tests3Settings)
         maze, heldout = load_maze(tests3.maze), load_maze(tests3.heldout_maze)
-        popsize = ctx.section("de").popsize
+        popsize = ctx.section(DESettings).popsize
         budget = popsize * (s.generations + 1)
         runs: dict[str, dict[str, Any]] = {}
         tests: dict[str, Any] = {}
@@ -425,7 +428,7 @@ class ContestStage(Stage):
         details: dict[str, Any] = {}
         for r, rule_text in enumerate(s.rules):
             rule = parse_rule(rule_text).name
-            specs = trial_specs(rule, ctx.section("tests"), ctx)
+            specs = trial_specs(rule, ctx.section(TestsSettings), ctx)
             runs[rule] = {}
             trajectories: dict[str, Any] = {}
             for c_index, who in enumerate(CONTENDERS):

@@ -64,6 +64,7 @@ from mbn.experiments.stages.contest import (
     contend,
     final_tests,
 )
+from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.mbn3 import code_mbn, evolve_code_pm
 from mbn.experiments.stages.monolithic import MonolithicGenome, monolithic_fitness
@@ -73,7 +74,9 @@ from mbn.experiments.stages.programs import (
     program_fitness,
     program_network,
 )
-from mbn.experiments.stages.tests3 import trial_specs
+from mbn.experiments.stages.settings import DESettings, FollowerSettings
+from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.tests3 import Tests3Settings, trial_specs
 from mbn.experiments.trials import summary
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import CROSSROAD_KINDS
@@ -180,26 +183,26 @@ class Contest3Stage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: Contest3Settings = ctx.settings
-        contest: ContestSettings = ctx.section("contest")
+        contest: ContestSettings = ctx.section(ContestSettings)
         path = ctx.rundir.controller_file("im_full")
         spec = read_controller_spec(path)
         if not isinstance(spec, InterpreterControllerSpec):
             raise MbnInputError(f"{path}: not an interpreter")
         interp = spec.interpreter
-        digest = ctx.read("im_full")["sha256"]
+        digest = ctx.read(IMFullStage).sha256
         check_digest(interp, digest, "contest3")
         rf = read_network(ctx, "rf")
         rules = tuple(parse_rule(r).name for r in s.tile_rules)
         new_rule = rules[2]
-        tests3 = ctx.section("tests3")
+        tests3 = ctx.section(Tests3Settings)
         maze, heldout = load_maze(tests3.maze), load_maze(tests3.heldout_maze)
-        popsize = ctx.section("de").popsize
+        popsize = ctx.section(DESettings).popsize
         budget = popsize * (contest.generations + 1)
         camera = CameraConfig(range=s.camera_range)
         # judged as tests3 judges the three-behaviour MBN: before the first tile, the first
         # tile kind's rule (an MBN starts as RF)
-        specs = trial_specs("tiles", ctx.section("tests"), ctx, rules[0], rules)
-        copies = 1 + ctx.section("followers").perturbation_copies  # a genome and its copies
+        specs = trial_specs("tiles", ctx.section(TestsSettings), ctx, rules[0], rules)
+        copies = 1 + ctx.section(FollowerSettings).perturbation_copies  # a genome and its copies
         meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed}
         pm = None
         if "programs" in s.contenders:
@@ -253,7 +256,7 @@ class Contest3Stage(Stage):
                     dataclasses.replace(task(ctx, r, contest.variants), tile=k + 1)
                     for k, r in enumerate(rules)
                 ]
-                bound = ctx.section("followers").weight_bound
+                bound = ctx.section(FollowerSettings).weight_bound
                 c = Contender(
                     de_config(ctx, genome.size, bound),
                     robust_fitness(

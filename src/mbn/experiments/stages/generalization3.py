@@ -8,6 +8,7 @@ from __future__ import annotations
 from mbn.experiments.pipeline import StageContext
 from mbn.experiments.stages.generalization import GeneralizationStage, Judged
 from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.programs import ProgramsSettings
 from mbn.world.rules import parse_rule
 
 __all__ = ["BehavioursGeneralization"]
@@ -22,7 +23,7 @@ class BehavioursGeneralization(GeneralizationStage):
     needs = ("programs", "mbn3")
 
     def controllers(self, ctx: StageContext) -> tuple[Judged, ...]:
-        rules = [parse_rule(r).name for r in ctx.section("programs").rules]
+        rules = [parse_rule(r).name for r in ctx.section(ProgramsSettings).rules]
         return (
             *(Judged(r.replace("-", "_"), "im_full_programs", r, r) for r in rules),
             Judged("mbn3", "mbn3", "tiles"),

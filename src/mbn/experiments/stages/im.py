@@ -11,6 +11,8 @@ from mbn.controllers import save_controller
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.stages.common import MADE_BY, interpreter_of, read_network
 from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.multiplier import MultiplierStage
+from mbn.experiments.stages.settings import InterpreterSettings
 from mbn.networks.multiplier import load_multiplier
 from mbn.notation import connection_name, connection_names
 
@@ -38,8 +40,8 @@ class IMStage(Stage):
             "upper": np.asarray(interp.upper, dtype=float).tolist(),
             "programs": programs,
             "neurons": int(interp.num_neurons),
-            "multiplier_neurons": ctx.read("multiplier")["neurons"],
-            "tau_ratio": ctx.section("interpreter").tau_ratio,
+            "multiplier_neurons": ctx.read(MultiplierStage).neurons,
+            "tau_ratio": ctx.section(InterpreterSettings).tau_ratio,
             "substeps": spec.substeps,
         }
 

@@ -23,9 +23,11 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import MADE_BY, read_network, rf_lf_programs
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, SUFFIXES, test_specs
+from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import agreement, run_loaded_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.multiplier import load_multiplier
@@ -39,7 +41,7 @@ from mbn.networks.programmable import (
 from mbn.notation import connection_name
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["FULL_CONNECTIONS", "IMFullSettings", "IMFullStage", "nested_sets"]
+__all__ = ["FULL_CONNECTIONS", "IMFullResult", "IMFullSettings", "IMFullStage", "nested_sets"]
 
 #: The follower genome (W 3 x 3, WE on the diagonal) and the turning neuron's two other inputs
 #: (the LF search's candidates reach them), 0-based.
@@ -146,16 +148,43 @@ def _spec(
     )
 
 
-class IMFullStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class IMFullResult(Record):
+    """What the ``im_full`` stage records (``stages/im_full.json``): the interpreter's
+    connections and sizes, its time constants and step, its digest (which the stages that
+    search its programs check), RF's and LF's programs, its tests and agreements with RF and
+    LF (``im_full_rf``, ``im_full_rf_jitter``, ...), and the agreement curve over nested
+    connection sets with the largest set that meets the targets (None when none does or the
+    curve was not drawn)."""
+
+    connections: list[str]
+    connections_paper_notation: list[str]
+    bound: float
+    neurons: int
+    multiplier_neurons: int
+    tau_ratio: float
+    multiplier_tau: float
+    substeps: int
+    step: float
+    sha256: str
+    programs: dict[str, list[float]]
+    tests: dict[str, dict[str, Any]]
+    agreement: dict[str, dict[str, Any]]
+    curve: list[dict[str, Any]]
+    largest_set_meeting_targets: int | None
+
+
+class IMFullStage(Stage[IMFullResult]):
     name = "im_full"
     key_id = KEYS["im_full"]
     outputs = ("controllers/im_full.json",)
     needs = ("multiplier", "rf", "lf")
     settings = IMFullSettings
+    result = IMFullResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> IMFullResult:
         s: IMFullSettings = ctx.settings
-        t = ctx.section("tests")
+        t = ctx.section(TestsSettings)
         rf, lf = read_network(ctx, "rf"), read_network(ctx, "lf")
         mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
         conns = [Connection.parse(c) for c in s.connections]
@@ -229,28 +258,28 @@ class IMFullStage(Stage):
             )
 
         largest = max((len(r["connections"]) for r in curve if holds(r)), default=None)
-        return {
-            "connections": [str(c) for c in interp.connections],
-            "connections_paper_notation": [connection_name(c) for c in interp.connections],
-            "bound": s.bound,
-            "neurons": int(interp.num_neurons),
-            "multiplier_neurons": int(interp.mul_size),
-            "tau_ratio": s.tau_ratio,
-            "multiplier_tau": float(s.tau_ratio * float(np.asarray(rf.tau).reshape(-1)[0])),
-            "substeps": s.substeps,
-            "step": 0.1 / s.substeps,
-            "sha256": interp.digest(),
-            "programs": spec.programs,
-            "tests": tests,
-            "agreement": agree,
-            "curve": curve,
-            "largest_set_meeting_targets": largest,
-        }
+        return IMFullResult(
+            connections=[str(c) for c in interp.connections],
+            connections_paper_notation=[connection_name(c) for c in interp.connections],
+            bound=s.bound,
+            neurons=int(interp.num_neurons),
+            multiplier_neurons=int(interp.mul_size),
+            tau_ratio=s.tau_ratio,
+            multiplier_tau=float(s.tau_ratio * float(np.asarray(rf.tau).reshape(-1)[0])),
+            substeps=s.substeps,
+            step=0.1 / s.substeps,
+            sha256=interp.digest(),
+            programs={r: list(p) for r, p in spec.programs.items()},
+            tests=tests,
+            agreement=agree,
+            curve=curve,
+            largest_set_meeting_targets=largest,
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
-        t, a = data["tests"], data["agreement"]
+    def summary(self, data: IMFullResult) -> str:
+        t, a = data.tests, data.agreement
         return (
-            f"{len(data['connections'])} programmable, {data['neurons']} neurons; LF's program "
+            f"{len(data.connections)} programmable, {data.neurons} neurons; LF's program "
             f"{t['im_full_lf_jitter']['success_rate']:.1%} jittered, agreement "
             f"{a['im_full_lf_jitter']['rate']:.1%} (RF's {a['im_full_rf_jitter']['rate']:.1%})"
         )

@@ -36,10 +36,13 @@ from mbn.experiments.stages.common import (
 )
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf_search import (
+    LFSearchStage,
     search_checkpoint,
     search_triples,
 )
-from mbn.experiments.stages.rf import evolution_summary
+from mbn.experiments.stages.records import Restart, Validation
+from mbn.experiments.stages.rf import RFResult, RFSettings, RFStage, evolution_summary
+from mbn.experiments.stages.settings import ValidationSettings
 from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection
@@ -59,6 +62,12 @@ ATTEMPT_KEY = 100
 RF_SEARCH_KEY = 1000
 #: Folded (plus the restart's number) into the stage's key for a fresh RF evolved by this stage.
 NEW_RF_KEY = 2000
+
+
+def _meets_target(validation: Validation | None) -> bool:
+    """A restart without a validation record (a run from before it was made) counts as
+    meeting the target."""
+    return validation is None or validation.meets_target
 
 
 def _restart_checkpoint(restart: int) -> Callable[[int], str]:
@@ -176,26 +185,26 @@ class LFStage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: LFSettings = ctx.settings
-        search = ctx.read("lf_search")
-        rf_data = ctx.read("rf")
+        search = ctx.read(LFSearchStage)
+        rf_data = ctx.read(RFStage)
         mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
         # The RF candidates: the rf stage's restarts, the one it kept first, then the others
         # that met the validation target, by its own ranking. A restart's triples are searched
         # only when a round needs them.
-        kept = int(rf_data.get("chosen_restart", 0))
-        restarts = rf_data.get("restarts") or [rf_data]
+        kept = rf_data.chosen_restart or 0
+        restarts: list[Restart] | list[RFResult] = rf_data.restarts or [rf_data]
         others = [
             r
             for r in sorted(
                 range(len(restarts)), key=lambda i: restart_rank(restarts[i], i), reverse=True
             )
-            if r != kept and restarts[r].get("validation", {}).get("meets_target", True)
+            if r != kept and _meets_target(restarts[r].validation)
         ]
         # the RFs from the rf stage's record, not controllers/rf.json, which this stage may
         # have rewritten before an interruption
-        rfs = {kept: Genome().network(jnp.asarray(restarts[kept]["best_genome"]))}
+        rfs = {kept: Genome().network(jnp.asarray(restarts[kept].best_genome))}
         searched: dict[int, tuple[list[dict[str, Any]], Callable[[int], str]]] = {
-            kept: (search["triples"], search_checkpoint)
+            kept: (search.triples, search_checkpoint)
         }
         used: set[tuple[int, int]] = set()
         candidates: list[dict[str, Any]] = []
@@ -218,13 +227,13 @@ class LFStage(Stage):
         for a in range(s.rounds):
             if a == 0:
                 # the search's choice first, then its next best triples
-                first = (kept, int(search["chosen_index"]))
-                pool = [(kept, t) for t in range(len(search["triples"]))]
+                first = (kept, search.chosen_index)
+                pool = [(kept, t) for t in range(len(search.triples))]
                 chosen_pairs = [first] + [c for c in by_search(pool) if c != first]
                 chosen_pairs = chosen_pairs[: s.finalists]
             elif a == 1 and others:
                 r = others[0]
-                net = Genome().network(jnp.asarray(restarts[r]["best_genome"]))
+                net = Genome().network(jnp.asarray(restarts[r].best_genome))
                 chosen_pairs = search_rf(r, net)
             else:
                 # a fresh RF: evolved as the rf stage evolves its restarts, validated, searched
@@ -275,7 +284,7 @@ class LFStage(Stage):
             # The LF was built on another RF: that RF is the run's (the interpreter, the
             # program module and the tests read controllers/rf.json).
             rf = rfs[best["rf_restart"]]
-            rf_settings = ctx.section("rf")
+            rf_settings = ctx.section(RFSettings)
             scored = score(ctx, rf, "right", rf_settings.variants)
             save_follower(ctx, "rf", rf, "right", [str(c) for c in Genome().connections], scored)
         data["rf_restart"] = best["rf_restart"]
@@ -300,7 +309,7 @@ class LFStage(Stage):
     def _new_rf(self, ctx: StageContext, restart: int) -> dict[str, Any]:
         """Another RF, evolved and validated as the rf stage's restarts are (checkpoint
         ``lf_rfR``, key ``fold_in(lf key, NEW_RF_KEY + R)``): its record, with ``network``."""
-        rf_settings = ctx.section("rf")
+        rf_settings = ctx.section(RFSettings)
         data = evolve_follower(
             ctx,
             Genome(),
@@ -421,7 +430,7 @@ class LFStage(Stage):
         # the interpreter is built with this LF's connections and ranges: RF's program must
         # still drive as RF (the next stages run both)
         emulated_rf = validation_verdict(ctx, im, "right", "right")
-        target = ctx.section("validation").agreement
+        target = ctx.section(ValidationSettings).agreement
 
         def agree(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, Any]:
             same = agreement(a, b)

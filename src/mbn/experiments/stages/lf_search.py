@@ -25,6 +25,7 @@ from mbn.experiments.evolve import (
 )
 from mbn.experiments.named import follower_connections
 from mbn.experiments.pipeline import DERun, Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import (
     SCORING_DRAW,
     de_config,
@@ -35,12 +36,15 @@ from mbn.experiments.stages.common import (
     training_task,
 )
 from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.records import Perturbation
+from mbn.experiments.stages.settings import FollowerSettings
 from mbn.host import put
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name, connection_names
 
 __all__ = [
     "TURNING_CANDIDATES",
+    "LFSearchResult",
     "LFSearchSettings",
     "LFSearchStage",
     "best_triple",
@@ -103,9 +107,11 @@ def search_triples(
     the last, only the better half goes on), each final population scored again with perturbed
     copies on the crossroads entered round a corner too: a row per triple with the generations
     it was evolved, its best plain and best robust genome and fitness."""
-    s: LFSearchSettings = ctx.section("lf_search")
-    followers = ctx.section("followers")
-    approaches = ctx.section("lf").approaches
+    s: LFSearchSettings = ctx.section(LFSearchSettings)
+    followers = ctx.section(FollowerSettings)
+    from mbn.experiments.stages.lf import LFSettings  # lf.py imports this module
+
+    approaches = ctx.section(LFSettings).approaches
     cands = [Connection.parse(c) for c in s.candidates]
     triples = list(itertools.combinations(cands, 3))
     # on maze episodes the search runs fewer starts of each maze, as on the crossroads it runs
@@ -180,30 +186,49 @@ def best_triple(rows: list[dict[str, Any]]) -> int:
     return max(range(len(rows)), key=lambda i: (rows[i]["robust_fitness"], -i))
 
 
-class LFSearchStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class LFSearchResult(Record):
+    """What the ``lf_search`` stage records (``stages/lf_search.json``): every triple's row
+    (:func:`search_triples`: its connections, DE fitness and genome, robust fitness and
+    genome), the chosen triple (by index, connections and the paper's notation), the search's
+    budget, the robust fitness's perturbations and the approaches it was chosen from."""
+
+    triples: list[dict[str, Any]]
+    chosen: list[str]
+    chosen_index: int
+    chosen_paper_notation: list[str]
+    generations: int
+    episodes: int
+    noise: Perturbation
+    choice_approaches: list[str]
+
+
+class LFSearchStage(Stage[LFSearchResult]):
     name = "lf_search"
     key_id = KEYS["lf_search"]
     needs = ("rf",)
     settings = LFSearchSettings
+    result = LFSearchResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> LFSearchResult:
+        from mbn.experiments.stages.lf import LFSettings  # lf.py imports this module
+
         s: LFSearchSettings = ctx.settings
-        followers = ctx.section("followers")
+        followers = ctx.section(FollowerSettings)
         rows = search_triples(ctx, read_network(ctx, "rf"), ctx.key, search_checkpoint)
         best = best_triple(rows)
-        return {
-            "triples": rows,
-            "chosen": rows[best]["connections"],
-            "chosen_index": best,
-            "chosen_paper_notation": [connection_name(c) for c in rows[best]["connections"]],
-            "generations": s.generations,
-            "episodes": s.variants * 7,
-            "noise": {
-                "copies": followers.perturbation_copies,
-                "sigma": followers.perturbation_sigma,
-            },
-            "choice_approaches": list(ctx.section("lf").approaches),
-        }
+        return LFSearchResult(
+            triples=rows,
+            chosen=rows[best]["connections"],
+            chosen_index=best,
+            chosen_paper_notation=[connection_name(c) for c in rows[best]["connections"]],
+            generations=s.generations,
+            episodes=s.variants * 7,
+            noise=Perturbation(
+                copies=followers.perturbation_copies, sigma=followers.perturbation_sigma
+            ),
+            choice_approaches=list(ctx.section(LFSettings).approaches),
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
-        return f"chose {connection_names(data['chosen'])}"
+    def summary(self, data: LFSearchResult) -> str:
+        return f"chose {connection_names(data.chosen)}"

@@ -37,9 +37,11 @@ from mbn.experiments.program_module import (
     tile_sequences,
 )
 from mbn.experiments.stages.common import MADE_BY, de_config, maze_episodes, validate
+from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
 from mbn.experiments.stages.programs import check_digest
+from mbn.experiments.stages.settings import ValidationSettings
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule, parse_rules
@@ -215,7 +217,7 @@ class MBN3Stage(Stage):
         im_spec = read_controller_spec(path)
         if not isinstance(im_spec, InterpreterControllerSpec):
             raise MbnInputError(f"{path}: not an interpreter")
-        digest = ctx.read("im_full")["sha256"]
+        digest = ctx.read(IMFullStage).sha256
         check_digest(im_spec.interpreter, digest, "mbn3")
         rules = tuple(parse_rule(r).name for r in s.tile_rules)
         missing = [r for r in rules if r not in im_spec.programs]
@@ -229,7 +231,7 @@ class MBN3Stage(Stage):
         camera = CameraConfig(range=s.camera_range)
         # with maze episodes the final choice drives the robot: up to [validation] attempts
         # PMs, each judged in the tiles3 family's validation mazes, the best kept
-        attempts = ctx.section("validation").attempts if maze_episodes(ctx) is not None else 1
+        attempts = ctx.section(ValidationSettings).attempts if maze_episodes(ctx) is not None else 1
         tries: list[dict[str, Any]] = []
         for a in range(attempts):
             key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)

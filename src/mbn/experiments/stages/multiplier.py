@@ -12,6 +12,8 @@ import numpy as np
 from mbn.config import Locator, Settings, setting
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record, optional
+from mbn.experiments.pipeline.runconfig import RunSettings
 from mbn.experiments.stages.keys import KEYS
 from mbn.networks.multiplier import (
     SHIPPED,
@@ -26,7 +28,7 @@ from mbn.networks.multiplier import (
     validation_pairs,
 )
 
-__all__ = ["MultiplierSettings", "MultiplierStage"]
+__all__ = ["MultiplierResult", "MultiplierSettings", "MultiplierStage"]
 
 #: Points per axis of the error grid recorded for the report.
 GRID_POINTS = 101
@@ -65,13 +67,27 @@ class MultiplierSettings(Settings):
             )
 
 
-class MultiplierStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class MultiplierResult(Record):
+    """What the ``multiplier`` stage records (``stages/multiplier.json``): where the multiplier
+    came from, its size, its errors on 100 random pairs and the dense grid (``metrics``), the
+    paper's 3-neuron claim checked (``paper_claim``), and its errors on the paper's grid."""
+
+    source: str
+    neurons: int
+    metrics: dict[str, Any]
+    paper_claim: dict[str, Any] | None = optional()  # None: a run from before it was recorded
+    paper_grid: dict[str, Any] | None = optional()
+
+
+class MultiplierStage(Stage[MultiplierResult]):
     name = "multiplier"
     key_id = KEYS["multiplier"]
     outputs = ("controllers/multiplier.json", "records/multiplier_grid.npz")
     settings = MultiplierSettings
+    result = MultiplierResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> MultiplierResult:
         s: MultiplierSettings = ctx.settings
         n = s.neurons
         if s.retrain:
@@ -89,7 +105,7 @@ class MultiplierStage(Stage):
             mul = load_default(n)
             metrics = shipped_metrics(n)
             source = f"shipped ({SHIPPED[n]})"
-        precision = ctx.section("run").precision
+        precision = ctx.section(RunSettings).precision
         validation = validation_pairs(jax.random.fold_in(ctx.key, 1), 100)
         measured = evaluate(mul, validation, precision=precision)
         paper = mul if n == PAPER_NEURONS else load_default(PAPER_NEURONS)
@@ -113,14 +129,14 @@ class MultiplierStage(Stage):
         )
         # the time constant it is embedded at is the interpreter's ([interpreter] tau_ratio,
         # recorded by stage im), not the multiplier's
-        return {
-            "source": source,
-            "neurons": n,
-            "metrics": measured,
-            "paper_claim": paper_claim,
-            "paper_grid": relative_errors(mul, training_pairs(), precision=precision),
-        }
+        return MultiplierResult(
+            source=source,
+            neurons=n,
+            metrics=measured,
+            paper_claim=paper_claim,
+            paper_grid=relative_errors(mul, training_pairs(), precision=precision),
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
-        m = data["metrics"]
-        return f"{data['source']}, max |error| on the grid {m['max_abs_error_grid']:.4f}"
+    def summary(self, data: MultiplierResult) -> str:
+        grid = data.metrics["max_abs_error_grid"]
+        return f"{data.source}, max |error| on the grid {grid:.4f}"

@@ -17,6 +17,7 @@ from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.stages.common import run_noise
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import TESTED, test_specs
+from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.world.mazes.load import load_maze
 from mbn.world.sensors import NoiseConfig
@@ -115,7 +116,7 @@ class NoiseLevelsStage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: NoiseLevelsSettings = ctx.settings
-        tests = ctx.section("tests")
+        tests = ctx.section(TestsSettings)
         mazes = [load_maze(tests.maze), load_maze(tests.heldout_maze)]
         specs = {
             name: read_controller_spec(ctx.rundir.controller_file(file))

@@ -44,6 +44,7 @@ from mbn.experiments.stages.common import (
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
 from mbn.experiments.stages.rf import evolution_summary
+from mbn.experiments.stages.settings import ValidationSettings
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 from mbn.world.sensors import NoiseConfig
@@ -195,7 +196,7 @@ class PMStage(Stage):
             fitness = jax.jit(robust_fitness(fit, noise))
         config = de_config(ctx, genome.size, s.bound, s.init)
         attempts: list[dict[str, Any]] = []
-        for a in range(ctx.section("validation").attempts):
+        for a in range(ctx.section(ValidationSettings).attempts):
             name = "pm" if a == 0 else f"pm_attempt{a}"
             key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
             suffix = f" (attempt {a + 1})" if a else ""

@@ -45,7 +45,9 @@ from mbn.experiments.stages.common import (
     validation_record,
     validation_verdicts,
 )
+from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.settings import DESettings, FollowerSettings, ValidationSettings
 from mbn.networks.ctrnn import CTRNN
 from mbn.networks.programmable import Interpreter
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
@@ -155,7 +157,7 @@ def program_network(interp: Interpreter, base: CTRNN, program: Any) -> CTRNN:
 def program_de_config(ctx: StageContext, interp: Interpreter) -> DEConfig:
     """DE/best/1/bin with the run's ``[de]`` settings over the programs of ``interp``: one gene
     per programmable connection, in [0, 1], the first generation uniform there."""
-    de = ctx.section("de")
+    de = ctx.section(DESettings)
     return DEConfig(
         num_dims=interp.num_programs,
         popsize=de.popsize,
@@ -199,7 +201,7 @@ def program_fitness(
             ctx, rule, variants, make, approaches
         )
         return made
-    followers = ctx.section("followers")
+    followers = ctx.section(FollowerSettings)
     task = CrossroadTask(
         rule=rule,
         variants=variants,
@@ -300,11 +302,11 @@ class ProgramsStage(Stage):
         if not isinstance(spec, InterpreterControllerSpec):
             raise MbnInputError(f"{ctx.rundir.controller_file('im_full')}: not an interpreter")
         interp = spec.interpreter
-        digest = ctx.read("im_full")["sha256"]
+        digest = ctx.read(IMFullStage).sha256
         check_digest(interp, digest, "programs")
         base = read_network(ctx, "rf")
         config = program_de_config(ctx, interp)
-        attempts = ctx.section("validation").attempts
+        attempts = ctx.section(ValidationSettings).attempts
         found: dict[str, Any] = {}
         programs = dict(spec.programs)
         for r, rule_text in enumerate(s.rules):

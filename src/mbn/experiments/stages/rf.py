@@ -9,11 +9,13 @@ from typing import Any
 from mbn.config import Settings, setting
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.stages.common import evolve_follower
 from mbn.experiments.stages.keys import KEYS
+from mbn.experiments.stages.records import History, Perturbation, Restart, Validation
 from mbn.notation import connection_names
 
-__all__ = ["RFSettings", "RFStage", "evolution_summary"]
+__all__ = ["RFResult", "RFSettings", "RFStage", "evolution_summary"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,30 @@ class RFSettings(Settings):
     )
 
 
+@dataclass(frozen=True, kw_only=True)
+class RFResult(Record):
+    """What the ``rf`` stage records (``stages/rf.json``): the kept restart's DE run (its best
+    genome and fitness, generations, history and validation), the restarts when there were
+    several, the genome's connections, the robust fitness's perturbations, the approaches it
+    was trained from, and its scores (:func:`~mbn.experiments.stages.common.score`)."""
+
+    best_genome: list[float]
+    best_fitness: float
+    generations: int
+    history: History
+    validation: Validation | None = optional()
+    restarts: list[Restart] | None = optional()
+    chosen_restart: int | None = optional()
+    connections: list[str]
+    noise: Perturbation
+    approaches: list[str]
+    branch_fitness: float
+    episodes: int
+    paper_F_M: float
+    paper_F_R: float
+    paper_F_L: float
+
+
 def evolution_summary(
     data: dict[str, Any], connections: bool = False, label: str = "best fitness", fmt: str = ".2f"
 ) -> str:
@@ -61,19 +87,20 @@ def evolution_summary(
     )
 
 
-class RFStage(Stage):
+class RFStage(Stage[RFResult]):
     name = "rf"
     key_id = KEYS["rf"]
     outputs = ("controllers/rf.json",)
     settings = RFSettings
+    result = RFResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> RFResult:
         s: RFSettings = ctx.settings
         data = evolve_follower(
             ctx, Genome(), "right", s.variants, s.generations, restarts=s.restarts, validated=True
         )
         data.pop("network")
-        return data
+        return RFResult.from_json(data)
 
-    def summary(self, data: dict[str, Any]) -> str:
-        return evolution_summary(data)
+    def summary(self, data: RFResult) -> str:
+        return evolution_summary(data.to_json())

@@ -23,6 +23,7 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.named import mbn_tile_rules, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import TEST_NOISE_KEY, noise_key, run_noise
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import (
@@ -32,6 +33,7 @@ from mbn.experiments.stages.protocol import (
     protocol_block,
     test_specs,
 )
+from mbn.experiments.stages.records import Agreement, TrialSummary
 from mbn.experiments.trials import (
     TrialGroup,
     TrialSpec,
@@ -44,7 +46,7 @@ from mbn.networks.ctrnn import firing_rate
 from mbn.paper import published_lf, published_rf
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["TRAJECTORY_FIELDS", "TestsSettings", "TestsStage"]
+__all__ = ["TRAJECTORY_FIELDS", "TestsResult", "TestsSettings", "TestsStage"]
 
 #: Fields of the trajectories recorded for the report.
 TRAJECTORY_FIELDS = ("t", "pose", "camera", "tile", "stalled", "v", "w")
@@ -107,14 +109,30 @@ def _same_settings(a: LoadedController, b: LoadedController, na: str, nb: str) -
             raise MbnInputError(f"{na} and {nb} differ in {attr}: they cannot run in one batch")
 
 
-class TestsStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class TestsResult(Record):
+    """What the ``tests`` stage records (``stages/tests.json``): every tested controller's
+    judged trials by test name (``rf``, ``rf_jitter``, ``rf_heldout``, ...), the interpreter's
+    agreements with the networks it emulates, the trials' details (not kept in
+    ``results.json``), the test and held-out mazes, the protocol and the recording's start."""
+
+    tests: dict[str, TrialSummary]
+    agreement: dict[str, Agreement]
+    details: dict[str, Any]
+    mazes: dict[str, str]
+    protocol: dict[str, Any]
+    recording: dict[str, Any]
+
+
+class TestsStage(Stage[TestsResult]):
     name = "tests"
     key_id = KEYS["tests"]
     outputs = ("records/test_trajectories.npz", "records/mbn_recording.npz")
     needs = ("rf", "lf", "im", "pm")
     settings = TestsSettings
+    result = TestsResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> TestsResult:
         s: TestsSettings = ctx.settings
         mazes = [load_maze(s.maze), load_maze(s.heldout_maze)]
         ctl = ctx.rundir.controller_file
@@ -207,21 +225,23 @@ class TestsStage(Stage):
         details = {name: verdict_details(verdicts[name]) for name in TEST_NAMES}
         ctx.rundir.save_trajectories("test_trajectories", trajectories, TRAJECTORY_FIELDS)
         start = _record_mbn(ctx, specs["mbn"][0], mazes[0], ran["mbn"][""])
-        return {
-            "tests": tests,
-            "agreement": agreement,
-            "details": details,
-            "mazes": {"test": s.maze, "heldout": s.heldout_maze},
-            "protocol": protocol_block(ran["rf"], ran["mbn"]),
-            "recording": {"start_mark": start},
-        }
+        return TestsResult.from_json(
+            {
+                "tests": tests,
+                "agreement": agreement,
+                "details": details,
+                "mazes": {"test": s.maze, "heldout": s.heldout_maze},
+                "protocol": protocol_block(ran["rf"], ran["mbn"]),
+                "recording": {"start_mark": start},
+            }
+        )
 
     def metrics(self, data: dict[str, Any]) -> dict[str, Any]:
         return {k: data[k] for k in ("agreement", "mazes", "protocol")}
 
-    def summary(self, data: dict[str, Any]) -> str:
-        t = data["tests"]
-        return ", ".join(f"{n} {t[n]['successes']}/{t[n]['trials']}" for n, _ in TESTED)
+    def summary(self, data: TestsResult) -> str:
+        t = data.tests
+        return ", ".join(f"{n} {t[n].successes}/{t[n].trials}" for n, _ in TESTED)
 
 
 #: Firing rates, compiled (one program per network shape instead of eager operations).

@@ -24,9 +24,11 @@ from mbn.controllers import (
 )
 from mbn.experiments.named import trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.programs import check_digest
 from mbn.experiments.stages.protocol import SUFFIXES
+from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
@@ -82,8 +84,8 @@ class Tests3Stage(Stage):
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         s: Tests3Settings = ctx.settings
-        t = ctx.section("tests")
-        digest = ctx.read("im_full")["sha256"]
+        t = ctx.section(TestsSettings)
+        digest = ctx.read(IMFullStage).sha256
         new = {"": load_maze(s.maze), "_jitter": load_maze(s.maze)}
         new["_heldout"] = load_maze(s.heldout_maze)
         old = {"": load_maze(t.maze), "_jitter": load_maze(t.maze)}

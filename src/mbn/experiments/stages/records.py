@@ -1,0 +1,75 @@
+"""The pieces several stages' results share (:class:`~mbn.experiments.pipeline.results.Record`
+types): a DE run's history, a success on the validation mazes, the perturbations of robust
+fitness, a restart of an evolution, judged trials and two controllers' agreement."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mbn.experiments.pipeline.results import Record, optional
+
+__all__ = ["Agreement", "History", "Perturbation", "Restart", "TrialSummary", "Validation"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class History(Record):
+    """Best and mean finite fitness of every generation (generation 0 first)."""
+
+    best: list[float]
+    mean: list[float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Validation(Record):
+    """A candidate's success on the validation mazes (:func:`~mbn.experiments.stages.common.
+    validate`); on maze episodes also how many of the mazes reach the target each."""
+
+    trials: int
+    successes: int
+    success_rate: float
+    meets_target: bool
+    mazes: int | None = optional()
+    mazes_at_target: int | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class Perturbation(Record):
+    """Robust fitness: a genome scored with ``copies`` perturbed copies (Gaussian ``sigma``)."""
+
+    copies: int
+    sigma: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Restart(Record):
+    """One independent DE run of a stage that evolves several and keeps one."""
+
+    best_fitness: float
+    history: History
+    best_genome: list[float]
+    validation: Validation | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrialSummary(Record):
+    """Judged trials (:func:`mbn.experiments.trials.summary`): trials, successes, success rate,
+    trials the time limit ended first (neither successes nor failures), junctions judged and
+    taken right, and the mean share of stalled steps."""
+
+    trials: int
+    successes: int
+    success_rate: float
+    timed_out: int
+    junctions: int
+    correct_junctions: int
+    mean_stall_fraction: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Agreement(Record):
+    """Two controllers on the same trials (:func:`mbn.experiments.trials.agreement`): the
+    trials where they took the same exit at every judged junction, and the rate."""
+
+    trials: int
+    same_branches: int
+    rate: float
