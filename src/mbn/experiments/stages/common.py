@@ -36,6 +36,7 @@ from mbn.experiments.stages.settings import (
     EpisodeSettings,
     FollowerSettings,
     InterpreterSettings,
+    TestsSettings,
     ValidationSettings,
 )
 from mbn.networks.ctrnn import CTRNN
@@ -426,7 +427,6 @@ def _validation_trial(
     """The trials of the validation mazes: every mark, ``jitter_per_mark`` starts each (on maze
     episodes ``split_jitter_per_mark``; the run's ``validation_jitter`` seed), the tests' time
     limits (on maze episodes, at least the longest of the mazes' own)."""
-    from mbn.experiments.stages.tests import TestsSettings  # tests.py imports this module
     from mbn.experiments.trials import TrialSpec, route_seconds
 
     t = ctx.section(TestsSettings)

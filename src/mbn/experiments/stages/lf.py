@@ -10,16 +10,13 @@ built on another RF makes that RF the run's (``controllers/rf.json``)."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mbn.config import Settings, setting
 from mbn.controllers import CTRNNControllerSpec
-from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.stages.common import (
@@ -42,12 +39,11 @@ from mbn.experiments.stages.lf_search import (
 )
 from mbn.experiments.stages.records import Restart, Validation
 from mbn.experiments.stages.rf import RFResult, RFSettings, RFStage, evolution_summary
-from mbn.experiments.stages.settings import ValidationSettings
+from mbn.experiments.stages.settings import LFSettings, ValidationSettings
 from mbn.experiments.trials import agreement
 from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name
-from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage", "good_enough"]
 
@@ -107,73 +103,6 @@ def good_enough(candidate: dict[str, Any], enough: float) -> bool:
     ``enough`` 1 no candidate is enough: every finalist of a round is evolved, as before."""
     meets, worst, _, _ = candidate_rank(candidate, 0)
     return bool(enough < 1.0 and meets and worst >= enough)
-
-
-@dataclass(frozen=True)
-class LFSettings(Settings):
-    """The left-follower (LF): 3 connections of RF re-evolved."""
-
-    section = "lf"
-    # runs recorded before ``enough`` existed evolved every finalist of a round
-    recorded_before: ClassVar[dict[str, Any]] = {"enough": 1.0}
-    generations: int = setting(
-        35,
-        doc="DE generations of each finalist",
-        low=0,
-        high=100_000,
-        source="docs/generalization.md (on maze episodes a finalist starts level: the LF "
-        "search's population); the paper's protocol: 70 (docs/configs/paper.toml; a "
-        "finalist's fitness levels off within about 60 there, docs/reproduce.md)",
-    )
-    finalists: int = setting(
-        3,
-        doc="the search's best triples re-evolved in each round; the best validated is kept",
-        low=1,
-        high=20,
-        source="docs/reproduce.md (LF's quality is set by the triple's basin, not by length)",
-    )
-    rounds: int = setting(
-        4,
-        doc="rounds of finalists at most: the kept RF's, the rf stage's other RF's, then a fresh "
-        "RF's each",
-        low=1,
-        high=20,
-        source="docs/reproduce.md (about half the RFs make no left-follower three connections "
-        "away)",
-    )
-    members: int = setting(
-        3,
-        doc="of each finalist's final population, validated alone, the best this many by that "
-        "validation are checked as the interpreter's program; the one kept is the finalist",
-        low=1,
-        high=1000,
-        source="docs/reproduce.md (a population's fittest is not its best in a maze)",
-    )
-    enough: float = setting(
-        0.99,
-        doc="a finalist that meets every validation target with every figure (successes and "
-        "agreements, as rates) at least this ends its round: the finalists after it are not "
-        "evolved (1: every finalist of the round is evolved)",
-        low=0.0,
-        high=1.0,
-        source="docs/speed.md (finalists evolved only while needed)",
-    )
-    variants: int = setting(
-        4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
-    )
-    approaches: tuple[str, ...] = setting(
-        ("south", "west", "east"),
-        doc="how the robot enters the crossroads (the LF search chooses on them too)",
-        choices=APPROACHES,
-        source="docs/reproduce.md (crossroads entered round a corner, as in a maze)",
-    )
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        try:
-            check_approaches(self.approaches)
-        except MbnInputError as exc:
-            raise MbnInputError(f"lf.{exc}") from None
 
 
 class LFStage(Stage):

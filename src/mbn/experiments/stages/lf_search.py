@@ -37,7 +37,7 @@ from mbn.experiments.stages.common import (
 )
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.records import Perturbation
-from mbn.experiments.stages.settings import FollowerSettings
+from mbn.experiments.stages.settings import FollowerSettings, LFSettings
 from mbn.host import put
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name, connection_names
@@ -109,8 +109,6 @@ def search_triples(
     it was evolved, its best plain and best robust genome and fitness."""
     s: LFSearchSettings = ctx.section(LFSearchSettings)
     followers = ctx.section(FollowerSettings)
-    from mbn.experiments.stages.lf import LFSettings  # lf.py imports this module
-
     approaches = ctx.section(LFSettings).approaches
     cands = [Connection.parse(c) for c in s.candidates]
     triples = list(itertools.combinations(cands, 3))
@@ -211,8 +209,6 @@ class LFSearchStage(Stage[LFSearchResult]):
     result = LFSearchResult
 
     def run(self, ctx: StageContext) -> LFSearchResult:
-        from mbn.experiments.stages.lf import LFSettings  # lf.py imports this module
-
         s: LFSearchSettings = ctx.settings
         followers = ctx.section(FollowerSettings)
         rows = search_triples(ctx, read_network(ctx, "rf"), ctx.key, search_checkpoint)

@@ -35,6 +35,7 @@ from mbn.experiments.crossroads import CrossroadTask
 from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
 from mbn.experiments.named import check_not_test_mazes, locate, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import (
     MADE_BY,
     maze_episodes,
@@ -54,6 +55,7 @@ from mbn.world.mazes.builtin import APPROACHES, check_approaches
 from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
+    "ProgramsResult",
     "ProgramsSettings",
     "ProgramsStage",
     "check_digest",
@@ -289,14 +291,26 @@ def _best_member(
     }
 
 
-class ProgramsStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class ProgramsResult(Record):
+    """What the ``programs`` stage records (``stages/programs.json``): by rule, the program
+    found (its best member, validations, attempts, the weights it sets and the network it
+    makes), and the interpreter's digest, checked unchanged before and after the search."""
+
+    rules: dict[str, dict[str, Any]]
+    sha256: str
+    sha256_checked: bool
+
+
+class ProgramsStage(Stage[ProgramsResult]):
     name = "programs"
     key_id = KEYS["programs"]
     outputs = ("controllers/im_full_programs.json",)
     needs = ("rf", "im_full")
     settings = ProgramsSettings
+    result = ProgramsResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> ProgramsResult:
         s: ProgramsSettings = ctx.settings
         spec = read_controller_spec(ctx.rundir.controller_file("im_full"))
         if not isinstance(spec, InterpreterControllerSpec):
@@ -378,11 +392,11 @@ class ProgramsStage(Stage):
         again = read_controller_spec(ctx.rundir.controller_file("im_full_programs"))
         assert isinstance(again, InterpreterControllerSpec)
         check_digest(again.interpreter, digest, "controllers/im_full_programs.json")
-        return {"rules": found, "sha256": digest, "sha256_checked": True}
+        return ProgramsResult(rules=found, sha256=digest, sha256_checked=True)
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, data: ProgramsResult) -> str:
         parts = [
             f"{rule}: validation {d['validation_im']['successes']}/{d['validation_im']['trials']}"
-            for rule, d in data["rules"].items()
+            for rule, d in data.rules.items()
         ]
         return "; ".join(parts)

@@ -13,9 +13,17 @@ from typing import Any, ClassVar
 
 from mbn.config import Locator, Settings, setting
 from mbn.controllers.spec import MAX_SUBSTEPS
+from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
 from mbn.experiments.crossroads import EPISODE_SECONDS
-from mbn.experiments.named import PAPER_TILE_RULES, check_not_test_mazes, locate, trial_maze
+from mbn.experiments.named import (
+    PAPER_TILE_RULES,
+    check_not_test_mazes,
+    locate,
+    mbn_tile_rules,
+    trial_maze,
+)
+from mbn.world.mazes.builtin import APPROACHES, check_approaches
 
 __all__ = [
     "QUICK",
@@ -23,6 +31,8 @@ __all__ = [
     "EpisodeSettings",
     "FollowerSettings",
     "InterpreterSettings",
+    "LFSettings",
+    "TestsSettings",
     "ValidationSettings",
     "derived_seeds",
 ]
@@ -328,3 +338,117 @@ def derived_seeds(seed: int) -> dict[str, int]:
         "pm_crossroad_jitter": seed + 3,
         "validation_jitter": seed + 4,
     }
+
+
+@dataclass(frozen=True)
+class LFSettings(Settings):
+    """The left-follower (LF): 3 connections of RF re-evolved."""
+
+    section = "lf"
+    # runs recorded before ``enough`` existed evolved every finalist of a round
+    recorded_before: ClassVar[dict[str, Any]] = {"enough": 1.0}
+    generations: int = setting(
+        35,
+        doc="DE generations of each finalist",
+        low=0,
+        high=100_000,
+        source="docs/generalization.md (on maze episodes a finalist starts level: the LF "
+        "search's population); the paper's protocol: 70 (docs/configs/paper.toml; a "
+        "finalist's fitness levels off within about 60 there, docs/reproduce.md)",
+    )
+    finalists: int = setting(
+        3,
+        doc="the search's best triples re-evolved in each round; the best validated is kept",
+        low=1,
+        high=20,
+        source="docs/reproduce.md (LF's quality is set by the triple's basin, not by length)",
+    )
+    rounds: int = setting(
+        4,
+        doc="rounds of finalists at most: the kept RF's, the rf stage's other RF's, then a fresh "
+        "RF's each",
+        low=1,
+        high=20,
+        source="docs/reproduce.md (about half the RFs make no left-follower three connections "
+        "away)",
+    )
+    members: int = setting(
+        3,
+        doc="of each finalist's final population, validated alone, the best this many by that "
+        "validation are checked as the interpreter's program; the one kept is the finalist",
+        low=1,
+        high=1000,
+        source="docs/reproduce.md (a population's fittest is not its best in a maze)",
+    )
+    enough: float = setting(
+        0.99,
+        doc="a finalist that meets every validation target with every figure (successes and "
+        "agreements, as rates) at least this ends its round: the finalists after it are not "
+        "evolved (1: every finalist of the round is evolved)",
+        low=0.0,
+        high=1.0,
+        source="docs/speed.md (finalists evolved only while needed)",
+    )
+    variants: int = setting(
+        4, doc="starts per crossroad", low=1, high=100, source="docs/experiments.md"
+    )
+    approaches: tuple[str, ...] = setting(
+        ("south", "west", "east"),
+        doc="how the robot enters the crossroads (the LF search chooses on them too)",
+        choices=APPROACHES,
+        source="docs/reproduce.md (crossroads entered round a corner, as in a maze)",
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        try:
+            check_approaches(self.approaches)
+        except MbnInputError as exc:
+            raise MbnInputError(f"lf.{exc}") from None
+
+
+@dataclass(frozen=True)
+class TestsSettings(Settings):
+    """The tests (paper 3.1: 10 start positions, three consecutive crossroads)."""
+
+    section = "tests"
+    seconds: float = setting(
+        90.0,
+        doc="time limit of a trial",
+        unit="s",
+        low=1.0,
+        high=3600.0,
+        source="docs/reproduce.md",
+    )
+    mbn_seconds: float = setting(
+        120.0,
+        doc="time limit of an MBN trial (its junctions count from its first tile)",
+        unit="s",
+        low=1.0,
+        high=3600.0,
+        source="docs/reproduce.md",
+    )
+    jitter_per_mark: int = setting(
+        20,
+        doc="jittered trials per start mark of the test maze",
+        low=1,
+        high=1000,
+        source="not in the paper",
+    )
+    heldout_repeats: int = setting(
+        17,
+        doc="trials per start mark of the held-out maze (the mark, then jittered ones)",
+        low=1,
+        high=1000,
+        source="not in the paper",
+    )
+    maze: str = setting("fig4", doc="the test maze (the paper's Fig. 4)", source="paper Fig. 4")
+    heldout_maze: str = setting(
+        "heldout", doc="a maze no training and no choice ever sees", source="docs/reproduce.md"
+    )
+
+    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
+        # read and runnable, with the tiles of the MBN the run tests in them (if any)
+        rules = mbn_tile_rules(sections)
+        for key in ("maze", "heldout_maze"):
+            trial_maze(getattr(self, key), where(self.section, key), rules)

@@ -5,14 +5,12 @@ recordings the report draws (trajectories of every test, one MBN episode with it
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import jax
 import numpy as np
 
-from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     LoadedController,
@@ -21,7 +19,6 @@ from mbn.controllers import (
     read_controller_spec,
 )
 from mbn.errors import MbnInputError
-from mbn.experiments.named import mbn_tile_rules, trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import TEST_NOISE_KEY, noise_key, run_noise
@@ -34,6 +31,7 @@ from mbn.experiments.stages.protocol import (
     test_specs,
 )
 from mbn.experiments.stages.records import Agreement, TrialSummary
+from mbn.experiments.stages.settings import TestsSettings
 from mbn.experiments.trials import (
     TrialGroup,
     TrialSpec,
@@ -50,53 +48,6 @@ __all__ = ["TRAJECTORY_FIELDS", "TestsResult", "TestsSettings", "TestsStage"]
 
 #: Fields of the trajectories recorded for the report.
 TRAJECTORY_FIELDS = ("t", "pose", "camera", "tile", "stalled", "v", "w")
-
-
-@dataclass(frozen=True)
-class TestsSettings(Settings):
-    """The tests (paper 3.1: 10 start positions, three consecutive crossroads)."""
-
-    section = "tests"
-    seconds: float = setting(
-        90.0,
-        doc="time limit of a trial",
-        unit="s",
-        low=1.0,
-        high=3600.0,
-        source="docs/reproduce.md",
-    )
-    mbn_seconds: float = setting(
-        120.0,
-        doc="time limit of an MBN trial (its junctions count from its first tile)",
-        unit="s",
-        low=1.0,
-        high=3600.0,
-        source="docs/reproduce.md",
-    )
-    jitter_per_mark: int = setting(
-        20,
-        doc="jittered trials per start mark of the test maze",
-        low=1,
-        high=1000,
-        source="not in the paper",
-    )
-    heldout_repeats: int = setting(
-        17,
-        doc="trials per start mark of the held-out maze (the mark, then jittered ones)",
-        low=1,
-        high=1000,
-        source="not in the paper",
-    )
-    maze: str = setting("fig4", doc="the test maze (the paper's Fig. 4)", source="paper Fig. 4")
-    heldout_maze: str = setting(
-        "heldout", doc="a maze no training and no choice ever sees", source="docs/reproduce.md"
-    )
-
-    def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
-        # read and runnable, with the tiles of the MBN the run tests in them (if any)
-        rules = mbn_tile_rules(sections)
-        for key in ("maze", "heldout_maze"):
-            trial_maze(getattr(self, key), where(self.section, key), rules)
 
 
 def _same_settings(a: LoadedController, b: LoadedController, na: str, nb: str) -> None:

@@ -26,7 +26,7 @@ from mbn.experiments.named import trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
-from mbn.experiments.stages.programs import check_digest
+from mbn.experiments.stages.programs import ProgramsStage, check_digest
 from mbn.experiments.stages.protocol import SUFFIXES
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
@@ -93,7 +93,7 @@ class Tests3Stage(Stage):
         im = read_controller_spec(ctx.rundir.controller_file("im_full_programs"))
         mbn3 = read_controller_spec(ctx.rundir.controller_file("mbn3"))
         assert isinstance(im, InterpreterControllerSpec) and isinstance(mbn3, MBNControllerSpec)
-        rules = ctx.read("programs")["rules"]
+        rules = ctx.read(ProgramsStage).rules
         tests: dict[str, Any] = {}
         agree: dict[str, Any] = {}
         bar = ctx.progress.task("tests3", len(rules) + 2)
