@@ -12,16 +12,16 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "mbn"
 
 
-def _module_name(path: Path) -> str:
-    rel = path.relative_to(SRC.parent).with_suffix("")
+def _module_name(path: Path, src: Path = SRC) -> str:
+    rel = path.relative_to(src.parent).with_suffix("")
     parts = list(rel.parts)
     if parts[-1] == "__init__":
         parts = parts[:-1]
     return ".".join(parts)
 
 
-def _modules() -> dict[str, Path]:
-    return {_module_name(p): p for p in SRC.rglob("*.py")}
+def _modules(src: Path = SRC) -> dict[str, Path]:
+    return {_module_name(p, src): p for p in src.rglob("*.py")}
 
 
 def _imports(path: Path) -> list[tuple[str, list[str], bool]]:
@@ -41,8 +41,11 @@ def _imports(path: Path) -> list[tuple[str, list[str], bool]]:
     return out
 
 
-def _graph() -> dict[str, set[str]]:
-    modules = _modules()
+def import_graph(src: Path = SRC) -> dict[str, set[str]]:
+    """``module -> the modules it imports`` in the package at ``src`` (lazy imports inside
+    functions included, imports under ``TYPE_CHECKING`` left out); also used by
+    ``scripts/layout_figures.py`` on older trees."""
+    modules = _modules(src)
     graph: dict[str, set[str]] = {m: set() for m in modules}
     for name, path in modules.items():
         for target, names, type_only in _imports(path):
@@ -58,7 +61,7 @@ def _graph() -> dict[str, set[str]]:
     return graph
 
 
-def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     """Strongly connected components with more than one module (Tarjan)."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
@@ -96,12 +99,12 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def test_no_import_circle_in_the_package():
-    graph = _graph()
+    graph = import_graph()
     # a package's __init__ re-exporting its own submodules is not a circle of design: leave
     # the edges from a package to its children out
     for name in graph:
         graph[name] = {d for d in graph[name] if not d.startswith(name + ".")}
-    assert _cycles(graph) == []
+    assert cycles(graph) == []
 
 
 def test_no_private_name_is_imported_across_modules():
@@ -139,5 +142,5 @@ def test_a_dependency_stays_in_its_room(what, allowed):
 
 
 def test_the_cycle_finder_finds_a_cycle():
-    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
-    assert _cycles({"a": {"b"}, "b": set()}) == []
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []

@@ -20,7 +20,7 @@ from mbn.experiments.pipeline.runconfig import RunConfig
 from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
 from mbn.host import put
 
-__all__ = ["DEResult", "DERun", "StageContext", "generation_stats"]
+__all__ = ["DEResult", "DERun", "MissingSection", "Seeds", "StageContext", "generation_stats"]
 
 S = TypeVar("S", bound=Settings)
 D = TypeVar("D")
@@ -60,6 +60,31 @@ def _result(state: DEState, history: list[tuple[float, float]], generations: int
     return DEResult(data, state)
 
 
+class MissingSection(MbnInputError, KeyError):
+    """A stage read a section of settings its experiment does not have (a ``KeyError`` too:
+    a stage that reads a section only when it is there catches that)."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
+class Seeds(dict[str, int]):
+    """The seeds derived from the run's seed (``Experiment.seeds``): a seed the experiment does
+    not make is refused in one line naming the stage and what to give the experiment."""
+
+    def __init__(self, seeds: dict[str, int], stage: str) -> None:
+        super().__init__(seeds)
+        self.stage = stage
+
+    def __missing__(self, key: str) -> int:
+        raise MbnInputError(
+            f"stage {self.stage} reads the derived seed {key!r}, which its experiment does not "
+            f"make (it makes {', '.join(self) or 'none'}): give the experiment "
+            "seeds=derived_seeds (mbn.experiments.stages.settings), as the experiments "
+            "composed of the stage library do"
+        )
+
+
 def generation_stats(state: DEState) -> tuple[float, float]:
     """Best fitness and mean finite fitness of a population."""
     fit = np.asarray(state.fitness, dtype=float)
@@ -97,6 +122,10 @@ class StageContext:
     log: Callable[[str], None] = print
     workers: int = 1
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.seeds, Seeds):
+            self.seeds = Seeds(self.seeds, self.name)
+
     @property
     def key(self) -> jax.Array:
         """This stage's key: ``fold_in(run key, stage.key_id)``."""
@@ -110,7 +139,14 @@ class StageContext:
     def section(self, cls: type[S]) -> S:
         """A section of the config (shared settings, or another stage's) by its settings class:
         ``ctx.section(DESettings)`` is the run's ``[de]``, typed."""
-        return self.config.get(cls)
+        try:
+            return self.config.get(cls)
+        except KeyError:
+            raise MissingSection(
+                f"stage {self.name} reads the settings [{cls.section}] ({cls.__name__}), which "
+                "its experiment does not have: add the class to the experiment's shared "
+                "settings (Experiment(shared=...))"
+            ) from None
 
     @overload
     def read(self, stage: str) -> dict[str, Any]: ...
