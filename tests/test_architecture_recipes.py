@@ -39,9 +39,9 @@ def test_adding_a_stage_runs_as_written(tmp_path):
     ref = f"{lab / 'product_check.py'}:EXPERIMENT"
     outs = [tmp_path / "run", tmp_path / "again"]
     for out in outs:
+        command = [sys.executable, "-m", "mbn", "run", ref, "--quick", "--seed", "4"]
         proc = subprocess.run(
-            [sys.executable, "-m", "mbn", "run", ref, "--quick", "--seed", "4"]
-            + ["--out", str(out), "--quiet"],
+            [*command, "--out", str(out), "--quiet"],
             capture_output=True,
             text=True,
             timeout=600,

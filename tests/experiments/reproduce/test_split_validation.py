@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mbn.errors import MbnInputError
+from mbn.experiments.stages import tests as tests_stage
 from mbn.experiments.stages.common import (
     _joined,
     _validation_trial,
@@ -14,7 +15,6 @@ from mbn.experiments.stages.common import (
     validation_record,
 )
 from mbn.experiments.stages.settings import EpisodeSettings, ValidationSettings
-from mbn.experiments.stages import tests as tests_stage
 from mbn.world.mazes import families
 from mbn.world.mazes.load import load_maze
 

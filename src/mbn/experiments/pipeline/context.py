@@ -20,7 +20,7 @@ from mbn.experiments.pipeline.runconfig import RunConfig
 from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
 from mbn.host import put
 
-__all__ = ["DEResult", "DERun", "MissingSection", "Seeds", "StageContext", "generation_stats"]
+__all__ = ["DEResult", "DERun", "MissingSectionError", "Seeds", "StageContext", "generation_stats"]
 
 S = TypeVar("S", bound=Settings)
 D = TypeVar("D")
@@ -60,7 +60,7 @@ def _result(state: DEState, history: list[tuple[float, float]], generations: int
     return DEResult(data, state)
 
 
-class MissingSection(MbnInputError, KeyError):
+class MissingSectionError(MbnInputError, KeyError):
     """A stage read a section of settings its experiment does not have (a ``KeyError`` too:
     a stage that reads a section only when it is there catches that)."""
 
@@ -142,7 +142,7 @@ class StageContext:
         try:
             return self.config.get(cls)
         except KeyError:
-            raise MissingSection(
+            raise MissingSectionError(
                 f"stage {self.name} reads the settings [{cls.section}] ({cls.__name__}), which "
                 "its experiment does not have: add the class to the experiment's shared "
                 "settings (Experiment(shared=...))"
