@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar, overload
+from typing import Any, ClassVar, Protocol, TypeVar, overload
 
 import jax
 import jax.numpy as jnp
@@ -24,9 +24,20 @@ __all__ = ["DEResult", "DERun", "MissingSectionError", "Seeds", "StageContext", 
 
 S = TypeVar("S", bound=Settings)
 D = TypeVar("D")
+D_co = TypeVar("D_co", covariant=True)
 
-if TYPE_CHECKING:
-    from mbn.experiments.pipeline.registry import Stage
+
+class Readable(Protocol[D_co]):
+    """What :meth:`StageContext.read` needs of a stage class
+    (:class:`~mbn.experiments.pipeline.registry.Stage` has it): its name, its ``run`` (whose
+    return type is the type read) and how its data is read from its file."""
+
+    name: ClassVar[str]
+
+    def run(self, ctx: StageContext) -> D_co: ...
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any], where: Any = "") -> Any: ...
 
 
 @dataclass(frozen=True)
@@ -152,9 +163,9 @@ class StageContext:
     def read(self, stage: str) -> dict[str, Any]: ...
 
     @overload
-    def read(self, stage: type[Stage[D]]) -> D: ...
+    def read(self, stage: type[Readable[D]]) -> D: ...
 
-    def read(self, stage: str | type[Stage[Any]]) -> Any:
+    def read(self, stage: str | type[Readable[Any]]) -> Any:
         """The data of a stage this one needs: by its class, typed (``ctx.read(RFStage)``, its
         :attr:`~mbn.experiments.pipeline.registry.Stage.result` record); by its name, the JSON
         object of ``stages/NAME.json``."""
