@@ -24,7 +24,8 @@ EPILOG = """\
 
 _EVALUATE_EPILOG = """\
 controller: a controller file (docs/controllers.md): kind mbn.controller.ctrnn, \
-mbn.controller.interpreter or mbn.controller.mbn
+mbn.controller.interpreter or mbn.controller.mbn, or a kind an installed package registers \
+(docs/architecture.md, "Adding a controller kind")
 maze: a built-in name (see `mbn mazes`) or a .maze, .toml or Player/Stage .world file with start
 marks (and tiles for --behavior tiles); a .toml or .world maze is judged when it is a grid of
 corridors: closed, every corridor one width and one cell wide, blocks of any size, anywhere within
@@ -194,10 +195,18 @@ def _behavior(text: str) -> str:
 
 def _program_for(args: argparse.Namespace, kind: str, reads_tiles: bool = False) -> str | None:
     """The program to run for this kind of file and these flags (or a one-line error);
-    ``reads_tiles``: a CTRNN file with tile rules (a monolithic controller)."""
-    from mbn.controllers import KIND_CTRNN, KIND_INTERPRETER
+    ``reads_tiles``: a file with tile rules (a CTRNN that reads the tiles itself, or a kind
+    registered outside ``mbn`` whose spec has ``tile_rules``)."""
+    from mbn.controllers import KIND_CTRNN, KIND_INTERPRETER, KIND_MBN
 
     path = args.controller
+    if kind not in (KIND_CTRNN, KIND_INTERPRETER, KIND_MBN):  # a kind registered outside mbn
+        if args.behavior == "tiles" and not reads_tiles:
+            raise MbnInputError(
+                f"--behavior tiles needs a controller that reads the tiles; {path} is a {kind} "
+                "controller without tile_rules"
+            )
+        return args.program  # None unless given: its runner refuses a program it has not
     if kind == KIND_CTRNN:
         if args.behavior == "tiles" and not reads_tiles:
             raise MbnInputError(
@@ -244,7 +253,12 @@ def _heading(theta: float) -> str:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import jax
 
-    from mbn.controllers import check_trial_length, make_controller, read_controller_spec
+    from mbn.controllers import (
+        check_trial_length,
+        kind_of,
+        make_controller,
+        read_controller_spec,
+    )
     from mbn.experiments.trials import TrialSpec, route_seconds, run_loaded_trials, summary
     from mbn.world.mazes.gridify import as_grid_maze
     from mbn.world.mazes.load import load_mazes
@@ -254,6 +268,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     mazes = [as_grid_maze(m) for m in mazes]  # TOML and Stage mazes on a lattice of corridors
     maze = mazes[0]
     controller_spec = read_controller_spec(args.controller)
+    kind = kind_of(controller_spec)
+    assert kind is not None  # a spec read from a file is of a registered kind
     # the rule each tile kind puts in force: the mbn file's (the paper's: right, left)
     tile_rules = getattr(controller_spec, "tile_rules", None) or ("right", "left")
     for each in mazes:
@@ -261,9 +277,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     noise = parse_noise(args.noise) if args.noise is not None else NoiseConfig()
     loaded = make_controller(
         controller_spec,
-        _program_for(
-            args, controller_spec.kind, getattr(controller_spec, "tile_rules", None) is not None
-        ),
+        _program_for(args, kind.name, getattr(controller_spec, "tile_rules", None) is not None),
         where=str(args.controller),
         check_stability=not args.allow_unstable,
         noise=noise,

@@ -1,8 +1,12 @@
 """Controller files as JSON: :func:`controller_to_dict`, :func:`controller_from_dict`,
 :func:`save_controller` (atomic, checked to load back) and :func:`read_controller_spec`.
 
-The only code that knows the file format (``docs/controllers.md``); every error is one line naming
-the file and the field. The objects are :mod:`mbn.controllers.spec`.
+The only code that knows the file format (``docs/controllers.md``): the header every controller
+file starts with, and the fields of ``mbn``'s three kinds (:func:`ctrnn_body` and
+:func:`ctrnn_from_body`, ... , which :mod:`mbn.controllers.builtin` registers); a file's kind is
+found in the registry of kinds (:mod:`mbn.controllers.kinds`), where a kind kept outside ``mbn``
+reads and writes its own fields. Every error is one line naming the file and the field. The
+objects are :mod:`mbn.controllers.spec`.
 """
 
 from __future__ import annotations
@@ -19,14 +23,18 @@ import numpy as np
 
 from mbn._version import __version__
 from mbn.control.ctrnn import MotorMap
+from mbn.controllers.kinds import (
+    HEADER_FIELDS,
+    OPTIONAL_HEADER_FIELDS,
+    ControllerKind,
+    check_body,
+    controller_kind,
+    kind_of,
+    registered_kinds,
+)
 from mbn.controllers.spec import (
     FORMAT_VERSION,
-    KIND_CTRNN,
-    KIND_INTERPRETER,
-    KIND_MBN,
-    KINDS,
     MULTIPLIER_KIND,
-    ControllerSpec,
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
@@ -49,7 +57,18 @@ from mbn.provenance import provenance
 from mbn.world.engine import CameraConfig
 from mbn.world.sensors import SensorConfig
 
-__all__ = ["controller_from_dict", "controller_to_dict", "read_controller_spec", "save_controller"]
+__all__ = [
+    "controller_from_dict",
+    "controller_to_dict",
+    "ctrnn_body",
+    "ctrnn_from_body",
+    "interpreter_body",
+    "interpreter_from_body",
+    "mbn_body",
+    "mbn_from_body",
+    "read_controller_spec",
+    "save_controller",
+]
 
 # --------------------------------------------------------------------------------------------
 # Spec <-> JSON
@@ -98,7 +117,7 @@ def _header(kind: str) -> dict[str, Any]:
     }
 
 
-def _interpreter_body(spec: InterpreterControllerSpec) -> dict[str, Any]:
+def _interpreter_fields(spec: InterpreterControllerSpec) -> dict[str, Any]:
     return {
         "interpreter": _interpreter_to_dict(spec.interpreter),
         "programs": {name: list(p) for name, p in spec.programs.items()},
@@ -131,66 +150,78 @@ def _rule_list(value: Any, where: str) -> tuple[str, ...]:
     return tuple(value)
 
 
-def controller_to_dict(spec: ControllerSpec) -> dict[str, Any]:
-    """The self-describing JSON form of a controller spec (see ``docs/controllers.md``)."""
-    if isinstance(spec, CTRNNControllerSpec):
-        return {
-            **_header(KIND_CTRNN),
-            "behavior": spec.behavior,
-            "network": spec.net.to_dict(),
-            "sensors": _sensors_to_dict(spec.sensors),
-            "motor": _motor_to_dict(spec.motor),
-            "dt": spec.dt,
-            "substeps": spec.substeps,
-            "method": spec.method,
-            # written only for a controller that reads the camera, so that followers' files
-            # read and write unchanged
-            **(
-                {
-                    "tile_rules": list(spec.tile_rules),
-                    "camera": _camera_to_dict(spec.camera),
-                }
-                if spec.tile_rules is not None
-                else {}
-            ),
-            "metadata": dict(spec.metadata),
-        }
-    if isinstance(spec, InterpreterControllerSpec):
-        return {
-            **_header(KIND_INTERPRETER),
-            **_interpreter_body(spec),
-            "metadata": dict(spec.metadata),
-        }
-    if isinstance(spec, MBNControllerSpec):
-        pm: dict[str, Any] = {
-            "network": spec.program_module.to_dict(),
-            "program_neurons": list(spec.program_neurons),
-            "substeps": spec.pm_substeps,
-            "camera": _camera_to_dict(spec.camera),
-        }
-        # written only when not the paper's, so that older files read and write unchanged
-        if spec.tile_rules != ("right", "left"):
-            pm["tile_rules"] = list(spec.tile_rules)
-        if spec.readout is not None:
-            pm["readout"] = [list(row) for row in spec.readout]
-        if spec.initial is not None:
-            pm["initial"] = {
-                "rule": spec.initial.rule,
-                "potentials": list(spec.initial.potentials),
-                "program": _initial_program(
-                    spec.program_module, spec.program_neurons, spec.initial
-                ),
+def ctrnn_body(spec: CTRNNControllerSpec) -> dict[str, Any]:
+    """The fields of a ``mbn.controller.ctrnn`` file after the header."""
+    return {
+        "behavior": spec.behavior,
+        "network": spec.net.to_dict(),
+        "sensors": _sensors_to_dict(spec.sensors),
+        "motor": _motor_to_dict(spec.motor),
+        "dt": spec.dt,
+        "substeps": spec.substeps,
+        "method": spec.method,
+        # written only for a controller that reads the camera, so that followers' files
+        # read and write unchanged
+        **(
+            {
+                "tile_rules": list(spec.tile_rules),
+                "camera": _camera_to_dict(spec.camera),
             }
-        return {
-            **_header(KIND_MBN),
-            **_interpreter_body(spec.interpreter_spec),
-            "program_module": pm,
-            "metadata": dict(spec.metadata),
+            if spec.tile_rules is not None
+            else {}
+        ),
+        "metadata": dict(spec.metadata),
+    }
+
+
+def interpreter_body(spec: InterpreterControllerSpec) -> dict[str, Any]:
+    """The fields of a ``mbn.controller.interpreter`` file after the header."""
+    return {**_interpreter_fields(spec), "metadata": dict(spec.metadata)}
+
+
+def mbn_body(spec: MBNControllerSpec) -> dict[str, Any]:
+    """The fields of a ``mbn.controller.mbn`` file after the header."""
+    pm: dict[str, Any] = {
+        "network": spec.program_module.to_dict(),
+        "program_neurons": list(spec.program_neurons),
+        "substeps": spec.pm_substeps,
+        "camera": _camera_to_dict(spec.camera),
+    }
+    # written only when not the paper's, so that older files read and write unchanged
+    if spec.tile_rules != ("right", "left"):
+        pm["tile_rules"] = list(spec.tile_rules)
+    if spec.readout is not None:
+        pm["readout"] = [list(row) for row in spec.readout]
+    if spec.initial is not None:
+        pm["initial"] = {
+            "rule": spec.initial.rule,
+            "potentials": list(spec.initial.potentials),
+            "program": _initial_program(spec.program_module, spec.program_neurons, spec.initial),
         }
-    raise MbnInputError(
-        f"not a controller spec: {type(spec).__name__} (expected CTRNNControllerSpec, "
-        "InterpreterControllerSpec or MBNControllerSpec)"
-    )
+    return {
+        **_interpreter_fields(spec.interpreter_spec),
+        "program_module": pm,
+        "metadata": dict(spec.metadata),
+    }
+
+
+def controller_to_dict(spec: Any) -> dict[str, Any]:
+    """The self-describing JSON form of a controller spec (see ``docs/controllers.md``): the
+    header, then the fields its kind writes (:meth:`ControllerKind.to_dict
+    <mbn.controllers.kinds.ControllerKind.to_dict>`)."""
+    kind = kind_of(spec)
+    if kind is None:
+        raise MbnInputError(
+            f"not a controller spec: {type(spec).__name__} (expected {_spec_types()})"
+        )
+    body = kind.to_dict(spec)
+    clash = [k for k in (*HEADER_FIELDS, *OPTIONAL_HEADER_FIELDS) if k in body]
+    if clash:
+        raise MbnInputError(
+            f"controller kind {kind.name}: its fields may not include the header's "
+            f"({', '.join(clash)})"
+        )
+    return {**_header(kind.name), **body}
 
 
 #: How far a file's ``program_module.initial.program`` may lie from the firing rates of its
@@ -313,21 +344,29 @@ def _run_settings(data: dict[str, Any], where: str) -> dict[str, Any]:
     }
 
 
-def _check_header(data: Any, where: str) -> str:
+def _spec_types() -> str:
+    """The registered kinds' spec classes, for a message: ``A, B or C``."""
+    names = [k.spec_type.__name__ for k in registered_kinds().values()]
+    return ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else "".join(names)
+
+
+def _check_header(data: Any, where: str) -> ControllerKind:
+    known = ", ".join(registered_kinds())
     if not isinstance(data, dict):
         raise MbnInputError(
             f"{where}: not a controller file (a JSON {type(data).__name__}, expected an object "
-            f"with a 'kind', one of {', '.join(KINDS)})"
+            f"with a 'kind', one of {known})"
         )
-    kind = data.get("kind")
-    if kind == MULTIPLIER_KIND:
+    name = data.get("kind")
+    if name == MULTIPLIER_KIND:
         raise MbnInputError(
-            f"{where}: is a multiplier, not a controller (kind {kind!r}; expected one of "
-            f"{', '.join(KINDS)})"
+            f"{where}: is a multiplier, not a controller (kind {name!r}; expected one of {known})"
         )
-    if kind not in KINDS:
+    kind = controller_kind(name) if isinstance(name, str) else None
+    if kind is None:
         raise MbnInputError(
-            f"{where}: not a controller file (kind {kind!r}, expected one of {', '.join(KINDS)})"
+            f"{where}: not a controller file (kind {name!r}, expected one of "
+            f"{', '.join(registered_kinds())})"
         )
     if "format_version" not in data:
         raise MbnInputError(f"{where}: missing field 'format_version'")
@@ -337,84 +376,107 @@ def _check_header(data: Any, where: str) -> str:
             f"{where}: format_version {version!r} is not supported (this mbn reads "
             f"{FORMAT_VERSION})"
         )
-    return str(kind)
+    return kind
 
 
-def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerSpec:
-    """Parse and validate the JSON form of a controller (:func:`controller_to_dict`).
+def controller_from_dict(data: Any, *, where: str = "controller") -> Any:
+    """Parse and validate the JSON form of a controller (:func:`controller_to_dict`): the header,
+    then the rest by its kind (:meth:`ControllerKind.from_dict
+    <mbn.controllers.kinds.ControllerKind.from_dict>`).
 
     Raises:
         MbnInputError: one line naming ``where`` and what is wrong.
     """
-    kind = _check_header(data, where)
-    header = ["kind", "format_version"]
-    optional = ["mbn_version", "provenance", "metadata"]
-    common = ["sensors", "motor", "dt", "substeps", "method"]
-    if kind == KIND_CTRNN:
-        check_fields(
-            data,
-            where,
-            [*header, "network", *common],
-            [*optional, "behavior", "tile_rules", "camera"],
-        )
-        if ("tile_rules" in data) != ("camera" in data):
-            raise MbnInputError(f"{where}: tile_rules and camera go together (the camera it reads)")
-        tiles = (
-            _rule_list(data["tile_rules"], f"{where}: tile_rules") if "tile_rules" in data else None
-        )
-        camera = (
-            _camera_from_dict(data["camera"], f"{where}: camera")
-            if "camera" in data
-            else CameraConfig()
-        )
-        net = _network_from_dict(data["network"], f"{where}: network")
-        sensors = _sensors_from_dict(data["sensors"], where)
-        motor = _motor_from_dict(data["motor"], where)
-        settings = _run_settings(data, where)
-        metadata = data.get("metadata", {})
-        behavior = data.get("behavior")
-        return _build(
-            where,
-            lambda: CTRNNControllerSpec(
-                net=net,
-                sensors=sensors,
-                motor=motor,
-                behavior=behavior,
-                metadata=metadata,
-                tile_rules=tiles,
-                camera=camera,
-                **settings,
-            ),
-        )
-    body = ["interpreter", "programs", *common]
-    if kind == KIND_INTERPRETER:
-        check_fields(data, where, [*header, *body], [*optional, "simulation"])
-    else:
-        check_fields(data, where, [*header, *body, "program_module"], [*optional, "simulation"])
+    return _check_header(data, where).from_dict(data, where)
+
+
+#: The optional fields of every built-in kind's file besides the header's.
+_OPTIONAL = ["metadata"]
+#: The fields every built-in kind's file has after the header.
+_COMMON = ["sensors", "motor", "dt", "substeps", "method"]
+
+
+def ctrnn_from_body(data: dict[str, Any], where: str) -> CTRNNControllerSpec:
+    """The spec of a ``mbn.controller.ctrnn`` file (its header checked)."""
+    check_body(
+        data,
+        where,
+        ["network", *_COMMON],
+        [*_OPTIONAL, "behavior", "tile_rules", "camera"],
+    )
+    if ("tile_rules" in data) != ("camera" in data):
+        raise MbnInputError(f"{where}: tile_rules and camera go together (the camera it reads)")
+    tiles = _rule_list(data["tile_rules"], f"{where}: tile_rules") if "tile_rules" in data else None
+    camera = (
+        _camera_from_dict(data["camera"], f"{where}: camera")
+        if "camera" in data
+        else CameraConfig()
+    )
+    net = _network_from_dict(data["network"], f"{where}: network")
+    sensors = _sensors_from_dict(data["sensors"], where)
+    motor = _motor_from_dict(data["motor"], where)
+    settings = _run_settings(data, where)
+    metadata = data.get("metadata", {})
+    behavior = data.get("behavior")
+    spec: CTRNNControllerSpec = _build(
+        where,
+        lambda: CTRNNControllerSpec(
+            net=net,
+            sensors=sensors,
+            motor=motor,
+            behavior=behavior,
+            metadata=metadata,
+            tile_rules=tiles,
+            camera=camera,
+            **settings,
+        ),
+    )
+    return spec
+
+
+def _interpreter_spec_from(
+    data: dict[str, Any], where: str, *, alone: bool
+) -> InterpreterControllerSpec:
+    """The interpreter of an interpreter file (``alone``) or of an MBN file, with the file's
+    fields checked (an MBN file's ``program_module`` is read by :func:`mbn_from_body`)."""
+    body = ["interpreter", "programs", *_COMMON]
+    check_body(
+        data, where, body if alone else [*body, "program_module"], [*_OPTIONAL, "simulation"]
+    )
     simulation = data.get("simulation", "dense")
     interp = _interpreter_from_dict(data["interpreter"], where)
     programs = expect_object(data["programs"], f"{where}: programs")
-    if kind == KIND_INTERPRETER and not programs:
+    if alone and not programs:
         raise MbnInputError(f"{where}: programs: an interpreter file needs at least one program")
     sensors = _sensors_from_dict(data["sensors"], where)
     motor = _motor_from_dict(data["motor"], where)
     settings = _run_settings(data, where)
     metadata = data.get("metadata", {})
-    im_spec = _build(
+    im_spec: InterpreterControllerSpec = _build(
         where,
         lambda: InterpreterControllerSpec(
             interpreter=interp,
             programs=programs,
             sensors=sensors,
             motor=motor,
-            metadata=metadata if kind == KIND_INTERPRETER else {},
+            metadata=metadata if alone else {},
             simulation=simulation,
             **settings,
         ),
     )
     _check_recorded_digest(data, im_spec.interpreter, where)
-    if kind == KIND_INTERPRETER:
-        return im_spec
+    return im_spec
+
+
+def interpreter_from_body(data: dict[str, Any], where: str) -> InterpreterControllerSpec:
+    """The spec of a ``mbn.controller.interpreter`` file (its header checked)."""
+    return _interpreter_spec_from(data, where, alone=True)
+
+
+def mbn_from_body(data: dict[str, Any], where: str) -> MBNControllerSpec:
+    """The spec of a ``mbn.controller.mbn`` file (its header checked)."""
+    im_spec = _interpreter_spec_from(data, where, alone=False)
+    metadata = data.get("metadata", {})
     here = f"{where}: program_module"
     pm_data = expect_object(data["program_module"], here)
     check_fields(
@@ -456,7 +518,8 @@ def controller_from_dict(data: Any, *, where: str = "controller") -> ControllerS
     if "initial" not in pm_data:  # files written before the field: the PM starts at rest
         return spec
     initial = _initial_from_dict(pm_data["initial"], f"{here}.initial", pm, neurons_t)
-    return _build(where, lambda: dataclasses.replace(spec, initial=initial))
+    started: MBNControllerSpec = _build(where, lambda: dataclasses.replace(spec, initial=initial))
+    return started
 
 
 _SHA256 = re.compile(r"[0-9a-fA-F]{64}")
@@ -503,7 +566,7 @@ def _build(where: str, make: Callable[[], Any]) -> Any:
         raise MbnInputError(f"{where}: {exc}") from None
 
 
-def save_controller(path: str | Path, spec: ControllerSpec) -> None:
+def save_controller(path: str | Path, spec: Any) -> None:
     """Write a controller file atomically.
 
     The JSON form is checked to load back first, so a spec that could not be read (or metadata
@@ -518,6 +581,6 @@ def save_controller(path: str | Path, spec: ControllerSpec) -> None:
     write_json_atomic(path, data)
 
 
-def read_controller_spec(path: str | Path) -> ControllerSpec:
+def read_controller_spec(path: str | Path) -> Any:
     """Read and validate a controller file (errors name the file, and the line for bad JSON)."""
     return controller_from_dict(read_json(path), where=str(path))

@@ -1,6 +1,8 @@
-"""Controllers ready to run: :func:`make_controller` turns a spec (:mod:`mbn.controllers.spec`)
-into a :class:`LoadedController` for :func:`mbn.experiments.trials.run_trials`;
-:func:`load_controller` reads a file first (:mod:`mbn.controllers.codec`)."""
+"""Controllers ready to run: :func:`make_controller` turns a spec (:mod:`mbn.controllers.spec`, or
+a registered kind's, :mod:`mbn.controllers.kinds`) into a :class:`LoadedController` for
+:func:`mbn.experiments.trials.run_trials`, by its kind's runner (:func:`ctrnn_runner`,
+:func:`interpreter_runner`, :func:`mbn_runner` for ``mbn``'s three); :func:`load_controller` reads
+a file first (:mod:`mbn.controllers.codec`)."""
 
 from __future__ import annotations
 
@@ -23,9 +25,8 @@ from mbn.control.ctrnn import (
 )
 from mbn.control.mbn import MBNControllerState, make_mbn_controller
 from mbn.controllers.codec import read_controller_spec
+from mbn.controllers.kinds import Runner, kind_of
 from mbn.controllers.spec import (
-    KIND_CTRNN,
-    ControllerSpec,
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
@@ -44,8 +45,12 @@ __all__ = [
     "LoadedController",
     "check_step",
     "check_trial_length",
+    "ctrnn_runner",
+    "ctrnn_step_beyond_limit",
+    "interpreter_runner",
     "load_controller",
     "make_controller",
+    "mbn_runner",
     "step_beyond_limit",
 ]
 
@@ -58,7 +63,7 @@ class LoadedController:
     """A controller ready to run (:func:`mbn.experiments.trials.run_trials`).
 
     Attributes:
-        kind: the file's kind (:data:`KINDS`).
+        kind: the file's kind (a registered kind's name, :mod:`mbn.controllers.kinds`).
         controller: ``(state, obs) -> (state, (v, w))`` for one robot.
         initial_state: ``n -> `` the batched initial state of ``n`` robots (potentials at 0;
             the whole MBN's program module starts from its file's ``initial`` potentials when
@@ -80,6 +85,8 @@ class LoadedController:
             others.
         spec: the parsed file.
         noise: the noise it runs under (all zero: none).
+        network_steps: the network steps it takes each robot step (its ``substeps``, plus the
+            program module's for the whole MBN; :func:`check_trial_length`).
     """
 
     kind: str
@@ -93,9 +100,10 @@ class LoadedController:
     program: str | None
     behavior: str | None
     initial_rule: str | None
-    spec: ControllerSpec
+    spec: Any
     tile_rules: tuple[str, ...] | None = None
     noise: NoiseConfig = field(default_factory=NoiseConfig)
+    network_steps: int = 1
 
 
 def _programs_of(spec: InterpreterControllerSpec) -> dict[str, tuple[float, ...]]:
@@ -129,7 +137,7 @@ def _looks_like_values(text: str) -> bool:
     return bool(parts)
 
 
-def _ctrnn_runner(
+def _ctrnn_parts(
     spec: CTRNNControllerSpec, noise: NoiseConfig | None
 ) -> tuple[Controller, Callable[[int], Any]]:
     net = spec.net
@@ -148,7 +156,7 @@ def _ctrnn_runner(
     return control, initial
 
 
-def _mbn_runner(
+def _mbn_parts(
     spec: MBNControllerSpec, noise: NoiseConfig | None
 ) -> tuple[Controller, Callable[[int], Any]]:
     im_spec = spec.interpreter_spec
@@ -186,7 +194,7 @@ def _simulated(im_spec: InterpreterControllerSpec) -> Any:
     return interp.blocks() if im_spec.simulation == "blocks" else interp.net
 
 
-def _interpreter_runner(
+def _interpreter_parts(
     im_spec: InterpreterControllerSpec, program: tuple[float, ...], noise: NoiseConfig | None
 ) -> tuple[Controller, Callable[[int], Any]]:
     net = _simulated(im_spec)
@@ -209,17 +217,10 @@ def _interpreter_runner(
     return control, initial
 
 
-def step_beyond_limit(spec: ControllerSpec, where: str = "controller") -> str | None:
+def ctrnn_step_beyond_limit(spec: CTRNNControllerSpec, where: str = "controller") -> str | None:
     """Why a plain CTRNN controller's network step (``dt / substeps``) is beyond the stability
     limit of its integrator (:func:`mbn.networks.ctrnn.check_dt`), with how many substeps would
-    do; None where it is within (the integration follows the network's dynamics).
-
-    Interpreter and MBN files are not checked: the limit is estimated at the corners of the
-    sigmoids' slopes, which for the multiplier sub-networks lies far below the step they run
-    and are verified at (the interpreter's agreement with its networks, ``docs/programmable.md``).
-    """
-    if not isinstance(spec, CTRNNControllerSpec):
-        return None
+    do; None where it is within (the integration follows the network's dynamics)."""
     method: Method = "rk4" if spec.method == "rk4" else "euler"
     h = spec.dt / spec.substeps
     limit = max_stable_dt(spec.net, method)  # once: for a large network it is the costly part
@@ -234,9 +235,23 @@ def step_beyond_limit(spec: ControllerSpec, where: str = "controller") -> str | 
     )
 
 
-def check_step(spec: ControllerSpec, where: str = "controller") -> None:
-    """Refuse a plain CTRNN controller whose network step is beyond its integrator's stability
-    limit (:func:`step_beyond_limit`, whose message it raises)."""
+def step_beyond_limit(spec: Any, where: str = "controller") -> str | None:
+    """Why a controller's integration step is beyond its stability limit, by its kind
+    (:meth:`mbn.controllers.kinds.ControllerKind.step_beyond_limit`; for a plain CTRNN
+    :func:`ctrnn_step_beyond_limit`); None where it is within, or for a spec of no registered
+    kind.
+
+    Interpreter and MBN files are not checked: the limit is estimated at the corners of the
+    sigmoids' slopes, which for the multiplier sub-networks lies far below the step they run
+    and are verified at (the interpreter's agreement with its networks, ``docs/programmable.md``).
+    """
+    kind = kind_of(spec)
+    return None if kind is None else kind.step_beyond_limit(spec, where)
+
+
+def check_step(spec: Any, where: str = "controller") -> None:
+    """Refuse a controller whose network step is beyond its integrator's stability limit
+    (:func:`step_beyond_limit`, whose message it raises)."""
     message = step_beyond_limit(spec, where)
     if message is not None:
         raise MbnInputError(message)
@@ -254,12 +269,8 @@ MAX_NETWORK_STEPS = 100_000_000
 
 def network_steps_per_robot_step(loaded: LoadedController) -> int:
     """The network steps a controller takes each robot step: its ``substeps``, plus the program
-    module's for the whole MBN."""
-    spec = loaded.spec
-    if isinstance(spec, MBNControllerSpec):
-        whole = loaded.program is None
-        return spec.interpreter_spec.substeps + (spec.pm_substeps if whole else 0)
-    return spec.substeps
+    module's for the whole MBN (:attr:`mbn.controllers.kinds.Runner.network_steps`)."""
+    return loaded.network_steps
 
 
 def check_trial_length(
@@ -292,15 +303,90 @@ def check_trial_length(
         )
 
 
+def ctrnn_runner(
+    spec: CTRNNControllerSpec, program: str | None, noise: NoiseConfig | None, where: str
+) -> Runner:
+    """A plain CTRNN controller ready to run (a monolithic one reads the camera itself)."""
+    if program is not None:
+        raise MbnInputError(
+            f"{where}: a plain CTRNN controller has no programs (got program {program!r})"
+        )
+    control, initial = _ctrnn_parts(spec, noise)
+    return Runner(
+        controller=control,
+        initial_state=initial,
+        sensors=spec.sensors,
+        dt=spec.dt,
+        camera=spec.camera if spec.tile_rules is not None else None,
+        behavior=spec.behavior,
+        tile_rules=spec.tile_rules,
+        network_steps=spec.substeps,
+    )
+
+
+def interpreter_runner(
+    spec: InterpreterControllerSpec, program: str | None, noise: NoiseConfig | None, where: str
+) -> Runner:
+    """The interpreter running one of its programs (``program``; may be omitted when it has one
+    only)."""
+    programs = _programs_of(spec)
+    chosen = _choose_program(programs, program, spec.kind, where)
+    control, initial = _interpreter_parts(spec, programs[chosen], noise)
+    return Runner(
+        controller=control,
+        initial_state=initial,
+        sensors=spec.sensors,
+        dt=spec.dt,
+        programs=programs,
+        program=chosen,
+        network_steps=spec.substeps,
+    )
+
+
+def mbn_runner(
+    spec: MBNControllerSpec, program: str | None, noise: NoiseConfig | None, where: str
+) -> Runner:
+    """The whole MBN (``program`` None: program module, camera and interpreter), or its
+    interpreter alone with the stored program ``program``."""
+    im_spec = spec.interpreter_spec
+    programs = _programs_of(im_spec)
+    if program is not None:
+        chosen = _choose_program(programs, program, spec.kind, where)
+        control, initial = _interpreter_parts(im_spec, programs[chosen], noise)
+        return Runner(
+            controller=control,
+            initial_state=initial,
+            sensors=im_spec.sensors,
+            dt=im_spec.dt,
+            programs=programs,
+            program=chosen,
+            tile_rules=spec.tile_rules,
+            network_steps=im_spec.substeps,
+        )
+    control, initial = _mbn_parts(spec, noise)
+    return Runner(
+        controller=control,
+        initial_state=initial,
+        sensors=im_spec.sensors,
+        dt=im_spec.dt,
+        camera=spec.camera,
+        programs=programs,
+        initial_rule=spec.initial.rule if spec.initial is not None else None,
+        tile_rules=spec.tile_rules,
+        network_steps=im_spec.substeps + spec.pm_substeps,
+    )
+
+
 def make_controller(
-    spec: ControllerSpec,
+    spec: Any,
     program: str | None = None,
     *,
     where: str = "controller",
     check_stability: bool = True,
     noise: NoiseConfig | None = None,
 ) -> LoadedController:
-    """A :class:`LoadedController` for a spec.
+    """A :class:`LoadedController` for a spec, by its kind's runner
+    (:meth:`ControllerKind.runner <mbn.controllers.kinds.ControllerKind.runner>`).
 
     ``program``: for an interpreter, the name of the program to run (may be omitted when there
     is only one); for an MBN, None runs the whole MBN (program module and camera) and a name runs
@@ -310,52 +396,30 @@ def make_controller(
     (:class:`mbn.world.sensors.NoiseConfig`; None or all zero: none): the controller draws its
     own channels (neurons, program lines), and the trials that run it the world's.
     """
-    if not isinstance(spec, (CTRNNControllerSpec, InterpreterControllerSpec, MBNControllerSpec)):
+    kind = kind_of(spec)
+    if kind is None:
         raise MbnInputError(f"{where}: not a controller spec: {type(spec).__name__}")
     if check_stability:
-        check_step(spec, where)
-    programs: dict[str, tuple[float, ...]] = {}
-    chosen: str | None = None
-    camera: CameraConfig | None = None
-    initial_rule: str | None = None
-    run_spec: CTRNNControllerSpec | InterpreterControllerSpec
-    if isinstance(spec, CTRNNControllerSpec):
-        if program is not None:
-            raise MbnInputError(
-                f"{where}: a plain CTRNN controller has no programs (got program {program!r})"
-            )
-        kind, run_spec = KIND_CTRNN, spec
-        control, initial = _ctrnn_runner(spec, noise)
-        if spec.tile_rules is not None:  # a monolithic controller reads the tiles itself
-            camera = spec.camera
-    else:
-        im_spec = spec if isinstance(spec, InterpreterControllerSpec) else spec.interpreter_spec
-        kind, run_spec = spec.kind, im_spec
-        programs = _programs_of(im_spec)
-        if isinstance(spec, MBNControllerSpec) and program is None:
-            control, initial = _mbn_runner(spec, noise)
-            camera = spec.camera
-            initial_rule = spec.initial.rule if spec.initial is not None else None
-        else:
-            chosen = _choose_program(programs, program, kind, where)
-            control, initial = _interpreter_runner(im_spec, programs[chosen], noise)
+        message = kind.step_beyond_limit(spec, where)
+        if message is not None:
+            raise MbnInputError(message)
+    run = kind.runner(spec, program, noise, where)
     return LoadedController(
-        kind=kind,
-        controller=control,
-        initial_state=initial,
-        sensors=run_spec.sensors,
-        dt=run_spec.dt,
-        needs_camera=camera is not None,
-        camera=camera,
-        programs=programs,
-        program=chosen,
-        behavior=spec.behavior if isinstance(spec, CTRNNControllerSpec) else None,
-        initial_rule=initial_rule,
+        kind=kind.name,
+        controller=run.controller,
+        initial_state=run.initial_state,
+        sensors=run.sensors,
+        dt=run.dt,
+        needs_camera=run.camera is not None,
+        camera=run.camera,
+        programs=dict(run.programs),
+        program=run.program,
+        behavior=run.behavior,
+        initial_rule=run.initial_rule,
         spec=spec,
-        tile_rules=(
-            spec.tile_rules if isinstance(spec, (MBNControllerSpec, CTRNNControllerSpec)) else None
-        ),
+        tile_rules=run.tile_rules,
         noise=noise if noise is not None else NoiseConfig(),
+        network_steps=run.network_steps,
     )
 
 

@@ -39,7 +39,15 @@ from mbn.host import put
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.paper import DEFAULT_TAU
-from mbn.world.rollout import EpisodeStats, count_robot_steps, own_tally, rollout, tally_of
+from mbn.world.rollout import (
+    EpisodeStats,
+    concatenate_states,
+    count_robot_steps,
+    own_tally,
+    rollout,
+    run_rollout,
+    tally_of,
+)
 
 #: A training task: the paper's crossroads, or episodes in mazes of a family.
 Task = CrossroadTask | MazeTask
@@ -48,6 +56,7 @@ __all__ = [
     "FITNESS_PARTS",
     "RF_CONNECTIONS",
     "Genome",
+    "KindFitness",
     "OwnedFitness",
     "connection_group_fitness",
     "connection_search_fitness",
@@ -58,6 +67,7 @@ __all__ = [
     "evaluate_networks",
     "generation",
     "interpreter_programs",
+    "kind_fitness",
     "perturbations",
     "robust_fitness",
     "set_connections",
@@ -882,3 +892,104 @@ def emulated_fitness(
         return jnp.minimum(f_plain, f_emulated)
 
     return fitness
+
+
+@dataclass(frozen=True, eq=False)
+class KindFitness:
+    """The fitness of genomes of a controller kind (:mod:`mbn.controllers.kinds`) on a task:
+    ``fitness(population)`` maps genes ``(P, size)`` to the task's fitness ``(P,)`` (summed over
+    its episodes, as :func:`crossroad_fitness`), each genome run as the spec
+    :meth:`spec` makes of it. Made by :func:`kind_fitness`; DE takes it as any fitness
+    (:func:`start`, :func:`generation`, :meth:`StageContext.evolve
+    <mbn.experiments.pipeline.context.StageContext.evolve>`).
+
+    A population runs as one batched rollout: every genome's spec is made ready to run by its
+    kind's runner, and their initial states are joined (the parts the genomes change, shared by
+    each one's robots, get a batch axis: :func:`mbn.world.rollout.concatenate_states`), so the
+    runner's controller must be the same object for every genome (its settings are the
+    template's). Slower than the compiled fitnesses of ``mbn``'s own stages (the specs are made
+    on the host each generation), and general.
+
+    Attributes:
+        template: the spec whose genes evolve (its settings, dt and sensors kept).
+        task: a :class:`~mbn.experiments.crossroads.CrossroadTask` or a
+            :class:`~mbn.experiments.maze_task.MazeTask`, of the template's ``dt`` and sensors.
+        arrays: the task's arrays (made once).
+        size: genes per genome (the length of the kind's ``genes`` of the template).
+    """
+
+    template: Any
+    task: Task
+    arrays: TaskArrays
+    size: int
+
+    def spec(self, genes: Any) -> Any:
+        """The spec of one genome (the template with ``genes``, by its kind)."""
+        from mbn.controllers import kind_of
+
+        kind = kind_of(self.template)
+        assert kind is not None  # checked by kind_fitness
+        return kind.with_genes(self.template, np.asarray(genes))
+
+    def __call__(self, population: Array) -> Array:
+        from mbn.controllers import make_controller
+
+        genes = np.asarray(population)
+        if genes.ndim != 2 or genes.shape[1] != self.size:
+            raise MbnInputError(f"a population of genomes of {self.size} genes, got {genes.shape}")
+        task, arrays = self.task, self.arrays
+        loaded = [
+            make_controller(self.spec(g), where="genome", check_stability=False, noise=task.noise)
+            for g in genes
+        ]
+        control = loaded[0].controller
+        if any(each.controller is not control for each in loaded):
+            raise MbnInputError(
+                f"controller kind {loaded[0].kind}: its runner made a different controller for "
+                "two genomes: the genes may change only what its state holds (its settings stay "
+                "the template's, and the same settings give the same controller object)"
+            )
+        p, e = genes.shape[0], arrays.episodes
+        dtype = jnp.asarray(genes).dtype
+        state = concatenate_states([each.initial_state(e) for each in loaded], [e] * p)
+        camera = loaded[0].camera
+        config = task.rollout_config(**({"camera": camera} if camera is not None else {}))
+        stats = run_rollout(
+            arrays.world,
+            control,
+            state,
+            put(np.tile(np.asarray(arrays.poses), (p, 1)), dtype),
+            put(np.tile(np.asarray(arrays.maze_index), p), np.int32),
+            config,
+            junctions=arrays.junctions,
+            key=task.rollout_key,
+        ).stats
+        per_episode = tile_fitness(arrays)(stats, task)
+        return jnp.asarray(per_episode).reshape(p, e).sum(-1)
+
+
+def kind_fitness(template: Any, task: Task, arrays: TaskArrays | None = None) -> KindFitness:
+    """The fitness on ``task`` of genomes of ``template``'s kind (:class:`KindFitness`): a
+    controller kind that defines genes (:meth:`ControllerKind.genes
+    <mbn.controllers.kinds.ControllerKind.genes>` and ``with_genes``) is evolved with
+    ``mbn``'s DE as it is. The template must run at the task's ``dt`` with the task's sensors
+    (the sonars are cast as far as its normalised inputs read, :meth:`CrossroadTask.rollout_config
+    <mbn.experiments.crossroads.CrossroadTask.rollout_config>`)."""
+    from mbn.controllers import kind_of, make_controller
+
+    kind = kind_of(template)
+    if kind is None:
+        raise MbnInputError(
+            f"not a controller spec of a registered kind: {type(template).__name__}"
+        )
+    size = int(np.asarray(kind.genes(template)).shape[0])
+    loaded = make_controller(template, where="template", check_stability=False)
+    if loaded.dt != task.dt:
+        raise MbnInputError(
+            f"template: its robot step dt {loaded.dt:g} s is not the task's {task.dt:g} s"
+        )
+    if loaded.sensors != task.sensors:
+        raise MbnInputError(
+            f"template: its sensors {loaded.sensors} are not the task's {task.sensors}"
+        )
+    return KindFitness(template, task, arrays or task.arrays(), size)

@@ -7,7 +7,9 @@ matplotlib.
 * :mod:`~mbn.viz.maze` — :func:`draw_maze`, :func:`save_maze_png`;
 * :mod:`~mbn.viz.episodes` — :func:`draw_trajectory`, :func:`plot_episodes`, :class:`EpisodeView`;
 * :mod:`~mbn.viz.animate` — :func:`animate_episode`;
-* :mod:`~mbn.viz.multiplier` — :func:`plot_multiplier_error`.
+* :mod:`~mbn.viz.multiplier` — :func:`plot_multiplier_error`;
+* :mod:`~mbn.viz.controllers` — :func:`draw_controller`, :func:`save_controller_png`: a
+  controller of any registered kind.
 
 The picture functions are importable from here; their modules (and matplotlib) are imported on
 first use, so ``import mbn.viz`` costs nothing.
@@ -20,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from mbn.viz.animate import animate_episode
+    from mbn.viz.controllers import draw_controller, save_controller_png
     from mbn.viz.episodes import EpisodeView, draw_trajectory, plot_episodes
     from mbn.viz.maze import draw_maze, save_maze_png
     from mbn.viz.multiplier import plot_multiplier_error
@@ -27,10 +30,12 @@ if TYPE_CHECKING:
 __all__ = [
     "EpisodeView",
     "animate_episode",
+    "draw_controller",
     "draw_maze",
     "draw_trajectory",
     "plot_episodes",
     "plot_multiplier_error",
+    "save_controller_png",
     "save_maze_png",
 ]
 
@@ -42,6 +47,8 @@ _HOMES = {
     "EpisodeView": "mbn.viz.episodes",
     "animate_episode": "mbn.viz.animate",
     "plot_multiplier_error": "mbn.viz.multiplier",
+    "draw_controller": "mbn.viz.controllers",
+    "save_controller_png": "mbn.viz.controllers",
 }
 
 
