@@ -24,6 +24,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.crossroads import EPISODE_FITNESS_MAX
 from mbn.experiments.evolve import robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.program_module import (
     MemoryReward,
     PMGenome,
@@ -43,13 +44,14 @@ from mbn.experiments.stages.common import (
 )
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
+from mbn.experiments.stages.records import History, Validation
 from mbn.experiments.stages.rf import evolution_summary
 from mbn.experiments.stages.settings import ValidationSettings
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 from mbn.world.sensors import NoiseConfig
 
-__all__ = ["PMSettings", "PMStage"]
+__all__ = ["PMResult", "PMSettings", "PMStage"]
 
 #: The program-reward phase before a robot reward (``shaping_generations``) of attempt a draws
 #: from ``fold_in(attempt's key, SHAPING_KEY)``.
@@ -152,14 +154,39 @@ class PMSettings(Settings):
             )
 
 
-class PMStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class PMResult(Record):
+    """What the ``pm`` stage records (``stages/pm.json``): the kept attempt's DE run (best
+    genome and fitness, generations, history), the MBN's initial state, the shaping run (None
+    without one), the program reward, the validation, every attempt in brief, and the reward's
+    settings and ceiling."""
+
+    best_genome: list[float]
+    best_fitness: float
+    generations: int
+    history: History
+    initial: dict[str, Any]
+    shaping: dict[str, Any] | None
+    program_reward: float | None
+    validation: Validation
+    attempts: list[dict[str, Any]]
+    chosen_attempt: int
+    reward: str
+    fidelity: float | None
+    switch_seconds: float
+    max_fitness: float
+    camera_range: float
+
+
+class PMStage(Stage[PMResult]):
     name = "pm"
     key_id = KEYS["pm"]
     outputs = ("controllers/mbn.json",)
     needs = ("rf", "lf", "im")
     settings = PMSettings
+    result = PMResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> PMResult:
         s: PMSettings = ctx.settings
         im_spec = read_controller_spec(ctx.rundir.controller_file("im"))
         if not isinstance(im_spec, InterpreterControllerSpec):
@@ -267,30 +294,33 @@ class PMStage(Stage):
         )
         best = attempts[chosen]
         save_controller(ctx.rundir.controller_file("mbn"), best["spec"])
-        return {
-            **best["data"],
-            "initial": best["initial"],
-            "shaping": best["shaping"],
-            "program_reward": best["program_reward"],
-            "validation": best["validation"],
-            "attempts": [
-                {
-                    "best_fitness": x["data"]["best_fitness"],
-                    "program_reward": x["program_reward"],
-                    "initial_rule": x["initial"]["rule"],
-                    "validation": x["validation"],
-                }
-                for x in attempts
-            ],
-            "chosen_attempt": chosen,
-            "reward": s.reward,
-            "fidelity": s.fidelity if s.reward == "memory" else None,
-            "switch_seconds": s.switch_seconds,
-            "max_fitness": float(maximum),
-            "camera_range": s.camera_range,
-        }
+        return PMResult.from_json(
+            {
+                **best["data"],
+                "initial": best["initial"],
+                "shaping": best["shaping"],
+                "program_reward": best["program_reward"],
+                "validation": best["validation"],
+                "attempts": [
+                    {
+                        "best_fitness": x["data"]["best_fitness"],
+                        "program_reward": x["program_reward"],
+                        "initial_rule": x["initial"]["rule"],
+                        "validation": x["validation"],
+                    }
+                    for x in attempts
+                ],
+                "chosen_attempt": chosen,
+                "reward": s.reward,
+                "fidelity": s.fidelity if s.reward == "memory" else None,
+                "switch_seconds": s.switch_seconds,
+                "max_fitness": float(maximum),
+                "camera_range": s.camera_range,
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: PMResult) -> str:
+        data = result.to_json()
         programs = data.get("reward") == "programs"
         head = (
             evolution_summary(data, label="program reward", fmt=".1e")
