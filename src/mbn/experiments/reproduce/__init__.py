@@ -51,7 +51,7 @@ def _results(
     table = claims(
         MultiplierStage.from_json(stages[MultiplierStage.name]),
         tested,
-        LFStage.from_json(stages[LFStage.name])["connections"],
+        LFStage.from_json(stages[LFStage.name]).connections,
         stages.get(ReproduceGeneralization.name),
         config.get(TestsSettings),
     )

@@ -10,6 +10,7 @@ built on another RF makes that RF the run's (``controllers/rf.json``)."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -19,6 +20,7 @@ import numpy as np
 from mbn.controllers import CTRNNControllerSpec
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import (
     SCORE_KEYS,
     evolve_follower,
@@ -37,7 +39,13 @@ from mbn.experiments.stages.lf_search import (
     search_checkpoint,
     search_triples,
 )
-from mbn.experiments.stages.records import Restart, Validation
+from mbn.experiments.stages.records import (
+    AgreementCheck,
+    History,
+    Perturbation,
+    Restart,
+    Validation,
+)
 from mbn.experiments.stages.rf import RFResult, RFSettings, RFStage, evolution_summary
 from mbn.experiments.stages.settings import LFSettings, ValidationSettings
 from mbn.experiments.trials import agreement
@@ -45,7 +53,7 @@ from mbn.networks.multiplier import load_multiplier
 from mbn.networks.programmable import Connection
 from mbn.notation import connection_name
 
-__all__ = ["ATTEMPT_KEY", "LFSettings", "LFStage", "good_enough"]
+__all__ = ["ATTEMPT_KEY", "LFResult", "LFSettings", "LFStage", "good_enough"]
 
 #: What an LF candidate's validation records (:func:`candidate_rank` asks all to be met): LF
 #: alone, the interpreter with LF's program, with RF's, and the agreement of each pair.
@@ -105,14 +113,53 @@ def good_enough(candidate: dict[str, Any], enough: float) -> bool:
     return bool(enough < 1.0 and meets and worst >= enough)
 
 
-class LFStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class LFResult(Record):
+    """What the ``lf`` stage records (``stages/lf.json``): the kept finalist's DE run (best
+    genome and fitness, generations, history), its connections, perturbations, approaches and
+    scores, the population member kept (its fitness and genome), its validations (LF alone, the
+    interpreter with LF's program and with RF's, and the agreements), the population's
+    validation, the RF it was built on, every finalist tried, and the fresh RFs evolved."""
+
+    best_genome: list[float]
+    best_fitness: float
+    generations: int
+    history: History
+    connections: list[str]
+    noise: Perturbation
+    approaches: list[str]
+    branch_fitness: float
+    episodes: int
+    paper_F_M: float
+    paper_F_R: float
+    paper_F_L: float
+    connections_paper_notation: list[str]
+    member: int
+    fitness: float
+    genome: list[float]
+    validation: Validation
+    validation_im: Validation
+    validation_im_rf: Validation
+    validation_agreement: AgreementCheck
+    validation_agreement_rf: AgreementCheck
+    population_validation: dict[str, Any]
+    rf_restart: int
+    rf_switched: bool
+    attempts: list[dict[str, Any]]
+    chosen_attempt: int
+    finalists: int
+    new_rfs: list[dict[str, Any]]
+
+
+class LFStage(Stage[LFResult]):
     name = "lf"
     key_id = KEYS["lf"]
     outputs = ("controllers/lf.json",)
     needs = ("multiplier", "rf", "lf_search")
     settings = LFSettings
+    result = LFResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> LFResult:
         s: LFSettings = ctx.settings
         search = ctx.read(LFSearchStage)
         rf_data = ctx.read(RFStage)
@@ -233,7 +280,7 @@ class LFStage(Stage):
         data["chosen_attempt"] = chosen
         data["finalists"] = s.finalists
         data["new_rfs"] = new_rfs
-        return data
+        return LFResult.from_json(data)
 
     def _new_rf(self, ctx: StageContext, restart: int) -> dict[str, Any]:
         """Another RF, evolved and validated as the rf stage's restarts are (checkpoint
@@ -378,5 +425,5 @@ class LFStage(Stage):
             "validation_agreement_rf": agree(rf_alone, emulated_rf),
         }
 
-    def summary(self, data: dict[str, Any]) -> str:
-        return evolution_summary(data, connections=True)
+    def summary(self, data: LFResult) -> str:
+        return evolution_summary(data.to_json(), connections=True)

@@ -8,7 +8,15 @@ from dataclasses import dataclass
 
 from mbn.experiments.pipeline.results import Record, optional
 
-__all__ = ["Agreement", "History", "Perturbation", "Restart", "TrialSummary", "Validation"]
+__all__ = [
+    "Agreement",
+    "AgreementCheck",
+    "History",
+    "Perturbation",
+    "Restart",
+    "TrialSummary",
+    "Validation",
+]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -73,3 +81,14 @@ class Agreement(Record):
     trials: int
     same_branches: int
     rate: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class AgreementCheck(Record):
+    """An agreement on the validation mazes (:class:`Agreement`) and whether it meets its
+    target."""
+
+    trials: int
+    same_branches: int
+    rate: float
+    meets_target: bool
