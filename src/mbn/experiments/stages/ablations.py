@@ -29,6 +29,7 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import test_specs
 from mbn.experiments.stages.settings import InterpreterSettings
@@ -41,7 +42,7 @@ from mbn.networks.programmable import Programmable, build_interpreter
 from mbn.world.mazes.load import load_maze
 from mbn.world.rollout import Shared
 
-__all__ = ["VARIANTS", "AblationsSettings", "AblationsStage"]
+__all__ = ["VARIANTS", "AblationsResult", "AblationsSettings", "AblationsStage"]
 
 _DOC = "docs/ablations.md"
 
@@ -174,13 +175,25 @@ def _agreements(
     }
 
 
-class AblationsStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class AblationsResult(Record):
+    """What the ``ablations`` stage records (``stages/ablations.json``): each variant of the
+    MBN's program path with its success, the networks' own success, and the trials per test."""
+
+    variants: dict[str, dict[str, Any]]
+    networks: dict[str, dict[str, Any]]
+    trials: dict[str, int]
+
+
+class AblationsStage(Stage[AblationsResult]):
     name = "ablations"
     key_id = KEYS["ablations"]
     needs = ("rf", "lf", "im", "pm")
     settings = AblationsSettings
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = AblationsResult
+
+    def run(self, ctx: StageContext) -> AblationsResult:
         s: AblationsSettings = ctx.settings
         tests = ctx.section(TestsSettings)
         mazes = [load_maze(tests.maze), load_maze(tests.heldout_maze)]
@@ -314,11 +327,17 @@ class AblationsStage(Stage):
                 row["im_lf_jitter"] = rate_record(ims["im_lf_jitter"])
             rows[variant] = row
             ctx.progress.update(bar, completed=v + 1, info=variant)
-        return {
-            "variants": rows,
-            "networks": {name: rate_record(nets[name]) for name in nets},
-            "trials": {"jitter_per_mark": s.jitter_per_mark, "heldout_repeats": s.heldout_repeats},
-        }
+        return AblationsResult.from_json(
+            {
+                "variants": rows,
+                "networks": {name: rate_record(nets[name]) for name in nets},
+                "trials": {
+                    "jitter_per_mark": s.jitter_per_mark,
+                    "heldout_repeats": s.heldout_repeats,
+                },
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: AblationsResult) -> str:
+        data = result.to_json()
         return ", ".join(f"{v} {r['mbn_jitter']['rate']:.0%}" for v, r in data["variants"].items())

@@ -52,6 +52,7 @@ from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig
 from mbn.experiments.evolve import Genome, crossroad_fitness, robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import (
     MADE_BY,
     de_config,
@@ -87,6 +88,7 @@ from mbn.world.rules import parse_rule, parse_rules
 __all__ = [
     "CONTENDERS",
     "Contender",
+    "ContestResult",
     "ContestSettings",
     "ContestStage",
     "check",
@@ -403,13 +405,35 @@ def contend(
     return checks, result
 
 
-class ContestStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class ContestResult(Record):
+    """What the ``contest`` stage records (``stages/contest.json``): by rule and contender, its
+    run (solved, the evaluations it took, its checks, its network), the tests and agreements of
+    what was found, the budget and population, the mazes, the interpreter's digest, the
+    contenders and how programs were checked."""
+
+    runs: dict[str, dict[str, Any]]
+    tests: dict[str, Any]
+    agreement: dict[str, Any]
+    details: dict[str, Any]
+    budget: int
+    popsize: int
+    check_every: int
+    mazes: dict[str, str]
+    sha256: str
+    contenders: dict[str, str]
+    program_checks: str
+
+
+class ContestStage(Stage[ContestResult]):
     name = "contest"
     key_id = KEYS["contest"]
     needs = ("rf", "im_full")
     settings = ContestSettings
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = ContestResult
+
+    def run(self, ctx: StageContext) -> ContestResult:
         s: ContestSettings = ctx.settings
         spec = read_controller_spec(ctx.rundir.controller_file("im_full"))
         if not isinstance(spec, InterpreterControllerSpec):
@@ -486,21 +510,24 @@ class ContestStage(Stage):
                 runs[rule][who] = record
             ctx.rundir.save_trajectories(f"contest_{rule}", trajectories, TRAJECTORY_FIELDS)
             check_digest(interp, digest, f"contest ({rule})")
-        return {
-            "runs": runs,
-            "tests": tests,
-            "agreement": agree,
-            "details": details,
-            "budget": budget,
-            "popsize": popsize,
-            "check_every": s.check_every,
-            "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
-            "sha256": digest,
-            "contenders": {k: CONTENDERS[k] for k in CONTENDERS if k in s.contenders},
-            "program_checks": s.program_checks,
-        }
+        return ContestResult.from_json(
+            {
+                "runs": runs,
+                "tests": tests,
+                "agreement": agree,
+                "details": details,
+                "budget": budget,
+                "popsize": popsize,
+                "check_every": s.check_every,
+                "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
+                "sha256": digest,
+                "contenders": {k: CONTENDERS[k] for k in CONTENDERS if k in s.contenders},
+                "program_checks": s.program_checks,
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: ContestResult) -> str:
+        data = result.to_json()
         parts = []
         for rule, by in data["runs"].items():
             for who, d in by.items():

@@ -48,6 +48,7 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.program_module import MemoryReward
 from mbn.experiments.stages.common import (
     MADE_BY,
@@ -83,7 +84,7 @@ from mbn.world.mazes.builtin import CROSSROAD_KINDS
 from mbn.world.mazes.load import load_maze
 from mbn.world.rules import parse_rule
 
-__all__ = ["CONTENDERS3", "TASK", "Contest3Settings", "Contest3Stage"]
+__all__ = ["CONTENDERS3", "TASK", "Contest3Result", "Contest3Settings", "Contest3Stage"]
 
 #: The name of the three-behaviour task among the contest's rules (results, files, reports).
 TASK = "three-behaviours"
@@ -175,13 +176,37 @@ class Contest3Settings(Settings):
                 )
 
 
-class Contest3Stage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class Contest3Result(Record):
+    """What the ``contest3`` stage records (``stages/contest3.json``): the three-behaviour
+    task's runs by contender, the tests of what was found, the budget and population, the tile
+    rules and the new rule, the monolithic network's size, the episodes per evaluation, the
+    mazes, the interpreter's digest and the contenders."""
+
+    runs: dict[str, dict[str, Any]]
+    tests: dict[str, Any]
+    details: dict[str, Any]
+    budget: int
+    popsize: int
+    check_every: int
+    tile_rules: list[str]
+    new_rule: str
+    neurons: int
+    episodes_per_evaluation: dict[str, Any]
+    mazes: dict[str, str]
+    sha256: str
+    contenders: dict[str, str]
+
+
+class Contest3Stage(Stage[Contest3Result]):
     name = "contest3"
     key_id = KEYS["contest3"]
     needs = ("rf", "im_full")
     settings = Contest3Settings
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = Contest3Result
+
+    def run(self, ctx: StageContext) -> Contest3Result:
         s: Contest3Settings = ctx.settings
         contest: ContestSettings = ctx.section(ContestSettings)
         path = ctx.rundir.controller_file("im_full")
@@ -318,23 +343,26 @@ class Contest3Stage(Stage):
             runs[who] = record
         ctx.rundir.save_trajectories(f"contest_{TASK}", trajectories, TRAJECTORY_FIELDS)
         check_digest(interp, digest, "contest3 (after)")
-        return {
-            "runs": {TASK: runs},
-            "tests": tests,
-            "details": details,
-            "budget": budget,
-            "popsize": popsize,
-            "check_every": contest.check_every,
-            "tile_rules": list(rules),
-            "new_rule": new_rule,
-            "neurons": s.neurons,
-            "episodes_per_evaluation": episodes,
-            "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
-            "sha256": digest,
-            "contenders": {k: CONTENDERS3[k] for k in CONTENDERS3 if k in s.contenders},
-        }
+        return Contest3Result.from_json(
+            {
+                "runs": {TASK: runs},
+                "tests": tests,
+                "details": details,
+                "budget": budget,
+                "popsize": popsize,
+                "check_every": contest.check_every,
+                "tile_rules": list(rules),
+                "new_rule": new_rule,
+                "neurons": s.neurons,
+                "episodes_per_evaluation": episodes,
+                "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
+                "sha256": digest,
+                "contenders": {k: CONTENDERS3[k] for k in CONTENDERS3 if k in s.contenders},
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: Contest3Result) -> str:
+        data = result.to_json()
         parts = []
         for who, d in data["runs"][TASK].items():
             e = d["evaluations"]

@@ -41,6 +41,7 @@ from mbn.experiments.generalization import (
     split_record,
 )
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import (
     maze_episodes,
     noise_key,
@@ -52,6 +53,7 @@ from mbn.experiments.trials import TrialSpec
 
 __all__ = [
     "REPRODUCE_JUDGED",
+    "GeneralizationResult",
     "GeneralizationSettings",
     "GeneralizationStage",
     "Judged",
@@ -210,7 +212,17 @@ def _worst_maze(
     return maze, trajectory, record
 
 
-class GeneralizationStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class GeneralizationResult(Record):
+    """What a ``generalization`` stage records (``stages/generalization.json``): by
+    controller, its file, behaviour, program, maze family and its split records (validation,
+    test, zero-shot), and the noise the trials ran under (None: none)."""
+
+    controllers: dict[str, dict[str, Any]]
+    noise: dict[str, Any] | None
+
+
+class GeneralizationStage(Stage[GeneralizationResult]):
     """The stage of an experiment: a subclass names the controllers it judges (``judged``), the
     stages that make them (``needs``) and its key."""
 
@@ -222,7 +234,9 @@ class GeneralizationStage(Stage):
         """The controllers judged (default: ``judged``)."""
         return self.judged
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = GeneralizationResult
+
+    def run(self, ctx: StageContext) -> GeneralizationResult:
         s: GeneralizationSettings = ctx.settings
         counts = {"train": s.gap_mazes, "validation": s.gap_mazes, "test": s.test_mazes}
         out: dict[str, Any] = {}
@@ -301,15 +315,18 @@ class GeneralizationStage(Stage):
         if worst:
             trajectories = {name: w[1] for name, w in worst.items()}
             ctx.rundir.save_trajectories(WORST_RECORD, trajectories, WORST_FIELDS)
-        return {
-            "controllers": out,
-            "noise": noise.as_dict() if noise.enabled else None,
-        }
+        return GeneralizationResult.from_json(
+            {
+                "controllers": out,
+                "noise": noise.as_dict() if noise.enabled else None,
+            }
+        )
 
     def metrics(self, data: dict[str, Any]) -> dict[str, Any]:
         return data
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: GeneralizationResult) -> str:
+        data = result.to_json()
         parts = []
         for name, rec in data["controllers"].items():
             test = rec["splits"].get("test")

@@ -29,6 +29,7 @@ from mbn.controllers import (
 )
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.program_module import (
     MemoryReward,
     PMGenome,
@@ -41,6 +42,7 @@ from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
 from mbn.experiments.stages.programs import check_digest
+from mbn.experiments.stages.records import History, Validation
 from mbn.experiments.stages.settings import ValidationSettings
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.engine import CameraConfig
@@ -48,6 +50,7 @@ from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
     "CodePM",
+    "MBN3Result",
     "MBN3Settings",
     "MBN3Stage",
     "code_mbn",
@@ -204,14 +207,36 @@ def code_mbn(
     )
 
 
-class MBN3Stage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class MBN3Result(Record):
+    """What the ``mbn3`` stage records (``stages/mbn3.json``): the program module's DE run, the
+    tile rules and the codes each latches, the initial rule, the interpreter's digest checked,
+    and, when it made several attempts, the kept one's validation and every attempt."""
+
+    best_genome: list[float]
+    best_fitness: float
+    generations: int
+    history: History
+    tile_rules: list[str]
+    latched_codes: dict[str, Any]
+    initial: str | None
+    sha256: str
+    sha256_checked: bool
+    validation: Validation | None = optional()
+    attempts: list[dict[str, Any]] | None = optional()
+    chosen_attempt: int | None = optional()
+
+
+class MBN3Stage(Stage[MBN3Result]):
     name = "mbn3"
     key_id = KEYS["mbn3"]
     outputs = ("controllers/mbn3.json",)
     needs = ("im_full", "programs")
     settings = MBN3Settings
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = MBN3Result
+
+    def run(self, ctx: StageContext) -> MBN3Result:
         s: MBN3Settings = ctx.settings
         path = ctx.rundir.controller_file("im_full_programs")
         im_spec = read_controller_spec(path)
@@ -256,34 +281,37 @@ class MBN3Stage(Stage):
         again = read_controller_spec(ctx.rundir.controller_file("mbn3"))
         assert isinstance(again, MBNControllerSpec)
         check_digest(again.interpreter_spec.interpreter, digest, "controllers/mbn3.json")
-        return {
-            "best_genome": run.data["best_genome"],
-            "best_fitness": run.data["best_fitness"],
-            "generations": s.generations,
-            "history": run.data["history"],
-            "tile_rules": list(rules),
-            "latched_codes": pm.latched,
-            "initial": None if spec.initial is None else spec.initial.rule,
-            "sha256": digest,
-            "sha256_checked": True,
-            **(
-                {
-                    "validation": tries[chosen]["validation"],
-                    "attempts": [
-                        {
-                            "best_fitness": t["pm"].run.data["best_fitness"],
-                            "validation": t["validation"],
-                        }
-                        for t in tries
-                    ],
-                    "chosen_attempt": chosen,
-                }
-                if attempts > 1
-                else {}
-            ),
-        }
+        return MBN3Result.from_json(
+            {
+                "best_genome": run.data["best_genome"],
+                "best_fitness": run.data["best_fitness"],
+                "generations": s.generations,
+                "history": run.data["history"],
+                "tile_rules": list(rules),
+                "latched_codes": pm.latched,
+                "initial": None if spec.initial is None else spec.initial.rule,
+                "sha256": digest,
+                "sha256_checked": True,
+                **(
+                    {
+                        "validation": tries[chosen]["validation"],
+                        "attempts": [
+                            {
+                                "best_fitness": t["pm"].run.data["best_fitness"],
+                                "validation": t["validation"],
+                            }
+                            for t in tries
+                        ],
+                        "chosen_attempt": chosen,
+                    }
+                    if attempts > 1
+                    else {}
+                ),
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: MBN3Result) -> str:
+        data = result.to_json()
         return (
             f"program reward {data['best_fitness']:.4f} after {data['generations']} generations; "
             f"tiles {', '.join(data['tile_rules'])}"

@@ -14,6 +14,7 @@ import jax
 from mbn.config import Settings, setting
 from mbn.controllers import make_controller, read_controller_spec
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import run_noise
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import TESTED, test_specs
@@ -22,7 +23,14 @@ from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.world.mazes.load import load_maze
 from mbn.world.sensors import NoiseConfig
 
-__all__ = ["CHANNELS", "CONTROLLERS", "REALISTIC", "NoiseLevelsSettings", "NoiseLevelsStage"]
+__all__ = [
+    "CHANNELS",
+    "CONTROLLERS",
+    "REALISTIC",
+    "NoiseLevelsResult",
+    "NoiseLevelsSettings",
+    "NoiseLevelsStage",
+]
 
 _DOC = "docs/noise.md"
 
@@ -108,13 +116,29 @@ class NoiseLevelsSettings(Settings):
             NoiseConfig(**{channel: levels[-1]})  # within the channel's range
 
 
-class NoiseLevelsStage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class NoiseLevelsResult(Record):
+    """What the ``noise_levels`` stage records (``stages/noise_levels.json``): the channels and
+    their levels, each controller's success curve over them, the realistic noise's results,
+    the trials per level, and the noise the controllers were evolved under."""
+
+    channels: list[str]
+    levels: dict[str, list[float]]
+    curves: dict[str, Any]
+    realistic: dict[str, Any]
+    trials: dict[str, int]
+    evolved_under: dict[str, Any]
+
+
+class NoiseLevelsStage(Stage[NoiseLevelsResult]):
     name = "noise_levels"
     key_id = KEYS["noise_levels"]
     needs = ("rf", "im", "pm")
     settings = NoiseLevelsSettings
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = NoiseLevelsResult
+
+    def run(self, ctx: StageContext) -> NoiseLevelsResult:
         s: NoiseLevelsSettings = ctx.settings
         tests = ctx.section(TestsSettings)
         mazes = [load_maze(tests.maze), load_maze(tests.heldout_maze)]
@@ -190,20 +214,26 @@ class NoiseLevelsStage(Stage):
                 for channel in s.channels
             }
             curves[n] = {c: v for c, v in curves[n].items() if v}
-        return {
-            "channels": list(s.channels),
-            "levels": {c: list(getattr(s, c)) for c in s.channels},
-            "curves": curves,
-            "realistic": {
-                "noise": REALISTIC.as_dict(),
-                **{n: out[n]["realistic"][0] for n in CONTROLLERS},
-            },
-            "trials": {"jitter_per_mark": s.jitter_per_mark, "heldout_repeats": s.heldout_repeats},
-            # the noise the controllers were evolved, validated and tested under ([noise])
-            "evolved_under": {k: v for k, v in run_noise(ctx).as_dict().items() if v},
-        }
+        return NoiseLevelsResult.from_json(
+            {
+                "channels": list(s.channels),
+                "levels": {c: list(getattr(s, c)) for c in s.channels},
+                "curves": curves,
+                "realistic": {
+                    "noise": REALISTIC.as_dict(),
+                    **{n: out[n]["realistic"][0] for n in CONTROLLERS},
+                },
+                "trials": {
+                    "jitter_per_mark": s.jitter_per_mark,
+                    "heldout_repeats": s.heldout_repeats,
+                },
+                # the noise the controllers were evolved, validated and tested under ([noise])
+                "evolved_under": {k: v for k, v in run_noise(ctx).as_dict().items() if v},
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: NoiseLevelsResult) -> str:
+        data = result.to_json()
         r = data["realistic"]
         return "realistic noise: " + ", ".join(
             f"{n} {r[n]['jitter']['rate']:.0%}" for n in CONTROLLERS

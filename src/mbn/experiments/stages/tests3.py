@@ -24,16 +24,18 @@ from mbn.controllers import (
 )
 from mbn.experiments.named import trial_maze
 from mbn.experiments.pipeline import Stage, StageContext
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.programs import ProgramsStage, check_digest
 from mbn.experiments.stages.protocol import SUFFIXES
+from mbn.experiments.stages.records import Agreement, TrialSummary
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["Tests3Settings", "Tests3Stage", "trial_specs"]
+__all__ = ["Tests3Result", "Tests3Settings", "Tests3Stage", "trial_specs"]
 
 
 @dataclass(frozen=True)
@@ -75,14 +77,33 @@ def trial_specs(
     }
 
 
-class Tests3Stage(Stage):
+@dataclass(frozen=True, kw_only=True)
+class Tests3Result(Record):
+    """What the ``tests3`` stage records (``stages/tests3.json``): the three-behaviour MBN's and
+    the new programs' tests and agreements, the interpreter's digest and where it was checked,
+    the mazes and their start marks, the MBN's initial rule and tile rules, and the rates."""
+
+    tests: dict[str, TrialSummary]
+    agreement: dict[str, Agreement]
+    sha256: str
+    sha256_unchanged_in: list[str]
+    mazes: dict[str, str]
+    marks: dict[str, int]
+    initial: str | None
+    tile_rules: list[str]
+    rates: dict[str, float]
+
+
+class Tests3Stage(Stage[Tests3Result]):
     name = "tests3"
     key_id = KEYS["tests3"]
     needs = ("im_full", "programs", "mbn3")
     outputs = ("records/mbn3_marks.npz",)
     settings = Tests3Settings
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    result = Tests3Result
+
+    def run(self, ctx: StageContext) -> Tests3Result:
         s: Tests3Settings = ctx.settings
         t = ctx.section(TestsSettings)
         digest = ctx.read(IMFullStage).sha256
@@ -160,19 +181,22 @@ class Tests3Stage(Stage):
             interp = spec.interpreter
             check_digest(interp, digest, f"controllers/{f}.json")
             checked.append(f"controllers/{f}.json")
-        return {
-            "tests": tests,
-            "agreement": agree,
-            "sha256": digest,
-            "sha256_unchanged_in": checked,
-            "mazes": {"test": s.maze, "heldout": s.heldout_maze},
-            "marks": {"test": len(new[""].starts), "heldout": len(new["_heldout"].starts)},
-            "initial": initial,
-            "tile_rules": list(mbn3.tile_rules),
-            "rates": {k: float(np.round(v["success_rate"], 4)) for k, v in tests.items()},
-        }
+        return Tests3Result.from_json(
+            {
+                "tests": tests,
+                "agreement": agree,
+                "sha256": digest,
+                "sha256_unchanged_in": checked,
+                "mazes": {"test": s.maze, "heldout": s.heldout_maze},
+                "marks": {"test": len(new[""].starts), "heldout": len(new["_heldout"].starts)},
+                "initial": initial,
+                "tile_rules": list(mbn3.tile_rules),
+                "rates": {k: float(np.round(v["success_rate"], 4)) for k, v in tests.items()},
+            }
+        )
 
-    def summary(self, data: dict[str, Any]) -> str:
+    def summary(self, result: Tests3Result) -> str:
+        data = result.to_json()
         r = data["rates"]
         keys = [k for k in r if k.endswith("_jitter") and not k.startswith("net_")]
         return "; ".join(f"{k} {r[k]:.1%}" for k in keys)
