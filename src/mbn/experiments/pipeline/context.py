@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, TypeVar, overload
+from typing import Any, TypeVar, overload
 
 import jax
 import jax.numpy as jnp
@@ -16,6 +16,7 @@ from mbn.config import Settings
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEConfig, DEState
 from mbn.experiments.pipeline.progress import Progress
+from mbn.experiments.pipeline.results import Readable
 from mbn.experiments.pipeline.runconfig import RunConfig
 from mbn.experiments.pipeline.rundir import Checkpoint, RunDir
 from mbn.host import put
@@ -24,20 +25,6 @@ __all__ = ["DEResult", "DERun", "MissingSectionError", "Seeds", "StageContext", 
 
 S = TypeVar("S", bound=Settings)
 D = TypeVar("D")
-D_co = TypeVar("D_co", covariant=True)
-
-
-class Readable(Protocol[D_co]):
-    """What :meth:`StageContext.read` needs of a stage class
-    (:class:`~mbn.experiments.pipeline.registry.Stage` has it): its name, its ``run`` (whose
-    return type is the type read) and how its data is read from its file."""
-
-    name: ClassVar[str]
-
-    def run(self, ctx: StageContext) -> D_co: ...
-
-    @classmethod
-    def from_json(cls, data: dict[str, Any], where: Any = "") -> Any: ...
 
 
 @dataclass(frozen=True)

@@ -23,13 +23,28 @@ import dataclasses
 import types
 import typing
 from collections.abc import Mapping
-from typing import Any, ClassVar, TypeVar
+from typing import Any, ClassVar, Protocol, TypeVar
 
 from mbn.errors import MbnInputError
 
-__all__ = ["Record", "optional"]
+__all__ = ["Readable", "Record", "optional"]
 
 R = TypeVar("R", bound="Record")
+D_co = TypeVar("D_co", covariant=True)
+
+
+class Readable(Protocol[D_co]):
+    """What reading a stage's result by its class needs (``ctx.read(RFStage)``,
+    ``rundir.read_result(RFStage)``; :class:`~mbn.experiments.pipeline.registry.Stage` has it):
+    its name, its ``run`` (whose return type is the type read) and how its data is read from
+    its file."""
+
+    name: ClassVar[str]
+
+    def run(self, ctx: Any) -> D_co: ...
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any], where: Any = "") -> Any: ...
 
 
 def optional(default: Any = None) -> Any:

@@ -20,16 +20,19 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from mbn.errors import MbnInputError
 from mbn.evolution.de import DEState
+from mbn.experiments.pipeline.results import Readable
 from mbn.host import put
 from mbn.io import atomic_open, expect_object, read_json, write_json_atomic
 
 __all__ = ["SUBFOLDERS", "Checkpoint", "RunDir"]
+
+D = TypeVar("D")
 
 #: The folders of a run.
 SUBFOLDERS = ("checkpoints", "stages", "records", "controllers", "figures")
@@ -123,6 +126,11 @@ class RunDir:
         if not isinstance(data, dict):
             raise MbnInputError(f"{path}: not a stage result")
         return data
+
+    def read_result(self, stage: type[Readable[D]]) -> D:
+        """The typed result of a finished stage, by its class (``rundir.read_result(RFStage)``:
+        its record, checked; one line naming the file when it is missing or does not fit)."""
+        return stage.from_json(self.read_stage(stage.name), self.stage_file(stage.name))
 
     def write_stage(self, name: str, data: dict[str, Any]) -> None:
         write_json_atomic(self.stage_file(name), data)

@@ -101,14 +101,14 @@ def controller_curve(rundir: RunDir, stage: str) -> list[float] | None:
     """As :func:`stage_history`; for the LF search, the chosen triple's checkpoint's history."""
     if stage != "lf_search":
         return stage_history(rundir, stage)
-    from mbn.experiments.stages.lf_search import search_checkpoint
+    from mbn.experiments.stages.lf_search import LFSearchStage, search_checkpoint
 
-    if not rundir.stage_done("lf_search"):
-        return None
-    index = rundir.read_stage("lf_search").get("chosen_index")
-    if not isinstance(index, int) or not rundir.checkpoint_file(search_checkpoint(index)).exists():
+    if not rundir.stage_done(LFSearchStage.name):
         return None
     try:
+        index = rundir.read_result(LFSearchStage).chosen_index
+        if not rundir.checkpoint_file(search_checkpoint(index)).exists():
+            return None
         cp = rundir.load_checkpoint(search_checkpoint(index))
     except MbnInputError:
         return None
