@@ -16,8 +16,10 @@ from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.multiplier import MultiplierStage
 from mbn.experiments.stages.protocol import TESTED
 from mbn.experiments.stages.settings import InterpreterSettings
+from mbn.experiments.stages.tests import TestsStage
 from mbn.io import read_json
 from mbn.networks.programmable import differing_connections
 from mbn.notation import connection_names
@@ -35,13 +37,13 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
     """Draw every figure into ``figures/``; returns ``name -> (file, caption)`` (or a list)."""
     stages = {name: rundir.read_stage(name) for name in results["stages"]}
     images: dict[str, Any] = {}
-    mul = stages["multiplier"]
+    mul = rundir.read_result(MultiplierStage)
     grid = rundir.load_record("multiplier_grid")
     draw_multiplier_error(
         grid["grid"],
         grid["output"],
         rundir.figure_file("multiplier_error.png"),
-        num_neurons=mul["neurons"],
+        num_neurons=mul.neurons,
     )
     images["multiplier"] = (
         "figures/multiplier_error.png",
@@ -49,18 +51,18 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
     )
     de_curves(stages, rundir.figure_file("de_curves.png"))
     images["de"] = ("figures/de_curves.png", "DE: best and mean fitness per generation")
-    tests = stages["tests"]
-    maze = load_maze(tests["mazes"]["test"])
+    tests = rundir.read_result(TestsStage)
+    maze = load_maze(tests.mazes["test"])
     trajectories = rundir.load_trajectories("test_trajectories")
     images["trajectories"] = []
     for name, rule in TESTED:
-        t = tests["tests"][name]
+        t = tests.tests[name]
         file = f"figures/trajectories_{name}.png"
         test_trajectories(
             maze,
             trajectories[name],
-            tests["details"][name],
-            f"{name} (rule: {rule}) in {maze.name}: {t['successes']}/{t['trials']}",
+            tests.details[name],
+            f"{name} (rule: {rule}) in {maze.name}: {t.successes}/{t.trials}",
             rundir.root / file,
         )
         images["trajectories"].append(
