@@ -1,4 +1,4 @@
-"""Runs compared by evaluations to success (``mbn.experiments.stats``): censored quantiles, the
+"""Runs compared by evaluations to success (``mbn.stats``): censored quantiles, the
 fraction solved, the ratio of medians with its bootstrap interval, Mann–Whitney U and A12. The
 U test's p-values were computed independently (the normal approximation with tie and continuity
 corrections, as SciPy's ``mannwhitneyu(..., method="asymptotic")`` gives them)."""
@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from mbn.experiments.stats import censored_quantiles, mann_whitney, median_ratio, solved_curve
+from mbn.stats import censored_quantiles, mann_whitney, median_ratio, solved_curve
 
 
 @pytest.mark.parametrize(

@@ -10,13 +10,11 @@ of it.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from jax import Array
 
-from mbn.experiments.stats import wilson_interval
 from mbn.experiments.trials import (
     MAX_STALL_FRACTION,
     TrialGroup,
@@ -26,6 +24,7 @@ from mbn.experiments.trials import (
     run_trial_groups,
     summary,
 )
+from mbn.stats import performance_profile, wilson_interval
 from mbn.world.rules import OPEN_BITS
 
 __all__ = [
@@ -157,17 +156,6 @@ def failure_causes(verdict: dict[str, np.ndarray]) -> dict[str, int]:
         "stalled": int((failed & ~wrong & stalled).sum()),
         "timed_out": int((failed & ~wrong & ~stalled).sum()),
     }
-
-
-def performance_profile(
-    rates: Sequence[float], xs: np.ndarray | None = None
-) -> dict[str, list[float]]:
-    """The fraction of mazes whose success reaches at least ``x``, for each ``x`` of ``xs``
-    (default 0.50, 0.51, ..., 1.00): one curve of the report's performance profile."""
-    xs = np.round(np.linspace(0.5, 1.0, 51), 2) if xs is None else np.asarray(xs)
-    r = np.asarray(rates, float)
-    fraction = (r[None, :] >= xs[:, None] - 1e-12).mean(1) if r.size else np.zeros(len(xs))
-    return {"x": [float(x) for x in xs], "fraction": [float(f) for f in fraction]}
 
 
 def meets_generalization(record: dict[str, Any]) -> bool:

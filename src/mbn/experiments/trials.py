@@ -299,7 +299,7 @@ def agreement(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> dict[str, A
 def rate_record(verdict: dict[str, np.ndarray]) -> dict[str, Any]:
     """``successes``, ``trials``, ``rate`` and ``wilson95`` (the Wilson 95 % interval) of
     judged trials: how the noise and ablation experiments record a test."""
-    from mbn.experiments.stats import wilson_interval
+    from mbn.stats import wilson_interval
 
     s = summary(verdict)
     lo, hi = wilson_interval(int(s["successes"]), int(s["trials"]))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mbn.experiments.generalization import performance_profile as profile
+from mbn.stats import performance_profile as profile
 from mbn.viz.style import new_figure, save_png
 
 __all__ = ["performance_profile", "performance_profile_panels"]

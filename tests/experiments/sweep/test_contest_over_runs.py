@@ -11,9 +11,9 @@ import pytest
 
 from mbn.experiments.contest.over_runs import contest_over_runs, seed_table, statistics
 from mbn.experiments.contest.sweep import CONTEST_SPEC
-from mbn.experiments.stats import mann_whitney, median_ratio, wilson_interval
 from mbn.experiments.sweep.report import summary_line
 from mbn.experiments.sweep.specs import sweep_spec
+from mbn.stats import mann_whitney, median_ratio, wilson_interval
 
 BUDGET = 5418
 

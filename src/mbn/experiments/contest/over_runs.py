@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from mbn.experiments.pipeline.document import Section
-from mbn.experiments.stats import (
+from mbn.stats import (
     censored_quantiles,
     mann_whitney,
     median_ratio,

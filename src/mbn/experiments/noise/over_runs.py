@@ -14,8 +14,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mbn.experiments.stats import describe, wilson_interval
 from mbn.experiments.trials import as_test_record
+from mbn.stats import describe, wilson_interval
 
 if TYPE_CHECKING:
     from mbn.experiments.pipeline.document import Section

@@ -18,9 +18,9 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from mbn.experiments.stats import Z95, describe, wilson_interval
 from mbn.experiments.sweep.specs import SweepSpec, sweep_spec
 from mbn.experiments.sweep.targets import TARGETS, Target, measure, meets
+from mbn.stats import Z95, describe, wilson_interval
 
 __all__ = ["Z95", "describe", "seed_verdict", "summarize", "wilson_interval"]
 

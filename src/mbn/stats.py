@@ -1,7 +1,9 @@
 """Statistics shared by the pipeline's checks and the reports: pass/fail counts (the Wilson
 interval), and runs compared by the evaluations they needed to succeed, unsuccessful runs
 censored at the budget (quantiles, the fraction solved against evaluations, the ratio of
-medians with a bootstrap interval, the Mann–Whitney U test and the Vargha–Delaney A12)."""
+medians with a bootstrap interval, the Mann–Whitney U test and the Vargha–Delaney A12), and a
+split's performance profile. A base module (NumPy only): the experiments, their reports and the
+pictures (:mod:`mbn.viz`) all read it."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ __all__ = [
     "describe",
     "mann_whitney",
     "median_ratio",
+    "performance_profile",
     "solved_curve",
     "wilson_interval",
 ]
@@ -240,3 +243,14 @@ def _average_ranks(x: np.ndarray) -> np.ndarray:
         ranks[order[i : j + 1]] = (i + j) / 2 + 1
         i = j + 1
     return ranks
+
+
+def performance_profile(
+    rates: Sequence[float], xs: np.ndarray | None = None
+) -> dict[str, list[float]]:
+    """The fraction of mazes whose success reaches at least ``x``, for each ``x`` of ``xs``
+    (default 0.50, 0.51, ..., 1.00): one curve of the report's performance profile."""
+    xs = np.round(np.linspace(0.5, 1.0, 51), 2) if xs is None else np.asarray(xs)
+    r = np.asarray(rates, float)
+    fraction = (r[None, :] >= xs[:, None] - 1e-12).mean(1) if r.size else np.zeros(len(xs))
+    return {"x": [float(x) for x in xs], "fraction": [float(f) for f in fraction]}
