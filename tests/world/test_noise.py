@@ -22,6 +22,7 @@ from mbn.world.engine import compile_mazes, maze_constants
 from mbn.world.mazes.model import Maze, Tile, merge_cells
 from mbn.world.robot import SONAR_MAX_RANGE
 from mbn.world.rollout import Observation, RolloutConfig, rollout
+from mbn.world.senses import Senses
 from mbn.world.sensors import NoiseConfig, parse_noise
 from mbn.world.step import camera_noise, command, locate, sense
 
@@ -79,7 +80,7 @@ def test_sonar_dropout_returns_the_miss_at_its_rate():
     clean = np.asarray(sense(world, mc, mi, place).ranges)
     noisy = np.asarray(
         sense(
-            world, mc, mi, place, noise=NoiseConfig(sonar_dropout=0.3), key=jax.random.key(3)
+            world, mc, mi, place, Senses(noise=NoiseConfig(sonar_dropout=0.3)), jax.random.key(3)
         ).ranges
     )
     lost = noisy != clean
@@ -90,7 +91,7 @@ def test_sonar_dropout_returns_the_miss_at_its_rate():
     rate = lost[:, near].mean(axis=0)
     np.testing.assert_allclose(rate, 0.3, atol=0.015)
     with pytest.raises(MbnInputError, match="key"):
-        sense(world, mc, mi, place, noise=NoiseConfig(sonar_dropout=0.3))
+        sense(world, mc, mi, place, Senses(noise=NoiseConfig(sonar_dropout=0.3)))
 
 
 def test_camera_noise_misses_and_invents_blobs_at_their_rates():

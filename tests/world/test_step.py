@@ -17,6 +17,7 @@ from mbn.world.mazes.load import load_maze
 from mbn.world.mazes.model import Maze, Tile, merge_cells
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED, SONAR_MAX_RANGE
 from mbn.world.rollout import Observation, RolloutConfig, junction_arrays, rollout
+from mbn.world.senses import Senses
 from mbn.world.sensors import ALL_SONARS, NoiseConfig, SensorConfig, normalize, paper_inputs
 from mbn.world.step import (
     Place,
@@ -143,15 +144,15 @@ def test_sense_reads_the_exact_geometry_the_camera_and_the_tile_under(corridor):
     # the two-colour tile 1.2 m ahead; on the tile; 2 m ahead looking back; 3.5 m (out of range)
     pose = jnp.asarray([[4.8, 1.8, 0.0], [6.0, 1.7, 0.3], [8.0, 1.9, 3.0], [9.5, 1.9, 3.0]])
     place = locate(world, mc, pose)
-    read = jax.jit(sense, static_argnums=(4, 5))  # compiled once (eager, its ops took 14 s)
-    r = read(world, mc, mi, place, ALL_SONARS, CameraConfig())
+    read = jax.jit(sense, static_argnums=(4,))  # compiled once (eager, its ops took 14 s)
+    r = read(world, mc, mi, place, Senses(camera=CameraConfig()))
     exact = sonar_ranges(pose, rect_segments(corridor.solid_rects()))
     np.testing.assert_allclose(r.ranges, exact, atol=1e-9)
     np.testing.assert_array_equal(r.camera, [2, 0, 2, 0])
     np.testing.assert_array_equal(r.blobs, [2, 0, 2, 0])
     np.testing.assert_array_equal(r.under, [0, 2, 0, 0])
     # a subset of sonars reads the same rays, in the order asked for; no camera reads 0
-    sub = read(world, mc, mi, place, (8, 0, 15), None)
+    sub = read(world, mc, mi, place, Senses(sonars=(8, 0, 15)))
     np.testing.assert_array_equal(sub.ranges, r.ranges[:, [8, 0, 15]])
     np.testing.assert_array_equal(sub.camera, [0, 0, 0, 0])
     np.testing.assert_array_equal(sub.blobs, [0, 0, 0, 0])
@@ -162,14 +163,14 @@ def test_sonar_noise_is_seeded_and_clipped_to_the_range(corridor):
     place = locate(world, mc, jnp.asarray([[4.0, 1.8, 0.0], [8.0, 1.5, 1.0]]))
     clean = sense(world, mc, mi, place).ranges
     noise = NoiseConfig(sonar_std=3.0)
-    a = sense(world, mc, mi, place, noise=noise, key=jax.random.key(1)).ranges
-    b = sense(world, mc, mi, place, noise=noise, key=jax.random.key(1)).ranges
-    c = sense(world, mc, mi, place, noise=noise, key=jax.random.key(2)).ranges
+    a = sense(world, mc, mi, place, Senses(noise=noise), jax.random.key(1)).ranges
+    b = sense(world, mc, mi, place, Senses(noise=noise), jax.random.key(1)).ranges
+    c = sense(world, mc, mi, place, Senses(noise=noise), jax.random.key(2)).ranges
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c) and not np.array_equal(a, clean)
     assert np.all((a >= 0.0) & (a <= SONAR_MAX_RANGE)) and np.any(a == SONAR_MAX_RANGE)
     with pytest.raises(MbnInputError, match="key"):
-        sense(world, mc, mi, place, noise=noise)
+        sense(world, mc, mi, place, Senses(noise=noise))
 
 
 def test_a_sonar_reach_reads_walls_within_it_exactly():
@@ -189,9 +190,9 @@ def test_a_sonar_reach_reads_walls_within_it_exactly():
     pose = jnp.asarray(pose[free])
     world, mc, mi = in_maze(maze, len(pose))
     place = locate(world, mc, pose)
-    full = np.asarray(sense(world, mc, mi, place, ALL_SONARS).ranges)
+    full = np.asarray(sense(world, mc, mi, place, Senses(sonars=ALL_SONARS)).ranges)
     for reach in (0.5, 2.0):
-        short = np.asarray(sense(world, mc, mi, place, ALL_SONARS, reach=reach).ranges)
+        short = np.asarray(sense(world, mc, mi, place, Senses(reach=reach)).ranges)
         within = full <= reach
         assert within.any() and (~within).any()
         np.testing.assert_array_equal(short[within], full[within])

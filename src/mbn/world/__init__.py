@@ -12,6 +12,8 @@
 * :mod:`mbn.world.geometry` — exact reference geometry (segment ray casting, polygon collision);
 * :mod:`mbn.world.engine` — the fast engine: lattice ray marching with culled windows, cell
   collision, the blob-finding camera;
+* :mod:`mbn.world.senses` — what a step senses as one value (:class:`~mbn.world.senses.Senses`),
+  the sensors (sonars, camera, tile under the body) and the registry that adds one, the reading;
 * :mod:`mbn.world.step` — one robot step (sensing, speed limits, kinematics, the stall rule),
   shared by the rollout and the Gymnasium environment;
 * :mod:`mbn.world.rollout` — batched, jitted episodes of controllers in mazes, with their

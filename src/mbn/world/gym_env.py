@@ -66,8 +66,8 @@ from mbn.errors import MbnInputError
 from mbn.world.engine import CameraConfig, World, compile_mazes, maze_constants
 from mbn.world.mazes.model import Maze
 from mbn.world.robot import MAX_ANGULAR_SPEED, MAX_LINEAR_SPEED, SONAR_MAX_RANGE, SONAR_POSES
-from mbn.world.sensors import ALL_SONARS
-from mbn.world.step import Reading, applied_speeds, locate, move, overlaps, sense, undo_stalled
+from mbn.world.senses import Reading, Senses
+from mbn.world.step import applied_speeds, locate, move, overlaps, sense, undo_stalled
 
 __all__ = ["ENV_ID", "MAX_BLOBS", "PioneerMazeEnv", "register"]
 
@@ -87,22 +87,23 @@ _CLEARANCE = 0.5  # metres: closer than this to a wall scales the reward down
 # the jitted single-robot step (a batch of 1 in maze 0 of a compiled world), over mbn.world.step
 #
 # The world travels as an argument (a pytree whose lattice sizes are static), so every
-# environment on the same maze shares one compiled step.
+# environment on the same maze shares one compiled step; the senses (all 16 sonars, the camera
+# or none, no noise) are a static argument.
 
 
-@partial(jax.jit, static_argnames=("camera",))
-def _observe(world: World, camera: CameraConfig | None, pose: Array) -> tuple[Array, Reading]:
+@partial(jax.jit, static_argnames=("senses",))
+def _observe(world: World, senses: Senses, pose: Array) -> tuple[Array, Reading]:
     """Whether the body at ``pose (1, 3)`` overlaps a wall, and what the robot senses there."""
     mi = jnp.zeros((1,), jnp.int32)
     mc = maze_constants(world, mi)
     place = locate(world, mc, pose)
-    return overlaps(world, mc, place), sense(world, mc, mi, place, ALL_SONARS, camera)
+    return overlaps(world, mc, place), sense(world, mc, mi, place, senses)
 
 
-@partial(jax.jit, static_argnames=("camera",))
+@partial(jax.jit, static_argnames=("senses",))
 def _step(
     world: World,
-    camera: CameraConfig | None,
+    senses: Senses,
     pose: Array,
     v_cmd: Array,
     w_cmd: Array,
@@ -116,7 +117,7 @@ def _step(
     moved = move(world, mc, pose, v_cmd, w_cmd, dt)
     here = undo_stalled(moved.stalled, locate(world, mc, pose), moved.place)
     v, w = applied_speeds(moved.stalled, moved.v, moved.w)
-    return here.pose, moved.stalled, v, w, sense(world, mc, mi, here, ALL_SONARS, camera)
+    return here.pose, moved.stalled, v, w, sense(world, mc, mi, here, senses)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -225,6 +226,11 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     # -- helpers -------------------------------------------------------------------------------
 
+    @property
+    def _senses(self) -> Senses:
+        """What the robot senses: the 16 sonars in Stage's order, the camera, no noise."""
+        return Senses(camera=self.camera)
+
     def _start_pose(self, start: Any) -> np.ndarray:
         """A start index or pose as a pose ``(3,)``."""
         if isinstance(start, int | np.integer) and not isinstance(start, bool):
@@ -250,7 +256,7 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         return jnp.asarray(pose[None, :], dtype=self._dtype)
 
     def _collides(self, pose: np.ndarray) -> bool:
-        hit = _observe(self._world, self.camera, self._jnp_pose(pose))[0]
+        hit = _observe(self._world, self._senses, self._jnp_pose(pose))[0]
         return bool(hit[0])
 
     def _observation(self, ranges: np.ndarray, blobs: int) -> np.ndarray:
@@ -306,7 +312,7 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 if not self._collides(cand):
                     pose = cand
                     break
-        _, reading = jax.device_get(_observe(self._world, self.camera, self._jnp_pose(pose)))
+        _, reading = jax.device_get(_observe(self._world, self._senses, self._jnp_pose(pose)))
         self._pose = pose.astype(np.float64)
         self._steps = 0
         self._stalled = False
@@ -329,7 +335,7 @@ class PioneerMazeEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         new, hit, v, w, reading = jax.device_get(
             _step(
                 self._world,
-                self.camera,
+                self._senses,
                 self._jnp_pose(self._pose),
                 jnp.asarray(a[0:1], self._dtype),
                 jnp.asarray(a[1:2], self._dtype),

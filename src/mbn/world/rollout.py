@@ -4,9 +4,11 @@ One robot step (default 100 ms, as Stage's ``interval_sim``), written once in
 :mod:`mbn.world.step` (which the Gymnasium environment shares) plus the episode's bookkeeping of
 :mod:`mbn.world.stats`:
 
-1. sense at the current pose: the sonars of :class:`~mbn.world.sensors.SensorConfig` (exact rays,
-   optional Gaussian noise), the camera (when configured), and the tile under the body (the last
-   tile driven over stays "in force");
+1. sense at the current pose, every sensor of the config's :attr:`RolloutConfig.senses` (one
+   :class:`~mbn.world.senses.Senses`): the sonars of :class:`~mbn.world.sensors.SensorConfig`
+   (exact rays, optional Gaussian noise), the camera (when configured), the tile under the body
+   (the last tile driven over stays "in force"), and the registered sensors the config names
+   (:attr:`RolloutConfig.extra_sensors`, read into :attr:`Observation.extra`);
 2. the controller maps ``(controller_state, observation)`` to ``(controller_state, (v, w))``; it
    integrates its own network with as many sub-steps as it needs;
 3. the command gets optional Gaussian noise and is clipped to the P3DX limits; the pose moves by
@@ -44,6 +46,7 @@ from mbn.errors import MbnInputError
 from mbn.host import put
 from mbn.world.engine import CameraConfig, MazeConstants, World, maze_constants
 from mbn.world.robot import SONAR_MAX_RANGE
+from mbn.world.senses import BUILT_IN_CHANNELS, Senses
 from mbn.world.sensors import NoiseConfig, SensorConfig, normalize, paper_inputs
 from mbn.world.stats import (
     EXIT_NAMES,
@@ -223,7 +226,9 @@ class Observation(NamedTuple):
     last tile driven over (0 none yet); ``stalled``: whether the previous move was undone;
     ``t``: time (s); ``key``: this robot's PRNG key for the step, for a controller's own noise
     (neurons, program lines: :class:`~mbn.world.sensors.NoiseConfig`), None when the rollout's
-    noise has no controller channel on.
+    noise has no controller channel on; ``extra``: the channels of the sensors of one's own that
+    the rollout reads (:attr:`RolloutConfig.extra_sensors`), by name (empty without them; None
+    in an observation made by hand).
     """
 
     ranges: Array
@@ -235,6 +240,7 @@ class Observation(NamedTuple):
     stalled: Array
     t: Array
     key: Array | None = None
+    extra: dict[str, Array] | None = None
 
 
 @dataclass(frozen=True)
@@ -247,7 +253,10 @@ class RolloutConfig:
     ``sonar_reach`` (metres) casts the sonars only that far: a wall within it reads exactly as
     without it, one beyond reads either its distance or the 5 m miss (None: the whole 5 m). Set
     it where nothing reads a range beyond it (:func:`input_reach`): the rays are most of a
-    follower's robot-step (``docs/speed.md``).
+    follower's robot-step (``docs/speed.md``). ``extra_sensors``: registered sensors
+    (:func:`mbn.world.senses.register_sensor`) read after the sonars, camera and tile, whose
+    channels reach the controller in :attr:`Observation.extra`. What a step senses is all one
+    value, :attr:`senses`.
     """
 
     steps: int = 200
@@ -259,6 +268,7 @@ class RolloutConfig:
     record_controller: bool = False
     max_junctions: int = 8
     sonar_reach: float | None = None
+    extra_sensors: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.sonar_reach is not None and not (0.0 < self.sonar_reach <= SONAR_MAX_RANGE):
@@ -273,6 +283,17 @@ class RolloutConfig:
             raise MbnInputError(f"record_every must be >= 0, got {self.record_every!r}")
         if self.max_junctions < 1:
             raise MbnInputError(f"max_junctions must be >= 1, got {self.max_junctions!r}")
+        object.__setattr__(self, "extra_sensors", tuple(self.extra_sensors))
+        _ = self.senses  # an unknown extra sensor is refused here, not while tracing
+
+    @property
+    def senses(self) -> Senses:
+        """What a step senses (:meth:`mbn.world.senses.Senses.build`): the sonars of
+        :attr:`sensors` cast :attr:`sonar_reach` far, the camera, the sensing channels of the
+        noise, and the :attr:`extra_sensors`."""
+        return Senses.build(
+            self.sensors, self.camera, self.noise, self.sonar_reach, self.extra_sensors
+        )
 
 
 def input_reach(sensors: SensorConfig, noise: NoiseConfig) -> float | None:
@@ -398,19 +419,10 @@ def step_key(scene: Scene, step: Array) -> Array | None:
 
 
 def sense_at(scene: Scene, place: Place, step: Array) -> Sensed:
-    """What robots at ``place`` sense, with step ``step``'s noise."""
-    cfg = scene.config
-    reading = sense(
-        scene.world,
-        scene.mc,
-        scene.maze_index,
-        place,
-        cfg.sensors.sonars,
-        cfg.camera,
-        cfg.noise,
-        step_key(scene, step),
-        cfg.sonar_reach,
-    )
+    """What robots at ``place`` sense (the config's :attr:`RolloutConfig.senses`), with step
+    ``step``'s noise."""
+    senses = scene.config.senses
+    reading = sense(scene.world, scene.mc, scene.maze_index, place, senses, step_key(scene, step))
     return Sensed(place, reading)
 
 
@@ -437,8 +449,18 @@ def observe(scene: Scene, here: Sensed, tile: Array, stalled: Array, step: Array
     robot_keys = None
     if key is not None and scene.config.noise.controller_enabled:
         robot_keys = jax.random.split(jax.random.fold_in(key, 5), b)  # one per robot
+    extra = {c: v for c, v in here.reading.items() if c not in BUILT_IN_CHANNELS}
     return Observation(
-        ranges, S, inputs, here.reading.camera, here.reading.blobs, tile, stalled, t, robot_keys
+        ranges,
+        S,
+        inputs,
+        here.reading.camera,
+        here.reading.blobs,
+        tile,
+        stalled,
+        t,
+        robot_keys,
+        extra,
     )
 
 

@@ -3,9 +3,12 @@
 Both the batched rollout (:mod:`mbn.world.rollout`) and the Gymnasium environment
 (:mod:`mbn.world.gym_env`) are built from these functions, so the two run the same world:
 
-* :func:`sense`: at a :class:`Place` (a pose and the lattice window around it), the sonars
-  (exact lattice rays, optional Gaussian noise clipped to [0, 5] m), the blob-finding camera (when
-  configured) and the tile under the body;
+* :func:`sense`: at a :class:`Place` (a pose and the lattice window around it), every sensor of
+  a :class:`~mbn.world.senses.Senses` (one value: the sonars and their reach, the camera, the
+  sensing noise, the sensors of one's own), read in one place into one
+  :class:`~mbn.world.senses.Reading`: the sonars (exact lattice rays, optional Gaussian noise
+  clipped to [0, 5] m), the blob-finding camera (when configured), the tile under the body, then
+  any registered sensor the senses name (:mod:`mbn.world.senses`);
 * :func:`move`: the command gets optional Gaussian noise and is clipped to the P3DX's limits
   (:func:`command`); the pose moves by forward Euler with the heading at the start of the step
   (:func:`mbn.world.robot.integrate_pose`); the body at the new pose is tested against the walls.
@@ -15,13 +18,12 @@ Both the batched rollout (:mod:`mbn.world.rollout`) and the Gymnasium environmen
 Everything is a pure JAX function of explicit arguments over a flat batch ``(B, ...)`` of robots,
 each in the maze ``maze_index`` of a compiled :class:`~mbn.world.engine.World` (its constants
 ``mc`` from :func:`~mbn.world.engine.maze_constants`). Lengths in metres, angles in radians,
-speeds in m/s and rad/s, ``dt`` in seconds. Noise keys are one key per step: :func:`sense` folds
-in 0, :func:`command` folds in 1.
+speeds in m/s and rad/s, ``dt`` in seconds. Noise keys are one key per step: :func:`sense` hands
+it to every sensor (the sonars fold in 0 and 2, the camera 3), :func:`command` folds in 4 and 1.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import NamedTuple, TypeVar
 from typing import cast as typed
 
@@ -31,32 +33,19 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from mbn.errors import MbnInputError
-from mbn.world.engine import (
-    CameraConfig,
-    MazeConstants,
-    World,
-    cast,
-    collides_cells,
-    see_tiles,
-    tile_under,
-    window_words,
-)
-from mbn.world.geometry import sonar_rays
-from mbn.world.mazes.model import TILE_COLORS
-from mbn.world.robot import (
-    SONAR_MAX_RANGE,
-    SONAR_POSES,
-    clip_command,
-    integrate_pose,
-)
-from mbn.world.sensors import ALL_SONARS, NoiseConfig
+from mbn.world.engine import MazeConstants, World, collides_cells, window_words
+from mbn.world.robot import clip_command, integrate_pose
+from mbn.world.senses import Reading, Senses, camera_noise
+from mbn.world.sensors import NoiseConfig
 
 __all__ = [
+    "ALL_SENSES",
     "NO_NOISE",
     "Move",
     "Place",
     "Reading",
     "Sensed",
+    "Senses",
     "applied_speeds",
     "camera_noise",
     "command",
@@ -69,6 +58,8 @@ __all__ = [
 
 #: Noise switched off (the default of every function here).
 NO_NOISE = NoiseConfig()
+#: The senses :func:`sense` reads by default: the 16 sonars, no camera, no noise.
+ALL_SENSES = Senses()
 
 T = TypeVar("T")
 
@@ -83,18 +74,6 @@ class Place(NamedTuple):
     words: Array
     ci: Array
     cj: Array
-
-
-class Reading(NamedTuple):
-    """What robots sense at a place: ``ranges (B, k)`` the sonars asked for (metres, in the order
-    asked for); ``camera (B,)`` the colours (0 none, 1, 2) of the nearest tile in view and
-    ``blobs (B,)`` the blobs in view (both 0 with the camera off); ``under (B,)`` the colours of
-    the tile under the middle of the body (0 none)."""
-
-    ranges: Array
-    camera: Array
-    blobs: Array
-    under: Array
 
 
 class Sensed(NamedTuple):
@@ -131,84 +110,53 @@ def sense(
     mc: MazeConstants,
     maze_index: Array,
     place: Place,
-    sonars: Sequence[int] = ALL_SONARS,
-    camera: CameraConfig | None = None,
-    noise: NoiseConfig = NO_NOISE,
+    senses: Senses = ALL_SENSES,
     key: Array | None = None,
-    reach: float | None = None,
 ) -> Reading:
-    """What robots at ``place`` sense.
+    """What robots at ``place`` sense: every sensor of ``senses``, in its order
+    (:attr:`~mbn.world.senses.Senses.names`: the sonars, the camera, the tile under the body,
+    then the sensors of one's own), into one :class:`~mbn.world.senses.Reading`.
 
     Args:
         world: compiled mazes, in the precision of ``place.pose``.
         mc: the robots' maze constants ``(B, ...)``.
         maze_index: ``(B,)`` index of each robot's maze in ``world``.
         place: where the robots are (:func:`locate`).
-        sonars: Stage indices (0..15) of the sonars to cast, in reading order.
-        camera: the blob finder's settings; None switches it off (it then reads 0).
-        noise: the sonar and camera channels of :class:`NoiseConfig`: ``sonar_std`` (Gaussian,
-            metres, clipped to [0, 5] m), ``sonar_dropout`` (a reading returns 5 m),
-            ``camera_miss`` and ``camera_false`` (the nearest tile reads one colour less or
-            one more, at most 3).
-        key: this step's PRNG key (required when one of them is on); folded with 0 (ranges),
-            2 (dropouts) and 3 (camera).
-        reach: cast the sonars only this far (metres; :func:`mbn.world.engine.cast`): a wall
-            within it reads exactly, one beyond reads its distance or the 5 m miss. None: the
-            sonars' whole range.
+        senses: what is read (:class:`~mbn.world.senses.Senses`: the sonars, in reading order,
+            and their reach; the camera or None; the sensing noise; the extra sensors).
+        key: this step's PRNG key (required when a sensing channel of ``senses.noise`` is on),
+            handed to every sensor: the sonars fold it with 0 (ranges) and 2 (dropouts), the
+            camera with 3.
 
     Returns:
-        The :class:`Reading`: ranges ``(B, k)`` in the precision of the pose, the rest int32.
+        The :class:`~mbn.world.senses.Reading`: ``ranges (B, k)`` in the precision of the pose,
+        ``camera``, ``blobs``, ``under (B,)`` int32, then every extra sensor's channels. A
+        sensor whose channels are not ``(B, ...)``, take another's name or do not fill its
+        width is refused.
     """
-    pose = place.pose
-    origins, angles = sonar_rays(pose, SONAR_POSES[list(sonars)])
-    ranges = cast(
-        world,
-        mc,
-        place.words,
-        place.ci,
-        place.cj,
-        origins[..., 0],
-        origins[..., 1],
-        angles,
-        reach=reach,
-    )
-    sensing = (noise.sonar_std, noise.sonar_dropout, noise.camera_miss, noise.camera_false)
-    if any(level > 0 for level in sensing) and key is None:
+    if senses.noisy and key is None:
         raise MbnInputError("sensor noise is on: pass a PRNG key")
-    key = typed(Array, key)  # set wherever a channel below is on
-    if noise.sonar_std > 0:
-        nk = jax.random.fold_in(key, 0)
-        ranges = jnp.clip(
-            ranges + noise.sonar_std * jax.random.normal(nk, ranges.shape, ranges.dtype),
-            0.0,
-            SONAR_MAX_RANGE,
-        )
-    if noise.sonar_dropout > 0:
-        lost = jax.random.bernoulli(jax.random.fold_in(key, 2), noise.sonar_dropout, ranges.shape)
-        ranges = jnp.where(lost, jnp.asarray(SONAR_MAX_RANGE, ranges.dtype), ranges)
-    if camera is not None:
-        seen = see_tiles(world, mc, maze_index, place.words, place.ci, place.cj, pose, camera)
-        nearest, blobs = seen.nearest, seen.blobs
-        if noise.camera_miss > 0 or noise.camera_false > 0:
-            nearest, blobs = camera_noise(nearest, blobs, noise, jax.random.fold_in(key, 3))
-    else:
-        nearest = blobs = jnp.zeros(pose.shape[:1], jnp.int32)
-    return Reading(ranges, nearest, blobs, tile_under(world, maze_index, pose))
-
-
-def camera_noise(
-    nearest: Array, blobs: Array, noise: NoiseConfig, key: Array
-) -> tuple[Array, Array]:
-    """The blob finder's reading ``(nearest, blobs) (B,)`` with a missed blob (probability
-    ``noise.camera_miss``: one colour less, where a tile is in view) or a false one
-    (``noise.camera_false``: one colour more, at most 3), drawn independently per robot; a
-    miss and a false blob in the same step cancel."""
-    km, kf = jax.random.split(key)
-    shape = nearest.shape
-    miss = jax.random.bernoulli(km, noise.camera_miss, shape) & (nearest > 0)
-    false = jax.random.bernoulli(kf, noise.camera_false, shape) & (nearest < max(TILE_COLORS))
-    change = false.astype(nearest.dtype) - miss.astype(nearest.dtype)
-    return nearest + change, jnp.maximum(blobs + change, 0)
+    b = place.pose.shape[0]
+    channels: dict[str, Array] = {}
+    for sensor in senses.sensors:
+        read = sensor.read(world, mc, maze_index, place, senses, key)
+        columns = 0
+        for name, value in read.items():
+            if name in channels:
+                raise MbnInputError(f"sensor {sensor.name!r}: channel {name!r} is read already")
+            if value.ndim not in (1, 2) or value.shape[0] != b:
+                raise MbnInputError(
+                    f"sensor {sensor.name!r}: channel {name!r} must be ({b},) or ({b}, n), got "
+                    f"{value.shape}"
+                )
+            channels[name] = value
+            columns += 1 if value.ndim == 1 else value.shape[1]
+        if columns != sensor.width(senses):
+            raise MbnInputError(
+                f"sensor {sensor.name!r}: its channels fill {columns} columns, its width is "
+                f"{sensor.width(senses)}"
+            )
+    return Reading(channels)
 
 
 def command(
