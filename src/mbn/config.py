@@ -61,19 +61,20 @@ def setting(
     unit: str = "",
     low: float | None = None,
     high: float | None = None,
-    choices: Sequence[str] | None = None,
+    choices: Sequence[str] | Callable[[], Sequence[str]] | None = None,
     source: str = "",
 ) -> Any:
     """A settings field: its default, what it is (``doc``), its ``unit``, the closed range
     ``[low, high]`` of valid values (for numbers, and for every item of a tuple of numbers), the
-    valid ``choices`` (for strings, and for every item of a tuple of strings), and ``source``:
+    valid ``choices`` (for strings, and for every item of a tuple of strings; a function giving
+    them, asked at each check, for a registry that grows: the maze families), and ``source``:
     the paper section or ``docs/`` page the default comes from."""
     meta = {
         "doc": doc,
         "unit": unit,
         "low": low,
         "high": high,
-        "choices": tuple(choices) if choices is not None else None,
+        "choices": choices if callable(choices) or choices is None else tuple(choices),
         "source": source,
     }
     if isinstance(default, (list, dict, set)):
@@ -99,6 +100,14 @@ def _clip(text: str, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit] + "..."
 
 
+def _choices(meta: Mapping[str, Any]) -> tuple[str, ...] | None:
+    """A field's choices (:func:`setting`), a function of them asked now."""
+    choices = meta.get("choices")
+    if callable(choices):
+        return tuple(choices())
+    return choices
+
+
 def _check_scalar(value: Any, hint: Any, meta: Mapping[str, Any], where: str) -> Any:
     if hint is bool:
         if not isinstance(value, bool):
@@ -114,7 +123,7 @@ def _check_scalar(value: Any, hint: Any, meta: Mapping[str, Any], where: str) ->
     elif hint is str:
         if not isinstance(value, str):
             raise MbnInputError(f"{where}: expected a string, got {value!r}")
-        choices = meta.get("choices")
+        choices = _choices(meta)
         if choices is not None and value not in choices:
             raise MbnInputError(f"{where}: expected one of {', '.join(choices)}, got {value!r}")
         return value
@@ -327,8 +336,9 @@ def _comment(f: dataclasses.Field[Any]) -> str:
         lo = "-inf" if low is None else f"{low:g}"
         hi = "inf" if high is None else f"{high:g}"
         parts.append(f"range [{lo}, {hi}]")
-    if meta.get("choices"):
-        parts.append("one of " + ", ".join(meta["choices"]))
+    choices = _choices(meta)
+    if choices:
+        parts.append("one of " + ", ".join(choices))
     if meta.get("source"):
         parts.append(f"source: {plain_text(meta['source'])}")
     return "; ".join(p for p in parts if p)

@@ -204,7 +204,7 @@ def _cmd_mazes_generate(args: argparse.Namespace) -> int:
     maze = families.generate(fam, args.seed)
     info = families.describe(maze)
     print(
-        f"{args.out}: {maze.name} ({families.split_of(args.seed)} split), "
+        f"{args.out}: {maze.name} ({families.split_of(args.seed, fam)} split), "
         f"{info['shape'][0]} x {info['shape'][1]} cells, {info['plus_crossings']} plus, "
         f"{info['t_junctions']} T, {info['corners']} corners, {info['dead_ends']} dead ends, "
         f"{info['loops']} loops, {len(maze.tiles)} tiles, {info['starts']} starts"

@@ -19,14 +19,26 @@ Two fitnesses are available:
     beyond the junction along the correct arm, over the arm's length, in [0, 1] (0 anywhere
     else). It rewards exactly what the tests judge: the rule's branch, without stalling.
 
-Both keep the paper's terms visible (:func:`paper_terms`). Episodes: every crossroad from its
-start mark, and ``variants - 1`` more starts per crossroad jittered (lateral, along the corridor,
-heading) with a seeded NumPy generator at this edge, so that the evolved controller does not
-depend on one exact start.
+Both keep the paper's terms visible (:func:`paper_terms`). **A fitness of your own** is registered
+by name (:func:`register_fitness`): a function of the episodes' statistics, the task's arrays
+and the task, as the two above; a task names it by ``fitness``, and a rule may take it as its
+own (``rules=``: the crossroad tasks of those rules use it unless they name another), which is
+how a stage that builds its tasks by rule (``programs``) trains a new rule with it::
+
+    register_fitness("u-turn-home", my_fitness, rules=("u-turn",))
+
+A rule that turns back (:func:`mbn.world.rules.register_rule`) has the arm it came by, the south
+one, as its arm (``"B"``).
+
+Episodes: every crossroad from its start mark, and ``variants - 1`` more starts per crossroad
+jittered (lateral, along the corridor, heading) with a seeded NumPy generator at this edge, so
+that the evolved controller does not depend on one exact start.
 """
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,7 +67,9 @@ __all__ = [
     "TaskArrays",
     "episode_fitness",
     "paper_terms",
+    "register_fitness",
     "rule_arm",
+    "rule_fitness",
 ]
 
 #: The paper's two rules (the wall followers); any rule of :mod:`mbn.world.rules` is trainable.
@@ -67,20 +81,68 @@ EPISODE_SECONDS = 30.0
 F_M_WEIGHT = 0.1
 #: The largest branch fitness of one episode: full progress, no stall, F_M = 1.
 EPISODE_FITNESS_MAX = 1.0 + F_M_WEIGHT
+#: mbn's fitnesses (registered below, as a fitness of your own is: :func:`register_fitness`).
 FITNESSES: tuple[str, ...] = ("branch", "paper")
-ARM_VECTORS = {"L": (-1.0, 0.0), "S": (0.0, 1.0), "R": (1.0, 0.0)}
+#: The unit vector of each arm of a crossroad entered from the south (``"B"``: back, the south
+#: arm itself, for a rule that turns back).
+ARM_VECTORS = {"L": (-1.0, 0.0), "S": (0.0, 1.0), "R": (1.0, 0.0), "B": (0.0, -1.0)}
+_ARM_OF = {"left": "L", "straight": "S", "right": "R", "back": "B"}
+#: A crossroad fitness: per-episode values ``(..., E)`` from the episodes' statistics, the task's
+#: arrays and the task.
+Fitness = Callable[["EpisodeStats", "TaskArrays", "CrossroadTask"], Array]
+#: The fitnesses by name (:func:`register_fitness`), and the fitness of a rule that has one.
+_FITNESSES: dict[str, Fitness] = {}
+_RULE_FITNESS: dict[str, str] = {}
+_FITNESS_NAME = re.compile(r"^[a-z][a-z0-9]*(-[a-z0-9]+)*$")
+
+
+def register_fitness(name: str, fitness: Fitness, *, rules: Sequence[str] = ()) -> None:
+    """Register a crossroad fitness under ``name`` (lower-case words joined by ``-``):
+    ``fitness(stats, arrays, task)`` gives every episode's value (``(..., E)``, a JAX function:
+    it runs inside the compiled fitness; :func:`episode_fitness` calls it). A task takes it by
+    ``fitness=name``; ``rules``: rules (:mod:`mbn.world.rules`) whose tasks take it when they
+    name no fitness (:func:`rule_fitness`). A name or a rule's fitness registered already is
+    refused in one line (the same function again is allowed: a module imported twice)."""
+    where = f"register_fitness({name!r})"
+    if not isinstance(name, str) or not _FITNESS_NAME.match(name):
+        raise MbnInputError(f"{where}: a fitness's name is lower-case words joined by '-'")
+    if not callable(fitness):
+        raise MbnInputError(f"{where}: the fitness must be a function (stats, arrays, task)")
+    if name in _FITNESSES and _FITNESSES[name] is not fitness:
+        raise MbnInputError(f"{where}: a fitness of that name is registered already")
+    names = []
+    for rule in rules:
+        try:
+            names.append(parse_rule(rule).name)
+        except MbnInputError as exc:
+            raise MbnInputError(f"{where}: rules: {exc}") from None
+    for rule in names:
+        if _RULE_FITNESS.get(rule, name) != name:
+            raise MbnInputError(
+                f"{where}: the rule {rule!r} has the fitness {_RULE_FITNESS[rule]!r} already"
+            )
+    _FITNESSES[name] = fitness
+    _RULE_FITNESS.update(dict.fromkeys(names, name))
+
+
+def rule_fitness(rule: str) -> str:
+    """The fitness a crossroad task of ``rule`` takes when it names none: the one registered
+    for the rule (:func:`register_fitness`), else ``"branch"``."""
+    return _RULE_FITNESS.get(parse_rule(rule).name, "branch")
 
 
 def rule_arm(kind: str, rule: str) -> str:
-    """The exit (``"L"``, ``"S"`` or ``"R"``) a rule (:mod:`mbn.world.rules`) takes at a
-    crossroad kind entered from the south: the first of its order that the kind has (the
-    right-hand rule first of R, S, L; the left-hand rule first of L, S, R)."""
-    order = parse_rule(rule).initials
+    """The exit (``"L"``, ``"S"``, ``"R"``, or ``"B"`` back) a rule (:mod:`mbn.world.rules`) takes
+    at a crossroad kind entered from the south: for a priority order the first of its order
+    that the kind has (the right-hand rule first of R, S, L; the left-hand rule first of L, S,
+    R)."""
+    parsed = parse_rule(rule)
     if kind not in CROSSROAD_KINDS:
         raise MbnInputError(
             f"unknown crossroad kind {kind!r} (known: {', '.join(CROSSROAD_KINDS)})"
         )
-    return next(c for c in order if c in kind)
+    opened = {e for e, arm in _ARM_OF.items() if arm in kind}
+    return _ARM_OF[parsed.exit(opened)]
 
 
 @dataclass(frozen=True)
@@ -90,7 +152,9 @@ class CrossroadTask:
     Attributes:
         rule: the rule rewarded (:mod:`mbn.world.rules`: "right", "left", "straight-right", ...
             or an order such as "SRL"; kept as its name).
-        fitness: "branch" (default) or "paper" (see the module docstring).
+        fitness: "branch" or "paper" (see the module docstring), or a registered one
+            (:func:`register_fitness`); left empty, the rule's (:func:`rule_fitness`: "branch"
+            unless one was registered for the rule).
         variants: starts per crossroad: the start mark and ``variants - 1`` jittered ones.
         seconds: episode length (the paper: "about 20 seconds"; default 30 s, see docs).
         dt: robot step (s).
@@ -111,7 +175,7 @@ class CrossroadTask:
     """
 
     rule: str = "right"
-    fitness: str = "branch"
+    fitness: str = ""
     variants: int = 6
     seconds: float = EPISODE_SECONDS
     dt: float = 0.1
@@ -127,9 +191,11 @@ class CrossroadTask:
         object.__setattr__(self, "rule", parse_rule(self.rule).name)
         if self.noise.enabled and self.noise_key is None:
             raise MbnInputError("a crossroad task with noise needs a noise_key")
-        if self.fitness not in FITNESSES:
+        if not self.fitness:
+            object.__setattr__(self, "fitness", rule_fitness(self.rule))
+        if self.fitness not in _FITNESSES:
             raise MbnInputError(
-                f"fitness must be one of {', '.join(FITNESSES)}, got {self.fitness!r}"
+                f"fitness must be one of {', '.join(_FITNESSES)}, got {self.fitness!r}"
             )
         if not (isinstance(self.variants, int) and self.variants >= 1):
             raise MbnInputError(f"variants must be an integer >= 1, got {self.variants!r}")
@@ -226,9 +292,24 @@ def branch_progress(stats: EpisodeStats, arrays: TaskArrays) -> Array:
 
 
 def episode_fitness(stats: EpisodeStats, arrays: TaskArrays, task: CrossroadTask) -> Array:
-    """Fitness of every episode ``(..., E)``; sum over episodes for a controller's fitness."""
+    """Fitness of every episode ``(..., E)``, by the task's fitness (:func:`register_fitness`);
+    sum over episodes for a controller's fitness."""
+    return _FITNESSES[task.fitness](stats, arrays, task)
+
+
+def paper_fitness(stats: EpisodeStats, arrays: TaskArrays, task: CrossroadTask) -> Array:
+    """The paper's fitness ``"paper"``: F_M + F_R (F_L for any rule but right)."""
     terms = paper_terms(stats, task.sensors.far)
-    if task.fitness == "paper":
-        return terms["F_M"] + (terms["F_R"] if task.rule == "right" else terms["F_L"])
+    return terms["F_M"] + (terms["F_R"] if task.rule == "right" else terms["F_L"])
+
+
+def branch_fitness(stats: EpisodeStats, arrays: TaskArrays, task: CrossroadTask) -> Array:
+    """The fitness ``"branch"`` (the default): progress into the rule's arm times (1 - stall),
+    minus the stall fraction, plus 0.1 F_M."""
+    terms = paper_terms(stats, task.sensors.far)
     stall = stats.stall_fraction
     return branch_progress(stats, arrays) * (1.0 - stall) - stall + F_M_WEIGHT * terms["F_M"]
+
+
+register_fitness("branch", branch_fitness)
+register_fitness("paper", paper_fitness)

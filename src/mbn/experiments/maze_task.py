@@ -20,12 +20,18 @@ the stall fraction until the last judged junction was left (over the whole episo
 was), ``w`` the weight of stalling (``stall_weight``: 1, as in the crossroads' branch fitness),
 and ``F_M`` the paper's motion term (eq. 4), weighted as there. The rule in force is ``rule``;
 for ``"tiles"`` the rule of the last tile driven over (``tile_rules``), ``initial`` before the
-first.
+first. It judges any rule, a registered one (:func:`mbn.world.rules.register_rule`) too.
+
+**A fitness of your own** is registered by name (:func:`register_fitness`), as a crossroad one
+is (:func:`mbn.experiments.crossroads.register_fitness`): ``fitness(stats, task)``, every
+episode's value; a task names it by ``fitness``, or takes it as its rule's (``rules=``).
 """
 
 from __future__ import annotations
 
 import functools
+import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,10 +49,59 @@ from mbn.world.rollout import EpisodeStats, RolloutConfig, input_reach, junction
 from mbn.world.rules import parse_rule, rule_exit_codes
 from mbn.world.sensors import NoiseConfig, SensorConfig
 
-__all__ = ["MAZE_FITNESSES", "MazeTask", "junction_progress", "maze_episode_fitness"]
+__all__ = [
+    "MAZE_FITNESSES",
+    "MazeTask",
+    "junction_progress",
+    "maze_episode_fitness",
+    "register_fitness",
+    "rule_fitness",
+]
 
-#: The fitnesses of a maze task.
+#: mbn's fitnesses of a maze task (registered below, as one of your own is:
+#: :func:`register_fitness`).
 MAZE_FITNESSES = ("junctions",)
+#: A maze task's fitness: per-episode values from the episodes' statistics and the task.
+MazeFitness = Callable[[EpisodeStats, "MazeTask"], Array]
+_FITNESSES: dict[str, MazeFitness] = {}
+_RULE_FITNESS: dict[str, str] = {}
+_FITNESS_NAME = re.compile(r"^[a-z][a-z0-9]*(-[a-z0-9]+)*$")
+
+
+def register_fitness(name: str, fitness: MazeFitness, *, rules: Sequence[str] = ()) -> None:
+    """Register a maze task's fitness under ``name`` (lower-case words joined by ``-``):
+    ``fitness(stats, task)`` gives every episode's value (a JAX function, run inside the
+    compiled fitness). A task takes it by ``fitness=name``; ``rules``: rules whose maze tasks
+    take it when they name no fitness (:func:`rule_fitness`). A name or a rule's fitness
+    registered already is refused in one line (the same function again is allowed)."""
+    where = f"register_fitness({name!r})"
+    if not isinstance(name, str) or not _FITNESS_NAME.match(name):
+        raise MbnInputError(f"{where}: a fitness's name is lower-case words joined by '-'")
+    if not callable(fitness):
+        raise MbnInputError(f"{where}: the fitness must be a function (stats, task)")
+    if name in _FITNESSES and _FITNESSES[name] is not fitness:
+        raise MbnInputError(f"{where}: a fitness of that name is registered already")
+    names = []
+    for rule in rules:
+        try:
+            names.append(parse_rule(rule).name)
+        except MbnInputError as exc:
+            raise MbnInputError(f"{where}: rules: {exc}") from None
+    for rule in names:
+        if _RULE_FITNESS.get(rule, name) != name:
+            raise MbnInputError(
+                f"{where}: the rule {rule!r} has the fitness {_RULE_FITNESS[rule]!r} already"
+            )
+    _FITNESSES[name] = fitness
+    _RULE_FITNESS.update(dict.fromkeys(names, name))
+
+
+def rule_fitness(rule: str) -> str:
+    """The fitness a maze task of ``rule`` takes when it names none: the one registered for the
+    rule (:func:`register_fitness`), else ``"junctions"`` (for ``"tiles"`` too)."""
+    if rule == "tiles":
+        return _RULE_FITNESS.get("tiles", "junctions")
+    return _RULE_FITNESS.get(parse_rule(rule).name, "junctions")
 
 
 @dataclass(frozen=True)
@@ -60,7 +115,8 @@ class MazeTask:
         mazes: mazes of the pool in one draw.
         starts: start marks of each maze in one draw (each jittered).
         junctions: junction passes judged per episode.
-        fitness: "junctions".
+        fitness: "junctions" or a registered one (:func:`register_fitness`); left empty, the
+            rule's (:func:`rule_fitness`: "junctions" unless one was registered for it).
         seconds: episode length (s).
         dt: robot step (s).
         jitter: lateral (m), along (m), heading (degrees) half-ranges of the starts.
@@ -81,7 +137,7 @@ class MazeTask:
     mazes: int = 8
     starts: int = 4
     junctions: int = 3
-    fitness: str = "junctions"
+    fitness: str = ""
     seconds: float = 40.0
     dt: float = 0.1
     jitter: tuple[float, float, float] = JITTER
@@ -102,9 +158,11 @@ class MazeTask:
         fam = families.family(self.family)
         if self.rule == "tiles" and not fam.tile_kinds:
             raise MbnInputError(f"rule 'tiles' needs a family with tiles, got {self.family!r}")
-        if self.fitness not in MAZE_FITNESSES:
+        if not self.fitness:
+            object.__setattr__(self, "fitness", rule_fitness(self.rule))
+        if self.fitness not in _FITNESSES:
             raise MbnInputError(
-                f"fitness must be one of {', '.join(MAZE_FITNESSES)}, got {self.fitness!r}"
+                f"fitness must be one of {', '.join(_FITNESSES)}, got {self.fitness!r}"
             )
         for name in ("pool", "mazes", "starts", "junctions"):
             value = getattr(self, name)
@@ -184,9 +242,9 @@ class MazeTask:
 @functools.lru_cache(maxsize=8)
 def _pool_seeds(family: str, pool: int, seed: int) -> tuple[int, ...]:
     rng = np.random.default_rng([seed, 4747])
-    train = families.SPLITS["train"]
+    train = families.family_splits(family)["train"]
     seeds = sorted(int(s) for s in rng.choice(len(train), pool, replace=False) + train.start)
-    families.check_use(seeds, "train", where=f"maze task pool of {family}")
+    families.check_use(seeds, "train", where=f"maze task pool of {family}", fam=family)
     return tuple(seeds)
 
 
@@ -225,7 +283,15 @@ def junction_progress(stats: EpisodeStats, task: MazeTask) -> tuple[Array, Array
 
 
 def maze_episode_fitness(stats: EpisodeStats, task: MazeTask) -> Array:
-    """Fitness of every episode (see the module docstring)."""
+    """Fitness of every episode, by the task's fitness (:func:`register_fitness`)."""
+    return _FITNESSES[task.fitness](stats, task)
+
+
+def junctions_fitness(stats: EpisodeStats, task: MazeTask) -> Array:
+    """The fitness ``"junctions"`` (see the module docstring)."""
     progress, stall = junction_progress(stats, task)
     f_m = paper_terms(stats, task.sensors.far)["F_M"]
     return progress * (1.0 - stall) - task.stall_weight * stall + F_M_WEIGHT * f_m
+
+
+register_fitness("junctions", junctions_fitness)

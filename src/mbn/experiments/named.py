@@ -114,7 +114,7 @@ def check_not_test_mazes(
     for where, name in names:
         generated = families.parse_name(name)
         if generated is not None:
-            families.check_use(generated.seeds, "validation", where)
+            families.check_use(generated.seeds, "validation", where, generated.family)
 
     tests: list[tuple[str, str, Maze | None]] = []
     for setting, name in test_mazes(sections):

@@ -40,7 +40,7 @@ from mbn.world.rollout import (
     junction_arrays,
     run_rollout,
 )
-from mbn.world.rules import NAMED_RULES, parse_rule, rule_exit_codes
+from mbn.world.rules import NAMED_RULES, parse_rule, rule_exit_codes, rule_names
 from mbn.world.sensors import NoiseConfig, SensorConfig
 
 __all__ = [
@@ -119,7 +119,7 @@ class TrialSpec:
                 rule = parse_rule(self.behavior)
             except MbnInputError:
                 raise MbnInputError(
-                    f"behavior must be a rule ({', '.join(NAMED_RULES)}, or an order such as "
+                    f"behavior must be a rule ({', '.join(rule_names())}, or an order such as "
                     f"'SRL') or tiles, got {self.behavior!r}"
                 ) from None
             object.__setattr__(self, "behavior", rule.name)

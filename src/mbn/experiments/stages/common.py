@@ -448,17 +448,22 @@ def _validation_trial(
 
 def tile_family(tile_rules: tuple[str, ...]) -> str:
     """The maze family whose tile kinds put ``tile_rules`` in force (an MBN's: ``tiles2`` for
-    the paper's right and left, ``tiles3`` for the three-behaviour MBN's)."""
+    the paper's right and left, ``tiles3`` for the three-behaviour MBN's; for other rules the
+    first registered family with those tile rules, :func:`mbn.world.mazes.families.
+    register_family`)."""
     from mbn.world.mazes import families
+    from mbn.world.rules import parse_rules
 
+    wanted = tuple(parse_rules(tile_rules, "tile rules"))
     for name, fam in families.FAMILIES.items():
-        if fam.tile_rules and fam.tile_rules == tuple(tile_rules):
+        if fam.tile_rules and fam.tile_rules == wanted:
             return name
     known = "; ".join(
         f"{n}: {', '.join(f.tile_rules)}" for n, f in families.FAMILIES.items() if f.tile_rules
     )
     raise MbnInputError(
-        f"no maze family has tiles for the rules {', '.join(tile_rules)} (the families: {known})"
+        f"no maze family has tiles for the rules {', '.join(tile_rules)} (the families: {known}; "
+        "register one: mbn.world.mazes.families.register_family)"
     )
 
 
@@ -479,7 +484,7 @@ def validation_maze_names(
     if episodes is None:
         return [v.maze, *v.extra_mazes, *extra]
     family = tile_family(tile_rules) if behavior == "tiles" else episodes.family
-    seeds = families.split_seeds("validation", 0, v.split_mazes - 1)
+    seeds = families.split_seeds("validation", 0, v.split_mazes - 1, family)
     return [*(f"{family}:{s}" for s in seeds), *extra]
 
 

@@ -152,13 +152,13 @@ def split_mazes(ctx: StageContext, family: str, split: str, count: int) -> tuple
     from mbn.world.mazes.load import builtin_maze
 
     if split == "zero-shot":
-        return [builtin_maze(n) for n in families.ZERO_SHOT[family]], False
+        return [builtin_maze(n) for n in families.ZERO_SHOT.get(family, ())], False
     episodes = maze_episodes(ctx)
     if split == "train" and episodes is not None and episodes.family == family:
         task = MazeTask(family=family, pool=episodes.pool, seed=ctx.seeds["crossroad_jitter"])
         seeds = task.pool_seeds()[:count]
         return [families.generate(family, s) for s in seeds], True
-    seeds = families.split_seeds(split, 0, count - 1)
+    seeds = families.split_seeds(split, 0, count - 1, family)
     return [families.generate(family, s) for s in seeds], False
 
 

@@ -95,6 +95,14 @@ class FollowerSettings(Settings):
     )
 
 
+def family_names() -> tuple[str, ...]:
+    """The registered maze families (:func:`mbn.world.mazes.families.register_family`): the
+    choices of ``[episodes] family``."""
+    from mbn.world.mazes.families import FAMILIES
+
+    return tuple(FAMILIES)
+
+
 @dataclass(frozen=True)
 class EpisodeSettings(Settings):
     """Where the followers' training episodes come from (RF, the LF search and LF): the paper's
@@ -115,7 +123,7 @@ class EpisodeSettings(Settings):
     family: str = setting(
         "grid",
         doc="the maze family of maze episodes",
-        choices=("grid", "tiles2", "tiles3"),
+        choices=family_names,
         source="docs/generalization.md",
     )
     pool: int = setting(

@@ -3,7 +3,8 @@ their seeds (``docs/generalization.md``).
 
 A **family** (:class:`Family`) is a generator with its parameters: a maze of the family is
 ``generate(family, seed)``, the same for the same parameters and seed. :data:`FAMILIES` holds
-the named ones:
+the named ones, each registered by :func:`register_family` (a family of your own is registered
+the same way, from outside ``mbn``, and is then named, selected and split as these are):
 
 * ``grid`` — no tiles: the wall followers and the rules beyond them (every start judgeable under
   right, left, straight-right and straight-left);
@@ -32,10 +33,23 @@ so the result still depends on the seed alone; parameters that cannot produce a 
 refused in one line naming the check that failed.
 
 **Splits** (:data:`SPLITS`): three disjoint ranges of generator seeds, the same for every
-family: ``train`` (what evolution draws its episodes from), ``validation`` (the choice among
-candidates and restarts) and ``test`` (:data:`TEST_SIZE` mazes, used by no selection of any
-stage, setting or default: only ever a test). :func:`check_use` refuses a test seed for
-training or validation.
+built-in family: ``train`` (what evolution draws its episodes from), ``validation`` (the choice
+among candidates and restarts) and ``test`` (:data:`TEST_SIZE` mazes, used by no selection of
+any stage, setting or default: only ever a test). :func:`check_use` refuses a test seed for
+training or validation. A family may have splits of its own (:attr:`Family.splits`).
+
+**A family of your own** (:func:`register_family`): its parameters, its tile kinds and the rules
+they put in force, its splits, and its generator of corridors (:attr:`Family.layout`, a
+function of the family and a NumPy generator giving the free-cell mask; default
+:func:`lattice_grid`); the tiles, start marks and checks are this module's (with a layout of
+its own, a maze is checked for one-cell corridors, connected, the starts judgeable, the tiles
+and the programs judged, not for the lattice's junction kinds). Registered, its name selects it
+wherever a built-in's does (``[episodes] family``, ``NAME:SEED``, ``NAME/SPLIT``), and an MBN
+whose tile rules are its ``tile_rules`` is validated and judged in its mazes
+(:func:`mbn.experiments.stages.common.tile_family`)::
+
+    register_family(Family("corridors", "...", tile_kinds=(1, 2), tile_rules=("right", "u-turn"),
+                           first_rules=("right",), rules=("right", "u-turn")))
 
 **Names** (:func:`parse_name`): ``FAMILY:SEED`` is one maze (``tiles2:2000007``);
 ``FAMILY/SPLIT`` a whole split (``grid/test``), ``FAMILY/SPLIT:A-B`` the split's mazes ``A`` to
@@ -48,9 +62,11 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import re
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -66,7 +82,7 @@ from mbn.world.junctions import (
 )
 from mbn.world.mazes.grid_text import parse_maze_text
 from mbn.world.mazes.model import DEFAULT_CELL, Maze
-from mbn.world.rules import parse_rule
+from mbn.world.rules import parse_rules
 
 __all__ = [
     "FAMILIES",
@@ -77,16 +93,19 @@ __all__ = [
     "ZERO_SHOT",
     "Family",
     "MazeName",
+    "RetryError",
     "check",
     "check_use",
     "describe",
     "family",
+    "family_splits",
     "generate",
     "generate_text",
     "lattice_grid",
     "parse_name",
     "place_starts",
     "place_tiles",
+    "register_family",
     "run_to_end",
     "split_seeds",
     "straight_cells",
@@ -108,13 +127,10 @@ SPLITS: dict[str, range] = {
     "test": range(2_000_000, 2_000_000 + TEST_SIZE),
 }
 #: The zero-shot suite (``docs/generalization.md``): hand-made built-in mazes unlike the
-#: generator's output, by the family whose rules every start mark of them is judgeable under.
-#: Only ever a test, reported apart from the test split; ``FAMILY/zero-shot`` names them.
-ZERO_SHOT: dict[str, tuple[str, ...]] = {
-    "grid": ("zs_long", "zs_dense", "zs_hall", "zs_spiral", "zs_comb", "zs_stairs"),
-    "tiles2": ("fig4", "heldout", "zs_far_tiles2", "zs_dense_tiles2"),
-    "tiles3": ("tiles3_heldout", "zs_far_tiles3"),
-}
+#: generator's output, by the family whose rules every start mark of them is judgeable under
+#: (:func:`register_family`'s ``zero_shot``). Only ever a test, reported apart from the test
+#: split; ``FAMILY/zero-shot`` names them.
+ZERO_SHOT: dict[str, tuple[str, ...]] = {}
 #: What each split may be used for (:func:`check_use`).
 _USES = {"train": ("train", "validation"), "validation": ("validation",), "test": ("test",)}
 
@@ -149,6 +165,12 @@ class Family:
         tile_rules: with tiles, the rule each tile kind puts in force.
         junctions: the decision cells a trial judges (the paper: 3).
         cell: the side of a cell (metres).
+        layout: the generator of the free cells, ``layout(family, rng)`` giving a boolean mask
+            ``(rows, columns)``, row 0 north, True free, the outer ring walls (it may raise
+            :class:`RetryError` to be drawn again); None: :func:`lattice_grid`. With a layout of
+            its own a maze is not asked for the lattice's junction kinds (:func:`check`).
+        splits: the family's own ``train``, ``validation`` and ``test`` ranges of generator
+            seeds (disjoint); None: :data:`SPLITS`.
     """
 
     name: str
@@ -167,9 +189,17 @@ class Family:
     tile_rules: tuple[str, ...] = ()
     junctions: int = 3
     cell: float = DEFAULT_CELL
+    layout: Callable[[Family, np.random.Generator], np.ndarray] | None = None
+    splits: Mapping[str, range] | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
         where = f"maze family {self.name!r}"
+        if not isinstance(self.name, str) or not self.name:
+            raise MbnInputError(f"a maze family's name is a string, got {self.name!r}")
+        if self.layout is not None and not callable(self.layout):
+            raise MbnInputError(f"{where}: layout must be a function (family, rng) -> free cells")
+        if self.splits is not None:
+            object.__setattr__(self, "splits", _checked_splits(self.splits, where))
 
         def pair(key: str, low: int) -> None:
             value = getattr(self, key)
@@ -204,11 +234,11 @@ class Family:
                 f"{self.tile_kinds!r}"
             )
         for key in ("rules", "first_rules", "tile_rules"):
-            for rule in getattr(self, key):
-                try:
-                    parse_rule(rule)
-                except MbnInputError as exc:
-                    raise MbnInputError(f"{where}: {key}: {exc}") from None
+            value = getattr(self, key)
+            if not isinstance(value, tuple):
+                raise MbnInputError(f"{where}: {key} must be a tuple of rules, got {value!r}")
+            # kept as the rules' names (an MBN's tile rules find the family by them)
+            object.__setattr__(self, key, tuple(parse_rules(value, f"{where}: {key}")))
         if self.tile_kinds:
             if len(self.tile_rules) < max(self.tile_kinds):
                 raise MbnInputError(
@@ -224,7 +254,7 @@ class Family:
 
     def replace(self, **changes: Any) -> Family:
         """This family with some parameters changed (checked as a new family)."""
-        unknown = sorted(set(changes) - {"name", "doc", *parameter_names()})
+        unknown = sorted(set(changes) - {f.name for f in dataclasses.fields(Family)})
         if unknown:
             raise MbnInputError(
                 f"maze family {self.name!r}: unknown parameter {unknown[0]!r} (known: "
@@ -233,44 +263,104 @@ class Family:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """The parameters as JSON-ready values (recorded with every maze the family gives)."""
-        out = dataclasses.asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        """The parameters as JSON-ready values (recorded with every maze the family gives); a
+        layout and splits of its own as ``module:name`` and ``[first, last]`` seeds."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name in _OWN and value is None:
+                continue  # the built-in generator and splits: left out, as they always were
+            if f.name == "layout":
+                value = f"{value.__module__}:{getattr(value, '__qualname__', repr(value))}"
+            elif f.name == "splits":
+                value = {k: [r.start, r.stop - 1] for k, r in value.items()}
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+#: The fields of a family that are not generator parameters of the lattice (and that the
+#: ``--set`` of ``mbn mazes generate`` does not change).
+_OWN = ("layout", "splits")
 
 
 def parameter_names() -> list[str]:
-    """The parameters a family takes (besides its name and doc)."""
-    return [f.name for f in dataclasses.fields(Family) if f.name not in ("name", "doc")]
+    """The parameters a family takes (besides its name, doc, layout and splits)."""
+    return [f.name for f in dataclasses.fields(Family) if f.name not in ("name", "doc", *_OWN)]
 
 
-#: The named families.
-FAMILIES: dict[str, Family] = {
-    f.name: f
-    for f in (
-        Family(
-            "grid",
-            "no tiles: the wall followers and the rules beyond them",
-        ),
-        Family(
-            "tiles2",
-            "the paper's two tile kinds: one colour right, two colours left",
-            size=(15, 21),
-            tile_kinds=(1, 2),
-            rules=("right", "left"),
-            first_rules=("right", "left"),
-            tile_rules=("right", "left"),
-        ),
-        Family(
-            "tiles3",
-            "three tile kinds: one colour right, two left, three straight-right",
-            size=(15, 23),
-            tile_kinds=(1, 2, 3),
-            rules=("right", "left", "straight-right", "straight-left"),
-            first_rules=("right", "left"),
-            tile_rules=("right", "left", "straight-right"),
-        ),
-    )
-}
+_SPLIT_NAMES = ("train", "validation", "test")
+
+
+def _checked_splits(splits: Any, where: str) -> Mapping[str, range]:
+    """A family's own splits, checked (the three names, ranges of seeds >= 0 step 1, none
+    empty, disjoint), read-only, in the order train, validation, test."""
+    if not isinstance(splits, Mapping) or sorted(splits) != sorted(_SPLIT_NAMES):
+        got = sorted(splits) if isinstance(splits, Mapping) else repr(splits)
+        raise MbnInputError(
+            f"{where}: splits must map train, validation and test to ranges of seeds, got {got}"
+        )
+    for name in _SPLIT_NAMES:
+        r = splits[name]
+        if not (isinstance(r, range) and r.step == 1 and len(r) > 0 and r.start >= 0):
+            raise MbnInputError(
+                f"{where}: splits: {name} must be a non-empty range of seeds >= 0, got {r!r}"
+            )
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        ra, rb = splits[_SPLIT_NAMES[a]], splits[_SPLIT_NAMES[b]]
+        if ra.start < rb.stop and rb.start < ra.stop:
+            raise MbnInputError(f"{where}: splits: {_SPLIT_NAMES[a]} and {_SPLIT_NAMES[b]} overlap")
+    return MappingProxyType({name: splits[name] for name in _SPLIT_NAMES})
+
+
+#: The named families, in the order of registration (:func:`register_family`).
+FAMILIES: dict[str, Family] = {}
+_FAMILY_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+def register_family(
+    fam: Family, *, zero_shot: Sequence[str] = (), salt: int | None = None
+) -> Family:
+    """Register the family ``fam`` under its name (lower case, digits and ``_``: it is named
+    ``NAME:SEED`` and ``NAME/SPLIT``): :func:`family` finds it, ``[episodes] family`` selects
+    it, and an MBN whose tile rules are its ``tile_rules`` is judged in its mazes.
+    ``zero_shot``: built-in mazes of its zero-shot suite (``NAME/zero-shot``); ``salt``: mixed
+    into its generator's seed, so that two families' mazes of one seed differ (default: from
+    its name). Registering an equal family again is allowed (a module imported twice); a name
+    taken by another family is refused in one line."""
+    if not isinstance(fam, Family):
+        raise MbnInputError(f"register_family: expected a Family, got {type(fam).__name__}")
+    where = f"register_family({fam.name!r})"
+    if not _FAMILY_NAME.match(fam.name):
+        raise MbnInputError(
+            f"{where}: a family's name is lower-case letters, digits and '_' (my_family)"
+        )
+    suite = tuple(zero_shot)
+    if suite:
+        from mbn.world.mazes.builtin import BUILTIN_NAMES
+
+        unknown = [n for n in suite if n not in BUILTIN_NAMES]
+        if unknown:
+            raise MbnInputError(f"{where}: zero_shot: {unknown[0]!r} is not a built-in maze")
+    if salt is None:
+        salt = int.from_bytes(hashlib.sha256(fam.name.encode()).digest()[:4], "big")
+    if not (isinstance(salt, int) and not isinstance(salt, bool) and salt >= 0):
+        raise MbnInputError(f"{where}: salt must be an integer >= 0, got {salt!r}")
+    held = FAMILIES.get(fam.name)
+    if held is not None:
+        same = (
+            held == fam
+            and held.splits == fam.splits
+            and ZERO_SHOT.get(fam.name, ()) == suite
+            and _FAMILY_SALT[fam.name] == salt
+        )
+        if not same:
+            raise MbnInputError(f"{where}: another family of that name is registered already")
+        return held
+    FAMILIES[fam.name] = fam
+    _FAMILY_SALT[fam.name] = salt
+    if suite:
+        ZERO_SHOT[fam.name] = suite
+    return fam
 
 
 def family(name: str) -> Family:
@@ -283,17 +373,33 @@ def family(name: str) -> Family:
         ) from None
 
 
+def family_splits(fam: Family | str | None = None) -> Mapping[str, range]:
+    """The splits of generator seeds of ``fam`` (a family or its name): its own, else
+    :data:`SPLITS` (which None gives too)."""
+    if fam is None:
+        return SPLITS
+    fam = family(fam) if isinstance(fam, str) else fam
+    return fam.splits if fam.splits is not None else SPLITS
+
+
 # --------------------------------------------------------------------------------------------
 # Splits and names
 # --------------------------------------------------------------------------------------------
 
 
-def split_seeds(split: str, first: int | None = None, last: int | None = None) -> list[int]:
-    """The generator seeds of ``split``, or its members ``first`` .. ``last`` (0-based,
-    inclusive). The train split is open-ended: it needs both."""
-    if split not in SPLITS:
-        raise MbnInputError(f"unknown split {split!r} (known: {', '.join(SPLITS)})")
-    seeds = SPLITS[split]
+def split_seeds(
+    split: str,
+    first: int | None = None,
+    last: int | None = None,
+    fam: Family | str | None = None,
+) -> list[int]:
+    """The generator seeds of ``split`` (of the family ``fam``'s splits, :func:`family_splits`),
+    or its members ``first`` .. ``last`` (0-based, inclusive). The train split is open-ended:
+    it needs both."""
+    splits = family_splits(fam)
+    if split not in splits:
+        raise MbnInputError(f"unknown split {split!r} (known: {', '.join(splits)})")
+    seeds = splits[split]
     if first is None:
         if split == "train":
             raise MbnInputError("the train split is open-ended: name a range (train:0-99)")
@@ -306,14 +412,16 @@ def split_seeds(split: str, first: int | None = None, last: int | None = None) -
     return list(seeds[first : last + 1])
 
 
-def split_of(seed: int) -> str:
-    """The split a generator seed belongs to (one line if none)."""
-    for name, seeds in SPLITS.items():
+def split_of(seed: int, fam: Family | str | None = None) -> str:
+    """The split a generator seed belongs to (of the family ``fam``'s splits; one line if
+    none)."""
+    splits = family_splits(fam)
+    for name, seeds in splits.items():
         if seed in seeds:
             return name
     raise MbnInputError(
-        f"maze seed {seed} is in no split (train {_span(SPLITS['train'])}, validation "
-        f"{_span(SPLITS['validation'])}, test {_span(SPLITS['test'])})"
+        f"maze seed {seed} is in no split (train {_span(splits['train'])}, validation "
+        f"{_span(splits['validation'])}, test {_span(splits['test'])})"
     )
 
 
@@ -321,15 +429,17 @@ def _span(r: range) -> str:
     return f"{r.start}-{r.stop - 1}"
 
 
-def check_use(seeds: Iterable[int], use: str, where: str = "") -> None:
+def check_use(
+    seeds: Iterable[int], use: str, where: str = "", fam: Family | str | None = None
+) -> None:
     """Refuse, in one line, a seed used for ``use`` (``train``, ``validation`` or ``test``)
-    outside the splits that allow it: a test seed is only ever a test, a validation seed never
-    trains."""
+    outside the splits (of the family ``fam``) that allow it: a test seed is only ever a test,
+    a validation seed never trains."""
     if use not in ("train", "validation", "test"):
         raise ValueError(f"use must be train, validation or test, got {use!r}")
     prefix = f"{where}: " if where else ""
     for seed in seeds:
-        split = split_of(int(seed))
+        split = split_of(int(seed), fam)
         if use not in _USES[split]:
             raise MbnInputError(
                 f"{prefix}maze seed {seed} is in the {split} split, and {use} may not use it"
@@ -354,7 +464,7 @@ class MazeName:
             return f"{self.family}:{self.seeds[0]}"
         if self.split == "zero-shot":
             return f"{self.family}/zero-shot"
-        seeds = SPLITS[self.split]
+        seeds = family_splits(self.family)[self.split]
         if len(self.seeds) == len(seeds):
             return f"{self.family}/{self.split}"
         first, last = self.seeds[0] - seeds.start, self.seeds[-1] - seeds.start
@@ -376,17 +486,19 @@ def parse_name(text: str) -> MazeName | None:
     family(name)  # refuses an unknown family
     if one is not None:
         seed = int(one.group(2))
-        split_of(seed)  # refuses a seed outside every split
+        split_of(seed, name)  # refuses a seed outside every split
         return MazeName(name, (seed,), None)
     assert many is not None
     split = many.group(2)
     if split == "zero-shot":
         if many.group(3) is not None:
             raise MbnInputError(f"{text!r}: the zero-shot suite is named whole ({name}/zero-shot)")
+        if name not in ZERO_SHOT:
+            raise MbnInputError(f"{text!r}: the family {name!r} has no zero-shot suite")
         return MazeName(name, (), "zero-shot", ZERO_SHOT[name])
     first = None if many.group(3) is None else int(many.group(3))
     last = None if many.group(4) is None else int(many.group(4))
-    return MazeName(name, tuple(split_seeds(split, first, last)), split)
+    return MazeName(name, tuple(split_seeds(split, first, last, name)), split)
 
 
 # --------------------------------------------------------------------------------------------
@@ -462,8 +574,12 @@ def _connected_without(segments: list, kept: set[int]) -> bool:
     return len(seen) == len(nodes)
 
 
-class _RetryError(MbnInputError):
-    """An attempt that failed a check (the reason); :func:`generate` draws again."""
+class RetryError(MbnInputError):
+    """An attempt that failed a check (the reason); :func:`generate` draws again (a family's
+    own layout may raise it too)."""
+
+
+_RetryError = RetryError
 
 
 def straight_cells(free: np.ndarray) -> np.ndarray:
@@ -547,7 +663,7 @@ def _grid_text(fam: Family, seed: int | None, chars: np.ndarray, notes: Sequence
     else:
         head = [
             f"; {fam.name}:{seed}: a generated maze of the family {fam.name!r} ({fam.doc}),",
-            f"; split {split_of(seed)}; made by mbn.world.mazes.families.generate.",
+            f"; split {split_of(seed, fam)}; made by mbn.world.mazes.families.generate.",
             *[f"; {n}" for n in notes],
             f"name = {fam.name}:{seed}",
             f"cell = {fam.cell:g}",
@@ -556,7 +672,7 @@ def _grid_text(fam: Family, seed: int | None, chars: np.ndarray, notes: Sequence
 
 
 def _attempt(fam: Family, seed: int, rng: np.random.Generator) -> tuple[str, Maze]:
-    free = lattice_grid(fam, rng)
+    free = lattice_grid(fam, rng) if fam.layout is None else _own_layout(fam, rng)
     problems = _structure(free, fam)
     if problems:
         raise _RetryError(problems[0])
@@ -576,6 +692,30 @@ def _attempt(fam: Family, seed: int, rng: np.random.Generator) -> tuple[str, Maz
     if problems:
         raise _RetryError(problems[0])
     return text, maze
+
+
+def _own_layout(fam: Family, rng: np.random.Generator) -> np.ndarray:
+    """The free cells a family's own layout draws, checked: a 2-D boolean mask, at least 3 x 3,
+    its outer ring walls."""
+    assert fam.layout is not None
+    free = fam.layout(fam, rng)
+    ok = (
+        isinstance(free, np.ndarray)
+        and free.dtype == bool
+        and free.ndim == 2
+        and min(free.shape) >= 3
+    )
+    if not ok:
+        raise MbnInputError(
+            f"maze family {fam.name!r}: its layout must give a 2-D boolean NumPy array of at "
+            f"least 3 x 3 cells (True: free), got {type(free).__name__}"
+            + (f" {free.dtype} {free.shape}" if isinstance(free, np.ndarray) else "")
+        )
+    if free[0].any() or free[-1].any() or free[:, 0].any() or free[:, -1].any():
+        raise MbnInputError(
+            f"maze family {fam.name!r}: its layout left a free cell on the outer ring (walls)"
+        )
+    return free
 
 
 def place_starts(
@@ -648,6 +788,8 @@ def _structure(free: np.ndarray, fam: Family) -> list[str]:
         problems.append("a corridor is more than one cell wide")
     if not _all_connected(free):
         problems.append("not every free cell is connected")
+    if fam.layout is not None:
+        return problems  # a layout of its own: the lattice's junction kinds are not asked for
     if not corners.any():
         problems.append("no corner")
     if not (count == 3).any():
@@ -796,15 +938,16 @@ def _generate(fam: Family, seed: int) -> tuple[str, Maze]:
 
 
 #: Mixed into a family's generator seed, so that two families' mazes of one seed differ (a
-#: family with changed parameters, ``grid-custom``, keeps its family's).
-_FAMILY_SALT = {"grid": 1, "tiles2": 2, "tiles3": 3}
+#: family with changed parameters, ``grid-custom``, keeps its family's): by
+#: :func:`register_family`.
+_FAMILY_SALT: dict[str, int] = {}
 
 
 def generate(fam: Family | str, seed: int) -> Maze:
     """The maze of ``fam`` (a family or its name) for generator ``seed`` (checked; the same for
     the same parameters and seed)."""
     fam = family(fam) if isinstance(fam, str) else fam
-    split_of(seed)
+    split_of(seed, fam)
     return _generate(fam, int(seed))[1]
 
 
@@ -812,7 +955,7 @@ def generate_text(fam: Family | str, seed: int) -> str:
     """The ``.maze`` text of :func:`generate`'s maze (what ``mbn mazes generate`` writes; read
     back, it is the same maze)."""
     fam = family(fam) if isinstance(fam, str) else fam
-    split_of(seed)
+    split_of(seed, fam)
     return _generate(fam, int(seed))[0]
 
 
@@ -835,3 +978,40 @@ def describe(maze: Maze) -> dict[str, Any]:
         "tiles": {str(k): sum(t.colors == k for t in maze.tiles) for k in (1, 2, 3)},
         "starts": len(maze.starts),
     }
+
+
+# --------------------------------------------------------------------------------------------
+# mbn's families: registered as a family of your own is
+# --------------------------------------------------------------------------------------------
+
+register_family(
+    Family("grid", "no tiles: the wall followers and the rules beyond them"),
+    zero_shot=("zs_long", "zs_dense", "zs_hall", "zs_spiral", "zs_comb", "zs_stairs"),
+    salt=1,
+)
+register_family(
+    Family(
+        "tiles2",
+        "the paper's two tile kinds: one colour right, two colours left",
+        size=(15, 21),
+        tile_kinds=(1, 2),
+        rules=("right", "left"),
+        first_rules=("right", "left"),
+        tile_rules=("right", "left"),
+    ),
+    zero_shot=("fig4", "heldout", "zs_far_tiles2", "zs_dense_tiles2"),
+    salt=2,
+)
+register_family(
+    Family(
+        "tiles3",
+        "three tile kinds: one colour right, two left, three straight-right",
+        size=(15, 23),
+        tile_kinds=(1, 2, 3),
+        rules=("right", "left", "straight-right", "straight-left"),
+        first_rules=("right", "left"),
+        tile_rules=("right", "left", "straight-right"),
+    ),
+    zero_shot=("tiles3_heldout", "zs_far_tiles3"),
+    salt=3,
+)
