@@ -482,8 +482,8 @@ def _recipe() -> list[str]:
     own = text.index("\n### Your own experiment\n")
     start_at = text.index("\n### Adding a controller kind\n")
     assert own < start_at
-    end = text.index("\n## ", start_at)
-    section = text[start_at:end]
+    end = re.compile(r"^#{2,3} ", re.M).search(text, start_at + 5)
+    section = text[start_at : end.start() if end else len(text)]
     return re.findall(r"^```python\n(.*?)^```", section, re.M | re.S)
 
 

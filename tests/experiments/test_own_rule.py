@@ -26,6 +26,7 @@ from mbn.experiments.maze_task import MazeTask
 from mbn.experiments.pipeline import Experiment, Registry, Stage, StageContext, run_experiment
 from mbn.experiments.stages import tests as tests_stage
 from mbn.experiments.stages.common import rf_lf_programs
+from mbn.experiments.stages.im_full import IMFullResult
 from mbn.experiments.stages.programs import ProgramsSettings, ProgramsStage
 from mbn.experiments.stages.settings import (
     DESettings,
@@ -36,6 +37,7 @@ from mbn.experiments.stages.settings import (
 from mbn.experiments.trials import TrialSpec
 from mbn.networks.multiplier import load_default
 from mbn.networks.programmable import build_interpreter, differing_connections
+from mbn.notation import connection_name
 from mbn.paper import published_lf, published_rf
 from mbn.world.junctions import route_passes
 from mbn.world.mazes.load import load_maze
@@ -227,25 +229,41 @@ class PublishedRF(Stage):
         return {}
 
 
-class SmallInterpreter(Stage):
+class SmallInterpreter(Stage[IMFullResult]):
     """The interpreter of the published RF, programmable where RF and LF differ (the paper's),
-    as the ``im_full`` stage saves one: its sha256 recorded."""
+    as the ``im_full`` stage saves one, with the record the library's stages read of it (the
+    ``programs`` stage checks its sha256)."""
 
     name = "im_full"
     key_id = 101
     needs = ("rf",)
     outputs = ("controllers/im_full.json",)
+    result = IMFullResult
 
-    def run(self, ctx: StageContext) -> dict[str, Any]:
+    def run(self, ctx: StageContext) -> IMFullResult:
         rf, lf = published_rf(), published_lf()
-        interp = build_interpreter(
-            rf, differing_connections(rf, lf, margin=0.0), load_default(3), tau_ratio=0.1
-        )
-        spec = InterpreterControllerSpec(
-            interpreter=interp, programs=rf_lf_programs(interp, rf, lf), substeps=20
-        )
+        conns = differing_connections(rf, lf, margin=0.0)
+        interp = build_interpreter(rf, conns, load_default(3), tau_ratio=0.1)
+        programs = rf_lf_programs(interp, rf, lf)
+        spec = InterpreterControllerSpec(interpreter=interp, programs=programs, substeps=20)
         save_controller(ctx.rundir.controller_file("im_full"), spec)
-        return {"sha256": interp.digest()}
+        return IMFullResult(
+            connections=[str(c) for c in interp.connections],
+            connections_paper_notation=[connection_name(c) for c in interp.connections],
+            bound=float(np.max(np.abs(interp.upper))),
+            neurons=int(interp.num_neurons),
+            multiplier_neurons=int(interp.mul_size),
+            tau_ratio=0.1,
+            multiplier_tau=0.1 * float(np.asarray(rf.tau).reshape(-1)[0]),
+            substeps=20,
+            step=0.1 / 20,
+            sha256=interp.digest(),
+            programs={r: list(p) for r, p in programs.items()},
+            tests={},
+            agreement={},
+            curve=[],
+            largest_set_meeting_targets=None,
+        )
 
 
 def tiny_experiment() -> Experiment:

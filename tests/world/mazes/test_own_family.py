@@ -129,7 +129,7 @@ def test_its_splits_name_and_select_its_mazes(own):
         "episodes": EpisodeSettings(kind="maze"),
         "validation": ValidationSettings(split_mazes=3),
     }
-    ctx = SimpleNamespace(section=lambda name: sections[name])
+    ctx = SimpleNamespace(section=lambda cls: sections[cls.section])
     names = validation_maze_names(ctx, "tiles", tile_rules=("right", "RLS"))
     assert names == ["ladder:5000", "ladder:5001", "ladder:5002"]
 
