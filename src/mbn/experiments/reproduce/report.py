@@ -16,8 +16,13 @@ from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.im import IMStage
+from mbn.experiments.stages.lf import LFStage
+from mbn.experiments.stages.lf_search import LFSearchStage
 from mbn.experiments.stages.multiplier import MultiplierStage
+from mbn.experiments.stages.pm import PMStage
 from mbn.experiments.stages.protocol import TESTED
+from mbn.experiments.stages.rf import RFResult, RFStage
 from mbn.experiments.stages.settings import InterpreterSettings
 from mbn.experiments.stages.tests import TestsStage
 from mbn.io import read_json
@@ -97,7 +102,6 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
 
 def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -> list[Section]:
     s = results["stages"]
-    tests = results["tests"]
     secs = []
     quick = " This is a **quick** smoke run: tiny budgets, the figures are not the paper's." * bool(
         results["quick"]
@@ -132,7 +136,8 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
             status=[c["pass"] for c in claims],
         )
     )
-    proto = s["tests"]["protocol"]
+    tested = rundir.read_result(TestsStage)
+    proto = tested.protocol
     jit = proto["jitter"]
     mbn_initial = proto.get("mbn_initial", "none")  # runs before the MBN's initial state: none
     mbn_junctions = (
@@ -145,16 +150,16 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
     status: list[bool | None] = []
     for name, rule in TESTED:
         for suffix in ("", "_jitter", "_heldout"):
-            t = tests[name + suffix]
+            t = tested.tests[name + suffix]
             rows.append(
                 [
                     name + suffix,
                     rule,
-                    f"{t['successes']}/{t['trials']}",
-                    f"{t['success_rate']:.1%}",
-                    f"{t['correct_junctions']}/{t['junctions']}",
-                    f"{t['mean_stall_fraction']:.2%}",
-                    str(t.get("timed_out", "-")),
+                    f"{t.successes}/{t.trials}",
+                    f"{t.success_rate:.1%}",
+                    f"{t.correct_junctions}/{t.junctions}",
+                    f"{t.mean_stall_fraction:.2%}",
+                    str(t.timed_out),
                 ]
             )
             status.append(None)
@@ -169,15 +174,15 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"{mbn_junctions}); a trial that ends before its last junction with no wrong exit "
                 "and no stall failure is counted as timed out (not a success). Paper protocol: "
                 "the start "
-                f"marks of `{s['tests']['mazes']['test']}`; `_jitter`: "
+                f"marks of `{tested.mazes['test']}`; `_jitter`: "
                 f"{proto['jitter_trials']} (lateral +-{jit[0]:g} m, along +-{jit[1]:g} m, heading "
                 f"+-{jit[2]:g} deg); "
-                f"`_heldout`: maze `{s['tests']['mazes']['heldout']}`, not used in any "
+                f"`_heldout`: maze `{tested.mazes['heldout']}`, not used in any "
                 f"training: {proto['heldout_trials']}.",
                 "Interpreter and network take the same branch at every junction in: "
                 + "; ".join(
-                    f"{k} {a['same_branches']}/{a['trials']} ({a['rate']:.1%})"
-                    for k, a in s["tests"]["agreement"].items()
+                    f"{k} {a.same_branches}/{a.trials} ({a.rate:.1%})"
+                    for k, a in tested.agreement.items()
                 )
                 + ".",
             ],
@@ -188,77 +193,73 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
             status=status,
         )
     )
-    m = s["multiplier"]
+    m = rundir.read_result(MultiplierStage)
     tau_ratio, substeps = interpreter_settings(results)
-    grid = m["metrics"]["grid_points_per_axis"]
+    grid = m.metrics["grid_points_per_axis"]
     secs.append(
         Section(
             "Multiplier",
             [
-                f"{m['neurons']}-neuron multiplier, {m['source']}, embedded in the interpreter "
+                f"{m.neurons}-neuron multiplier, {m.source}, embedded in the interpreter "
                 f"at tau/{1 / tau_ratio:g} (tau_m = {tau_ratio:g} tau), integrated in "
                 f"{substeps} steps per robot step. "
-                f"Max |error| {m['metrics']['max_abs_error_grid']:.4f} and mean "
-                f"{m['metrics']['mean_abs_error_grid']:.4f} on a {grid} x {grid} grid of "
+                f"Max |error| {m.metrics['max_abs_error_grid']:.4f} and mean "
+                f"{m.metrics['mean_abs_error_grid']:.4f} on a {grid} x {grid} grid of "
                 "[0, 1]^2."
             ],
             images=[images["multiplier"]],
         )
     )
-    lf, im, pm, rf = s["lf"], s["im"], s["pm"], s["rf"]
-    restarts = len(rf.get("restarts", [])) or 1
+    lf, im = rundir.read_result(LFStage), rundir.read_result(IMStage)
+    pm, rf = rundir.read_result(PMStage), rundir.read_result(RFStage)
+    search = rundir.read_result(LFSearchStage)
+    restarts = len(rf.restarts or []) or 1
     secs.append(
         Section(
             "Evolution",
             [
                 *_de_text(results),
-                f"RF: {_count(rf['generations'], 'generation')}"
+                f"RF: {_count(rf.generations, 'generation')}"
                 + (f" in each of {restarts} independent runs" if restarts > 1 else "")
-                + f", best fitness {rf['best_fitness']:.2f} "
-                f"({_fitness_episodes(results, rf['episodes'])}, averaged over the "
-                f"genome and {rf['noise']['copies']} copies perturbed by N(0, "
-                f"{rf['noise']['sigma']}²); "
-                + _crossroad_score(results, rf)
-                + f"the paper's terms of "
-                f"the best: F_M {rf['paper_F_M']:.2f}, F_R {rf['paper_F_R']:.2f}, F_L "
-                f"{rf['paper_F_L']:.2f}).",
-                f"LF: the 3 connections re-evolved are {connection_names(lf['connections'])} "
+                + f", best fitness {rf.best_fitness:.2f} "
+                f"({_fitness_episodes(results, rf.episodes)}, averaged over the "
+                f"genome and {rf.noise.copies} copies perturbed by N(0, "
+                f"{rf.noise.sigma}²); " + _crossroad_score(results, rf) + f"the paper's terms of "
+                f"the best: F_M {rf.paper_F_M:.2f}, F_R {rf.paper_F_R:.2f}, F_L "
+                f"{rf.paper_F_L:.2f}).",
+                f"LF: the 3 connections re-evolved are {connection_names(lf.connections)} "
                 f"(the paper changed {_paper_changed()}), chosen among "
-                f"{_count(len(s['lf_search']['triples']), 'triple')} evolved "
-                f"{_count(s['lf_search']['generations'], 'generation')} each; re-evolved for "
-                f"{_count(lf['generations'], 'generation')}, "
-                f"best fitness {lf['best_fitness']:.2f}"
-                + (
-                    f"; kept: member {lf['member']} of its final population, the best in the "
-                    f"validation maze ({lf['validation']['successes']}/"
-                    f"{lf['validation']['trials']}), fitness {lf['fitness']:.2f}"
-                    if "member" in lf
-                    else ""
-                )
-                + f" (F_L {lf['paper_F_L']:.2f}).",
-                f"IM: programmable {connection_names(im['connections'])}, "
-                f"{im['neurons']} neurons; RF program {_vec(im['programs']['right'])}, "
-                f"LF program {_vec(im['programs']['left'])}.",
+                f"{_count(len(search.triples), 'triple')} evolved "
+                f"{_count(search.generations, 'generation')} each; re-evolved for "
+                f"{_count(lf.generations, 'generation')}, "
+                f"best fitness {lf.best_fitness:.2f}"
+                + f"; kept: member {lf.member} of its final population, the best in the "
+                f"validation maze ({lf.validation.successes}/"
+                f"{lf.validation.trials}), fitness {lf.fitness:.2f}"
+                + f" (F_L {lf.paper_F_L:.2f}).",
+                f"IM: programmable {connection_names(im.connections)}, "
+                f"{im.neurons} neurons; RF program {_vec(im.programs['right'])}, "
+                f"LF program {_vec(im.programs['left'])}.",
                 (
-                    f"PM: {_count(pm['generations'], 'generation')} on the program reward, "
-                    f"{pm['best_fitness']:.2g} (0 at best: minus the mean squared difference "
+                    f"PM: {_count(pm.generations, 'generation')} on the program reward, "
+                    f"{pm.best_fitness:.2g} (0 at best: minus the mean squared difference "
                     "between the program it sends and the program of the last tile it was shown, "
                     "without the robot; docs/reproduce.md)"
-                    if pm["reward"] == "programs"
-                    else f"PM: {_count(pm['generations'], 'generation')}, reward "
-                    f"{pm['best_fitness']:.1f} "
-                    f"of at most {pm['max_fitness']:.0f} ("
+                    if pm.reward == "programs"
+                    else f"PM: {_count(pm.generations, 'generation')}, reward "
+                    f"{pm.best_fitness:.1f} "
+                    f"of at most {pm.max_fitness:.0f} ("
                     + (
                         "the paper's two trials: right-rule score with one-colour tiles x "
                         "left-rule score with two-colour tiles"
-                        if pm["reward"] == "paper"
+                        if pm.reward == "paper"
                         else "the paper's product, over its two trials plus switching, memory "
                         "and rest episodes: docs/experiments.md"
                     )
                     + ")"
                 )
-                + f", camera range {pm['camera_range']:g} m. "
-                + _pm_start(pm.get("initial")),
+                + f", camera range {pm.camera_range:g} m. "
+                + _pm_start(pm.initial),
             ],
             images=[images["de"]],
         )
@@ -379,15 +380,12 @@ def _fitness_episodes(results: dict[str, Any], crossroad_episodes: int) -> str:
     return f"junction fitness over the {maze['mazes'] * maze['starts']} maze episodes of a draw"
 
 
-def _crossroad_score(results: dict[str, Any], rf: dict[str, Any]) -> str:
+def _crossroad_score(results: dict[str, Any], rf: RFResult) -> str:
     """For a run evolved on maze episodes, the best's branch fitness on the crossroads (its
     recorded score), where the paper's terms below come from."""
     if _maze_episodes(results) is None:
         return ""
-    return (
-        f"on {rf['episodes']} crossroad episodes its branch fitness is "
-        f"{rf['branch_fitness']:.2f} and "
-    )
+    return f"on {rf.episodes} crossroad episodes its branch fitness is {rf.branch_fitness:.2f} and "
 
 
 def _paper_changed() -> str:
