@@ -15,7 +15,11 @@ from mbn.experiments.generalization import generalization_claims
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.im_full import IMFullStage
+from mbn.experiments.stages.programs import ProgramsStage
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET
+from mbn.experiments.stages.records import TrialSummary
+from mbn.experiments.stages.tests3 import Tests3Stage
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
 from mbn.notation import connection_name
@@ -26,39 +30,42 @@ __all__ = ["claims", "write_report"]
 TITLE = "mbn: new behaviours by programs alone"
 
 
-def _rate(t: dict[str, Any]) -> str:
-    return f"{t['successes']}/{t['trials']} ({t['success_rate']:.1%})"
+def _rate(t: TrialSummary) -> str:
+    return f"{t.successes}/{t.trials} ({t.success_rate:.1%})"
 
 
 def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
-    """Paper claim -> measured -> holds, from the stages' data."""
-    im, t3 = stages["im_full"], stages["tests3"]
-    tests = {**im["tests"], **t3["tests"]}
+    """Paper claim -> measured -> holds, from the stages' data (as written by the run: read
+    here into their records)."""
+    im = IMFullStage.from_json(stages[IMFullStage.name])
+    t3 = Tests3Stage.from_json(stages[Tests3Stage.name])
+    found = ProgramsStage.from_json(stages[ProgramsStage.name])
+    tests = {**im.tests, **t3.tests}
     out = []
     full_ok = all(
-        tests[f"im_full_{x}"]["success_rate"] == 1.0
-        and tests[f"im_full_{x}_jitter"]["success_rate"] >= ROBUST_TARGET
-        and tests[f"im_full_{x}_heldout"]["success_rate"] >= ROBUST_TARGET
-        and im["agreement"][f"im_full_{x}_jitter"]["rate"] >= AGREEMENT_TARGET
+        tests[f"im_full_{x}"].success_rate == 1.0
+        and tests[f"im_full_{x}_jitter"].success_rate >= ROBUST_TARGET
+        and tests[f"im_full_{x}_heldout"].success_rate >= ROBUST_TARGET
+        and im.agreement[f"im_full_{x}_jitter"].rate >= AGREEMENT_TARGET
         for x in ("rf", "lf")
     )
-    a = im["agreement"]
+    a = im.agreement
     out.append(
         {
             "claim": "an interpreter in which all the connections are programmable (discussion)",
             "measured": (
-                f"{len(im['connections'])} programmable, {im['neurons']} neurons, tau_m "
-                f"{im['multiplier_tau'] * 1000:.1f} ms, step {im['step'] * 1000:.2f} ms; RF's "
+                f"{len(im.connections)} programmable, {im.neurons} neurons, tau_m "
+                f"{im.multiplier_tau * 1000:.1f} ms, step {im.step * 1000:.2f} ms; RF's "
                 f"program {_rate(tests['im_full_rf_jitter'])} jittered, agreement "
-                f"{a['im_full_rf_jitter']['rate']:.1%}; LF's {_rate(tests['im_full_lf_jitter'])}, "
-                f"agreement {a['im_full_lf_jitter']['rate']:.1%}"
+                f"{a['im_full_rf_jitter'].rate:.1%}; LF's {_rate(tests['im_full_lf_jitter'])}, "
+                f"agreement {a['im_full_lf_jitter'].rate:.1%}"
             ),
             "target": f"every start mark, >= {ROBUST_TARGET:.0%} jittered and held-out, "
             f"agreement >= {AGREEMENT_TARGET:.0%}",
             "pass": bool(full_ok),
         }
     )
-    curve = im.get("curve") or []
+    curve = im.curve
     if curve:
         rf = [r["agreement_rf"]["rate"] for r in curve]
         lf = [r["agreement_lf"]["rate"] for r in curve]
@@ -76,12 +83,12 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
                 "pass": bool(worst[-1] < worst[0] - 0.01),
             }
         )
-    for rule in stages["programs"]["rules"]:
+    for rule in found.rules:
         short = rule.replace("-", "_")
         ok = (
-            tests[f"im_full_{short}"]["success_rate"] == 1.0
-            and tests[f"im_full_{short}_jitter"]["success_rate"] >= ROBUST_TARGET
-            and tests[f"im_full_{short}_heldout"]["success_rate"] >= ROBUST_TARGET
+            tests[f"im_full_{short}"].success_rate == 1.0
+            and tests[f"im_full_{short}_jitter"].success_rate >= ROBUST_TARGET
+            and tests[f"im_full_{short}_heldout"].success_rate >= ROBUST_TARGET
         )
         out.append(
             {
@@ -91,16 +98,16 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
                     f"marks {_rate(tests[f'im_full_{short}'])}, jittered "
                     f"{_rate(tests[f'im_full_{short}_jitter'])}, held-out "
                     f"{_rate(tests[f'im_full_{short}_heldout'])}; sha256 unchanged; agreement "
-                    f"with its network {t3['agreement'][f'im_full_{short}_jitter']['rate']:.1%}"
+                    f"with its network {t3.agreement[f'im_full_{short}_jitter'].rate:.1%}"
                 ),
                 "target": f"marks all, >= {ROBUST_TARGET:.0%} jittered and held-out",
                 "pass": bool(ok),
             }
         )
     ok = all(
-        tests[f"{n}"]["success_rate"] == 1.0
-        and tests[f"{n}_jitter"]["success_rate"] >= ROBUST_TARGET
-        and tests[f"{n}_heldout"]["success_rate"] >= ROBUST_TARGET
+        tests[f"{n}"].success_rate == 1.0
+        and tests[f"{n}_jitter"].success_rate >= ROBUST_TARGET
+        and tests[f"{n}_heldout"].success_rate >= ROBUST_TARGET
         for n in ("mbn3", "mbn3_two_tiles")
     )
     out.append(
@@ -108,7 +115,7 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             "claim": "the MBN incrementally trained to show new behaviours by letting PM learn "
             "new programs, without modifying IM (abstract)",
             "measured": (
-                f"three tile kinds ({', '.join(t3['tile_rules'])}): marks {_rate(tests['mbn3'])}, "
+                f"three tile kinds ({', '.join(t3.tile_rules)}): marks {_rate(tests['mbn3'])}, "
                 f"jittered {_rate(tests['mbn3_jitter'])}, held-out "
                 f"{_rate(tests['mbn3_heldout'])}; the paper's two tile kinds: "
                 f"{_rate(tests['mbn3_two_tiles_jitter'])} jittered, "
@@ -127,11 +134,11 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
     from mbn.viz.animate import animate_episode
     from mbn.viz.behaviours import code_traces, rule_paths
 
-    t3 = stages["tests3"]
+    t3 = rundir.read_result(Tests3Stage)
     rec = rundir.load_record("mbn3_marks")
-    maze = load_maze(t3["mazes"]["test"])
-    rules = t3["tile_rules"]
-    initial = t3["initial"] if t3["initial"] != "none" else rules[0]
+    maze = load_maze(t3.mazes["test"])
+    rules = t3.tile_rules
+    initial = t3.initial if t3.initial not in (None, "none") else rules[0]
     pose, tile, t = rec["pose"], rec["tile"], rec["t"]
     images = []
     file = "figures/mbn3_paths.png"

@@ -27,6 +27,7 @@ from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import MADE_BY, read_network, rf_lf_programs
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, SUFFIXES, test_specs
+from mbn.experiments.stages.records import Agreement, TrialSummary
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import agreement, run_loaded_trials, summary
 from mbn.networks.ctrnn import CTRNN
@@ -168,8 +169,8 @@ class IMFullResult(Record):
     step: float
     sha256: str
     programs: dict[str, list[float]]
-    tests: dict[str, dict[str, Any]]
-    agreement: dict[str, dict[str, Any]]
+    tests: dict[str, TrialSummary]
+    agreement: dict[str, Agreement]
     curve: list[dict[str, Any]]
     largest_set_meeting_targets: int | None
 
@@ -270,8 +271,8 @@ class IMFullStage(Stage[IMFullResult]):
             step=0.1 / s.substeps,
             sha256=interp.digest(),
             programs={r: list(p) for r, p in spec.programs.items()},
-            tests=tests,
-            agreement=agree,
+            tests={k: TrialSummary.from_json(v) for k, v in tests.items()},
+            agreement={k: Agreement.from_json(v) for k, v in agree.items()},
             curve=curve,
             largest_set_meeting_targets=largest,
         )
@@ -280,6 +281,6 @@ class IMFullStage(Stage[IMFullResult]):
         t, a = data.tests, data.agreement
         return (
             f"{len(data.connections)} programmable, {data.neurons} neurons; LF's program "
-            f"{t['im_full_lf_jitter']['success_rate']:.1%} jittered, agreement "
-            f"{a['im_full_lf_jitter']['rate']:.1%} (RF's {a['im_full_rf_jitter']['rate']:.1%})"
+            f"{t['im_full_lf_jitter'].success_rate:.1%} jittered, agreement "
+            f"{a['im_full_lf_jitter'].rate:.1%} (RF's {a['im_full_rf_jitter'].rate:.1%})"
         )
