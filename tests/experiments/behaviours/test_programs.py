@@ -180,7 +180,7 @@ def test_approaches_are_checked_and_reach_the_programs_crossroads(monkeypatch):
         "Ctx",
         (),
         {
-            "section": staticmethod(lambda name: {"followers": followers}[name]),
+            "section": staticmethod(lambda cls: {"followers": followers}[cls.section]),
             "seeds": {"crossroad_jitter": 0},
             "key": jax.random.key(0),
         },
@@ -216,7 +216,7 @@ def test_with_maze_episodes_programs_are_scored_on_redrawn_maze_episodes():
         "Ctx",
         (),
         {
-            "section": staticmethod(lambda name: sections[name]),
+            "section": staticmethod(lambda cls: sections[cls.section]),
             "seeds": {"crossroad_jitter": 0},
             "key": jax.random.key(0),
         },

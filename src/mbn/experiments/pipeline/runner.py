@@ -218,9 +218,10 @@ def run_stage(
     config: RunConfig,
     progress: Progress | None = None,
     workers: int = 1,
-) -> Any:
+) -> dict[str, Any]:
     """Run one stage against a run folder whose ``needs`` are done; writes ``stages/NAME.json``
-    and returns the stage's data."""
+    and returns the stage's data as written there (a JSON object; typed:
+    ``rundir.read_result(StageClass)``)."""
     stage = experiment.registry[name]
     config.check()
     missing = [n for n in stage.needs if not rundir.stage_done(n)]
@@ -233,8 +234,8 @@ def run_stage(
         ctx = _context(
             experiment, rundir, seed, config, stage, progress or Progress(), print, workers
         )
-        data = stage.run(ctx)
-    rundir.write_stage(name, stage.to_json(data))
+        data = stage.to_json(stage.run(ctx))
+    rundir.write_stage(name, data)
     return data
 
 
