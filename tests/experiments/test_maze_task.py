@@ -171,7 +171,9 @@ def test_the_episodes_settings_choose_the_followers_training_task():
             "noise": NoiseConfig(),
         }
         return SimpleNamespace(
-            section=sections.__getitem__, seeds={"crossroad_jitter": 17}, key=jax.random.key(0)
+            section=lambda cls: sections[cls.section],
+            seeds={"crossroad_jitter": 17},
+            key=jax.random.key(0),
         )
 
     paper = training_task(ctx(kind="crossroads"), "right", 4)
