@@ -148,12 +148,12 @@ def test_the_recipe_finds_the_block_of_its_own_section():
 def test_adding_a_stage_runs_as_written(tmp_path):
     """The stage of the recipe, in a file of its own, runs after the library's multiplier: its
     typed result lands in ``stages/product_check.json`` in the record's order and in
-    ``results.json``; the same seed gives the same result."""
+    ``results.json`` (the same seed giving the same result is the battery's to check)."""
     lab = tmp_path / "my_lab"
     lab.mkdir()
     (lab / "product_check.py").write_text(first_block("Adding a stage"))
     ref = f"{lab / 'product_check.py'}:EXPERIMENT"
-    outs = [tmp_path / "run", tmp_path / "again"]
+    outs = [tmp_path / "run"]
     for out in outs:
         command = [sys.executable, "-m", "mbn", "run", ref, "--quick", "--seed", "4"]
         proc = subprocess.run(
@@ -172,4 +172,3 @@ def test_adding_a_stage_runs_as_written(tmp_path):
     results = [json.loads((o / "results.json").read_text()) for o in outs]
     assert results[0]["stages"]["product_check"] == stage
     assert results[0]["config"]["product_check"] == {"pairs": 20}
-    assert results[0]["stages"] == results[1]["stages"]

@@ -380,6 +380,8 @@ def test_an_installed_packages_entry_point_registers_its_kind(tmp_path, monkeypa
 # --------------------------------------------------------------------------------------------
 
 
+# slow: a second path; CI runs the recipe, which evaluates a kind of its own with mbn evaluate
+@pytest.mark.slow
 def test_mbn_evaluate_runs_the_kind_as_the_ctrnn_that_sends_the_same_commands(
     tmp_path, registered, capsys
 ):
@@ -445,6 +447,8 @@ def test_a_kind_without_a_drawing_or_genes_still_runs(tmp_path, registered, caps
         kind_fitness(CruiseSpec(0.3), CrossroadTask(variants=1, seconds=2))
 
 
+# slow: a second path; CI runs the recipe, which evolves a kind of its own two generations
+@pytest.mark.slow
 def test_the_kind_is_evolved_by_de_its_population_in_one_batch(tmp_path, registered):
     task = CrossroadTask(rule="right", variants=1, seconds=5)
     fitness = kind_fitness(STRAIGHT, task)

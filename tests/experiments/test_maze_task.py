@@ -112,6 +112,8 @@ def test_the_fitness_judges_junction_passes_as_the_tests_do(rule):
     )
 
 
+# slow: a second path; CI checks the fitness judges junction passes as the tests do (above)
+@pytest.mark.slow
 def test_the_compiled_fitness_is_the_episodes_sum_and_every_draw_shares_its_program():
     net = _random_net()
     conns = (Connection("W", 1, 2), Connection("WE", 1, 0), Connection("WE", 1, 1))

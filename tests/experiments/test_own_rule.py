@@ -291,6 +291,8 @@ def tiny_experiment() -> Experiment:
     )
 
 
+# slow: a second path; CI checks the rule, its fitness and the family registered from outside
+@pytest.mark.slow
 def test_a_tiny_experiment_learns_an_own_rule_with_its_own_fitness(own, tmp_path):
     register_rule("odd-one-out", odd_one_out)
     crossroads.register_fitness("units", _units, rules=("odd-one-out",))

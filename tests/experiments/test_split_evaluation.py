@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from mbn.cli.main import main
 
 KEYS = {"trials", "successes", "success_rate", "timed_out", "junctions", "correct_junctions"}
@@ -17,6 +19,8 @@ def run(capsys, *args):
     return status, captured.out, captured.err
 
 
+# slow: a second path; CI checks that a batch gives each genome its value alone (test_batching.py)
+@pytest.mark.slow
 def test_a_split_is_judged_maze_by_maze_as_each_maze_alone(quick_run, capsys):
     """``--maze FAMILY/SPLIT:A-B``: one line per maze and the pooled figures; each maze's row is
     what evaluating that maze alone gives (the same trials, batched with the others)."""

@@ -147,6 +147,8 @@ def test_a_sensor_added_from_outside_is_read_through_sense(compass, corridor):
     np.testing.assert_array_equal(kept.ranges[1], without.ranges[1] + 1)
 
 
+# slow: a second path; CI reads the sensor through sense(), the one path a rollout takes
+@pytest.mark.slow
 def test_a_sensor_added_from_outside_reaches_the_controller_in_a_rollout(compass, corridor):
     world, _, _ = in_maze(corridor, 2)
 
