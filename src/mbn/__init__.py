@@ -21,7 +21,10 @@ Your own experiment (``docs/architecture.md``, "Your own experiment"): :class:`E
 composition of :class:`Stage` objects (a :class:`StageRegistry` of them), each reading its
 :class:`Settings` (fields made by :func:`setting`) through a :class:`StageContext`;
 :func:`register` adds it to the experiments ``mbn run`` and ``mbn sweep`` know, and a
-:class:`SweepSpec` gives its sweep's per-run targets.
+:class:`SweepSpec` gives its sweep's per-run targets; a stage's result is a :class:`Record`.
+Your own sensor, controller kind, maze family, rule and maze format (``docs/architecture.md``,
+"Adding a ..."): :func:`register_sensor`, :func:`register_controller_kind`,
+:func:`register_family`, :func:`register_rule`, :func:`register_format`.
 
 The API reference of these names and their modules is built from the docstrings by
 ``python scripts/api_docs.py --out build/api`` (pdoc; ``pip install -e '.[docs]'``).
@@ -36,9 +39,10 @@ from mbn._version import __version__
 
 if TYPE_CHECKING:
     from mbn.config import Settings, setting
+    from mbn.controllers.kinds import register_controller_kind
     from mbn.controllers.load import load_controller
     from mbn.evolution.de import DEConfig
-    from mbn.experiments.pipeline import Experiment, Stage, StageContext
+    from mbn.experiments.pipeline import Experiment, Record, Stage, StageContext
     from mbn.experiments.pipeline import Registry as StageRegistry
     from mbn.experiments.pipeline.runner import run_experiment
     from mbn.experiments.registry import register
@@ -57,9 +61,12 @@ if TYPE_CHECKING:
     from mbn.networks.programmable import run as run_interpreter
     from mbn.paper import published_lf, published_rf
     from mbn.precision import scope as precision_scope
-    from mbn.world.mazes.load import load_maze
+    from mbn.world.mazes.families import register_family
+    from mbn.world.mazes.load import load_maze, register_format
     from mbn.world.mazes.model import Maze
     from mbn.world.rollout import RolloutConfig, rollout
+    from mbn.world.rules import register_rule
+    from mbn.world.senses import register_sensor
 
 #: name -> (module, attribute)
 _SURFACE = {
@@ -97,6 +104,12 @@ _SURFACE = {
     "setting": ("mbn.config", "setting"),
     "register": ("mbn.experiments.registry", "register"),
     "SweepSpec": ("mbn.experiments.sweep.specs", "SweepSpec"),
+    "Record": ("mbn.experiments.pipeline.results", "Record"),
+    "register_sensor": ("mbn.world.senses", "register_sensor"),
+    "register_controller_kind": ("mbn.controllers.kinds", "register_controller_kind"),
+    "register_family": ("mbn.world.mazes.families", "register_family"),
+    "register_rule": ("mbn.world.rules", "register_rule"),
+    "register_format": ("mbn.world.mazes.load", "register_format"),
 }
 
 __all__ = [
@@ -107,6 +120,7 @@ __all__ = [
     "Experiment",
     "Maze",
     "Multiplier",
+    "Record",
     "RolloutConfig",
     "Settings",
     "Stage",
@@ -128,6 +142,11 @@ __all__ = [
     "published_lf",
     "published_rf",
     "register",
+    "register_controller_kind",
+    "register_family",
+    "register_format",
+    "register_rule",
+    "register_sensor",
     "rollout",
     "run_experiment",
     "run_interpreter",
