@@ -126,10 +126,13 @@ def test_an_experiment_sets_a_library_stages_defaults_under_the_quick_preset_and
 
 
 class _Named(Stage):
-    def __init__(self, name: str, key_id: int, needs: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self, name: str, key_id: int, needs: tuple[str, ...] = (), result: Any = None
+    ) -> None:
         self.name = name  # type: ignore[misc]
         self.key_id = key_id  # type: ignore[misc]
         self.needs = needs  # type: ignore[misc]
+        self.result = result  # type: ignore[misc]
 
     def run(self, ctx: StageContext) -> dict[str, Any]:
         return {}
@@ -142,6 +145,7 @@ class _Named(Stage):
         ([_Named("a", 1), _Named("b", 1)], "key_id 1"),
         ([_Named("a", 1, needs=("b",)), _Named("b", 2)], "do not run before it"),
         ([_Named("a", 0)], "key_id 0"),
+        ([_Named("a", 1, result=dict)], "not a Record"),
     ],
 )
 def test_the_registry_refuses_inconsistent_stages(stages, message):

@@ -96,6 +96,12 @@ class Registry:
                 raise ValueError(
                     f"stage {stage.name}: its settings section is {stage.settings.section!r}"
                 )
+            result = stage.result
+            if result is not None and not (isinstance(result, type) and issubclass(result, Record)):
+                raise ValueError(
+                    f"stage {stage.name}: its result is {result!r}, not a Record (a frozen "
+                    "dataclass deriving from mbn.experiments.pipeline.Record)"
+                )
             names.append(stage.name)
             keys.add(stage.key_id)
         self._stages = tuple(stages)
