@@ -37,7 +37,7 @@ import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 from typing import cast as typed
 
 import jax
@@ -59,13 +59,11 @@ from mbn.world.mazes.model import TILE_COLORS
 from mbn.world.robot import SONAR_MAX_RANGE, SONAR_POSES
 from mbn.world.sensors import ALL_SONARS, NoiseConfig, SensorConfig
 
-if TYPE_CHECKING:
-    from mbn.world.step import Place
-
 __all__ = [
     "BUILT_IN_CHANNELS",
     "BUILT_IN_SENSORS",
     "Camera",
+    "Place",
     "Reading",
     "Senses",
     "Sensor",
@@ -85,6 +83,18 @@ BUILT_IN_CHANNELS: tuple[str, ...] = ("ranges", "camera", "blobs", "under")
 #: The noise channels the built-in sensors draw (:class:`~mbn.world.sensors.NoiseConfig`).
 _SENSING = ("sonar_std", "sonar_dropout", "camera_miss", "camera_false")
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+class Place(NamedTuple):
+    """Where robots are: ``pose (B, 3)`` = (x, y, theta) and the lattice cell holding (x, y) with
+    its packed window of the cells around it (:func:`mbn.world.engine.window_words`):
+    ``words (B, n_words)`` uint32, cell indices ``ci``, ``cj (B,)`` int32. On the engine's segment
+    path the cell is a culling cell and ``words (B, 1)`` its table row (int32)."""
+
+    pose: Array
+    words: Array
+    ci: Array
+    cj: Array
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,7 @@ from jax.typing import ArrayLike
 from mbn.errors import MbnInputError
 from mbn.world.engine import MazeConstants, World, collides_cells, window_words
 from mbn.world.robot import clip_command, integrate_pose
-from mbn.world.senses import Reading, Senses, camera_noise
+from mbn.world.senses import Place, Reading, Senses, camera_noise
 from mbn.world.sensors import NoiseConfig
 
 __all__ = [
@@ -62,18 +62,6 @@ NO_NOISE = NoiseConfig()
 ALL_SENSES = Senses()
 
 T = TypeVar("T")
-
-
-class Place(NamedTuple):
-    """Where robots are: ``pose (B, 3)`` = (x, y, theta) and the lattice cell holding (x, y) with
-    its packed window of the cells around it (:func:`mbn.world.engine.window_words`):
-    ``words (B, n_words)`` uint32, cell indices ``ci``, ``cj (B,)`` int32. On the engine's segment
-    path the cell is a culling cell and ``words (B, 1)`` its table row (int32)."""
-
-    pose: Array
-    words: Array
-    ci: Array
-    cj: Array
 
 
 class Sensed(NamedTuple):
