@@ -37,7 +37,6 @@ that the evolved controller does not depend on one exact start.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,6 +46,7 @@ import numpy as np
 from jax import Array
 
 from mbn.errors import MbnInputError
+from mbn.experiments.fitness_registry import add_fitness
 from mbn.experiments.starts import JITTER, jittered_starts
 from mbn.world.engine import World, compile_mazes
 from mbn.world.mazes.builtin import CROSSROAD_KINDS, check_approaches, crossroad
@@ -93,7 +93,6 @@ Fitness = Callable[["EpisodeStats", "TaskArrays", "CrossroadTask"], Array]
 #: The fitnesses by name (:func:`register_fitness`), and the fitness of a rule that has one.
 _FITNESSES: dict[str, Fitness] = {}
 _RULE_FITNESS: dict[str, str] = {}
-_FITNESS_NAME = re.compile(r"^[a-z][a-z0-9]*(-[a-z0-9]+)*$")
 
 
 def register_fitness(name: str, fitness: Fitness, *, rules: Sequence[str] = ()) -> None:
@@ -103,26 +102,7 @@ def register_fitness(name: str, fitness: Fitness, *, rules: Sequence[str] = ()) 
     ``fitness=name``; ``rules``: rules (:mod:`mbn.world.rules`) whose tasks take it when they
     name no fitness (:func:`rule_fitness`). A name or a rule's fitness registered already is
     refused in one line (the same function again is allowed: a module imported twice)."""
-    where = f"register_fitness({name!r})"
-    if not isinstance(name, str) or not _FITNESS_NAME.match(name):
-        raise MbnInputError(f"{where}: a fitness's name is lower-case words joined by '-'")
-    if not callable(fitness):
-        raise MbnInputError(f"{where}: the fitness must be a function (stats, arrays, task)")
-    if name in _FITNESSES and _FITNESSES[name] is not fitness:
-        raise MbnInputError(f"{where}: a fitness of that name is registered already")
-    names = []
-    for rule in rules:
-        try:
-            names.append(parse_rule(rule).name)
-        except MbnInputError as exc:
-            raise MbnInputError(f"{where}: rules: {exc}") from None
-    for rule in names:
-        if _RULE_FITNESS.get(rule, name) != name:
-            raise MbnInputError(
-                f"{where}: the rule {rule!r} has the fitness {_RULE_FITNESS[rule]!r} already"
-            )
-    _FITNESSES[name] = fitness
-    _RULE_FITNESS.update(dict.fromkeys(names, name))
+    add_fitness(_FITNESSES, _RULE_FITNESS, name, fitness, rules, "stats, arrays, task")
 
 
 def rule_fitness(rule: str) -> str:

@@ -30,7 +30,6 @@ episode's value; a task names it by ``fitness``, or takes it as its rule's (``ru
 from __future__ import annotations
 
 import functools
-import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -41,6 +40,7 @@ from jax import Array
 
 from mbn.errors import MbnInputError
 from mbn.experiments.crossroads import F_M_WEIGHT, TaskArrays, paper_terms
+from mbn.experiments.fitness_registry import add_fitness
 from mbn.experiments.starts import JITTER, jittered_starts
 from mbn.world.engine import compile_mazes
 from mbn.world.mazes import families
@@ -65,7 +65,6 @@ MAZE_FITNESSES = ("junctions",)
 MazeFitness = Callable[[EpisodeStats, "MazeTask"], Array]
 _FITNESSES: dict[str, MazeFitness] = {}
 _RULE_FITNESS: dict[str, str] = {}
-_FITNESS_NAME = re.compile(r"^[a-z][a-z0-9]*(-[a-z0-9]+)*$")
 
 
 def register_fitness(name: str, fitness: MazeFitness, *, rules: Sequence[str] = ()) -> None:
@@ -74,26 +73,7 @@ def register_fitness(name: str, fitness: MazeFitness, *, rules: Sequence[str] = 
     compiled fitness). A task takes it by ``fitness=name``; ``rules``: rules whose maze tasks
     take it when they name no fitness (:func:`rule_fitness`). A name or a rule's fitness
     registered already is refused in one line (the same function again is allowed)."""
-    where = f"register_fitness({name!r})"
-    if not isinstance(name, str) or not _FITNESS_NAME.match(name):
-        raise MbnInputError(f"{where}: a fitness's name is lower-case words joined by '-'")
-    if not callable(fitness):
-        raise MbnInputError(f"{where}: the fitness must be a function (stats, task)")
-    if name in _FITNESSES and _FITNESSES[name] is not fitness:
-        raise MbnInputError(f"{where}: a fitness of that name is registered already")
-    names = []
-    for rule in rules:
-        try:
-            names.append(parse_rule(rule).name)
-        except MbnInputError as exc:
-            raise MbnInputError(f"{where}: rules: {exc}") from None
-    for rule in names:
-        if _RULE_FITNESS.get(rule, name) != name:
-            raise MbnInputError(
-                f"{where}: the rule {rule!r} has the fitness {_RULE_FITNESS[rule]!r} already"
-            )
-    _FITNESSES[name] = fitness
-    _RULE_FITNESS.update(dict.fromkeys(names, name))
+    add_fitness(_FITNESSES, _RULE_FITNESS, name, fitness, rules, "stats, task")
 
 
 def rule_fitness(rule: str) -> str:
