@@ -54,12 +54,12 @@ def test_names_are_joined_in_order():
 
 def test_the_stage_lines_name_connections_in_the_papers_notation():
     chosen = ["W[1,2]", "WE[1,0]", "WE[1,1]"]
-    lf = {"connections": chosen, "best_fitness": 8.0, "generations": 20, "validation": None}
+    lf = SimpleNamespace(connections=chosen, best_fitness=8.0, generations=20, validation=None)
     # the summaries read the stages' records: stand-ins with the fields they read
     lines = [
         LFSearchStage().summary(SimpleNamespace(chosen=chosen)),
         IMStage().summary(SimpleNamespace(connections=chosen, neurons=21)),
-        LFStage().summary(SimpleNamespace(to_json=lambda: lf)),
+        LFStage().summary(lf),
     ]
     for line in lines:
         assert "W_23, WE_21, WE_22" in line, line

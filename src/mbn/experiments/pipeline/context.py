@@ -159,10 +159,9 @@ class StageContext:
         name = stage if isinstance(stage, str) else stage.name
         if name not in self.needs:
             raise RuntimeError(f"stage {self.name} reads {name!r} but does not declare it")
-        data = self.rundir.read_stage(name)
         if isinstance(stage, str):
-            return data
-        return stage.from_json(data, self.rundir.stage_file(name))
+            return self.rundir.read_stage(name)
+        return self.rundir.read_result(stage)
 
     def _resumable(self, name: str, config: DEConfig) -> Checkpoint | None:
         """The checkpoint of DE ``name`` if there is a usable one; an unreadable or foreign one

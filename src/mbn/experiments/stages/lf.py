@@ -426,4 +426,4 @@ class LFStage(Stage[LFResult]):
         }
 
     def summary(self, data: LFResult) -> str:
-        return evolution_summary(data.to_json(), connections=True)
+        return evolution_summary(data, connections=data.connections)

@@ -319,15 +319,13 @@ class PMStage(Stage[PMResult]):
             }
         )
 
-    def summary(self, result: PMResult) -> str:
-        data = result.to_json()
-        programs = data.get("reward") == "programs"
+    def summary(self, data: PMResult) -> str:
         head = (
             evolution_summary(data, label="program reward", fmt=".1e")
-            if programs
+            if data.reward == "programs"
             else evolution_summary(data)
         )
-        start = data["initial"]
+        start = data.initial
         if start["rule"] is None:
             return f"{head}; starts at rest (no settled state)"
         program = ", ".join(f"{v:.3f}" for v in start["program"])

@@ -3,8 +3,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Protocol
 
 from mbn.config import Settings, setting
 from mbn.experiments.evolve import Genome
@@ -73,18 +74,31 @@ class RFResult(Record):
     paper_F_L: float
 
 
+class Evolved(Protocol):
+    """What :func:`evolution_summary` reads of an evolving stage's record."""
+
+    @property
+    def best_fitness(self) -> float: ...
+
+    @property
+    def generations(self) -> int: ...
+
+    @property
+    def validation(self) -> Validation | None: ...
+
+
 def evolution_summary(
-    data: dict[str, Any], connections: bool = False, label: str = "best fitness", fmt: str = ".2f"
+    data: Evolved,
+    connections: Sequence[str] | None = None,
+    label: str = "best fitness",
+    fmt: str = ".2f",
 ) -> str:
     """``best fitness F after G generations`` (``label``, F in ``fmt``; and the connections
-    evolved, and the success on the validation maze)."""
-    extra = f" ({connection_names(data['connections'])})" if connections else ""
-    v = data.get("validation")
-    check = f"; validation {v['successes']}/{v['trials']}" if v else ""
-    return (
-        f"{label} {data['best_fitness']:{fmt}} after {data['generations']} generations"
-        f"{extra}{check}"
-    )
+    evolved when given, and the success on the validation maze)."""
+    extra = f" ({connection_names(connections)})" if connections is not None else ""
+    v = data.validation
+    check = f"; validation {v.successes}/{v.trials}" if v else ""
+    return f"{label} {data.best_fitness:{fmt}} after {data.generations} generations{extra}{check}"
 
 
 class RFStage(Stage[RFResult]):
@@ -103,4 +117,4 @@ class RFStage(Stage[RFResult]):
         return RFResult.from_json(data)
 
     def summary(self, data: RFResult) -> str:
-        return evolution_summary(data.to_json())
+        return evolution_summary(data)
