@@ -172,3 +172,27 @@ def test_adding_a_stage_runs_as_written(tmp_path):
     results = [json.loads((o / "results.json").read_text()) for o in outs]
     assert results[0]["stages"]["product_check"] == stage
     assert results[0]["config"]["product_check"] == {"pairs": 20}
+
+
+def test_extension_modules_make_a_recipe_known_to_every_command(own, tmp_path, monkeypatch, capsys):
+    from mbn import extensions
+    from mbn.cli.main import main
+
+    monkeypatch.setattr(extensions, "_loaded", set())
+    _save(tmp_path, "Adding a maze family or a rule", "my_rule.py")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert main(["mazes", "families", "--json"]) == 0
+    assert "uturns" not in json.loads(capsys.readouterr().out)["families"]
+    monkeypatch.setenv("MBN_EXTENSIONS", "my_rule")
+    assert main(["mazes", "families", "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)["families"]
+    assert listed["uturns"]["tile_rules"] == ["right", "left", "u-turn"]
+    out = tmp_path / "u.maze"
+    assert main(["mazes", "generate", "uturns", "--seed", "500000", "--out", str(out)]) == 0
+    assert load_maze(str(out)).tiles
+    # a module that cannot be imported: one line, exit 2, where it was named
+    monkeypatch.setenv("MBN_EXTENSIONS", "my_rule, no_such_lab_module")
+    assert main(["mazes"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("mbn: error: MBN_EXTENSIONS: cannot import 'no_such_lab_module'")
+    assert len(err.splitlines()) == 1

@@ -1,9 +1,10 @@
 """The ``mbn`` command line: one module per command group (``networks``, ``world``,
 ``evaluate``, ``reproduce``, ``sweep``), each adding its sub-parsers with ``set_defaults(func=...,
-precision=..., writes=...)``; :func:`main` parses, checks that an output file can be written
-before any work, turns the persistent compilation cache on (:mod:`mbn.compile_cache`), runs the
-command in its precision (:func:`mbn.precision.scope`) and turns every bad input and every
-system error into one line and exit status 2.
+precision=..., writes=...)``; :func:`main` imports a lab's extension modules
+(:mod:`mbn.extensions`), parses, checks that an output file can be written before any work,
+turns the persistent compilation cache on (:mod:`mbn.compile_cache`), runs the command in its
+precision (:func:`mbn.precision.scope`) and turns every bad input and every system error into
+one line and exit status 2.
 
 Every subcommand validates its input; a bad input prints one line ``mbn: error: ...`` naming what
 is wrong (file and line where there is one) and exits with status 2. Files are written atomically.
@@ -17,7 +18,7 @@ import warnings
 from collections.abc import Sequence
 from typing import TextIO
 
-from mbn import compile_cache
+from mbn import compile_cache, extensions
 from mbn._version import __version__
 from mbn.cli import evaluate, networks, reproduce, run, sweep, world
 from mbn.errors import MbnInputError, MbnWarning
@@ -79,6 +80,11 @@ def _show_warning(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mbn`` command; returns the exit status."""
+    try:
+        extensions.load()  # a lab's registered rules, families, ... (before --help lists them)
+    except MbnInputError as exc:
+        print(f"mbn: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     args = build_parser().parse_args(argv)
     try:
         if getattr(args, "writes", None) == "file":

@@ -365,11 +365,12 @@ def run_seed(
     }
     notices: list[str] = []
     try:
-        from mbn import compile_cache
+        from mbn import compile_cache, extensions
         from mbn.experiments.pipeline.runner import run_experiment
         from mbn.precision import ROBOT, scope
 
         worker["compile_cache"] = str(compile_cache.enable() or "off")
+        extensions.load()  # a worker process imports the lab's extensions as the command did
 
         if experiment is None or isinstance(experiment, str):
             from mbn.experiments.sweep.specs import sweep_spec
