@@ -51,8 +51,10 @@ def named(env: Mapping[str, str] | None = None) -> list[tuple[str, str]]:
     for part in env.get(VARIABLE, "").split(","):
         if part.strip():
             out.append((part.strip(), VARIABLE))
-    seen: set[str] = set()
-    return [(m, w) for m, w in out if not (m in seen or seen.add(m))]
+    first: dict[str, str] = {}
+    for module, where in out:
+        first.setdefault(module, where)
+    return list(first.items())
 
 
 def load(env: Mapping[str, str] | None = None) -> list[str]:

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 from mbn.experiments.generalization import (
+    GeneralizationResult,
+    JudgedRecord,
     failure_causes,
     generalization_claims,
     junction_kind,
@@ -65,13 +67,25 @@ def test_failures_are_counted_once_by_their_first_cause():
 
 
 def _record(successes, trials=10):
-    mazes = [{"maze": f"m{k}", "trials": trials, "successes": s} for k, s in enumerate(successes)]
-    total = sum(successes)
-    return {
-        "mazes": mazes,
-        "pooled": {"successes": total, "trials": trials * len(mazes)},
-        "mazes_at_95": sum(s >= 0.95 * trials for s in successes),
-    }
+    from mbn.experiments.generalization import Failures, MazeRow, Pooled, SplitRecord
+
+    mazes = [
+        MazeRow(maze=f"m{k}", trials=trials, successes=s, timed_out=0)
+        for k, s in enumerate(successes)
+    ]
+    total, n = sum(successes), trials * len(mazes)
+    at = sum(s >= 0.95 * trials for s in successes)
+    return SplitRecord(
+        mazes=mazes,
+        pooled=Pooled(
+            trials=n, successes=total, timed_out=0, success_rate=total / n, wilson95=[0.0, 1.0]
+        ),
+        mazes_at_95=at,
+        fraction_of_mazes_at_95=at / len(mazes),
+        seconds=10.0,
+        failures=Failures(failed=n - total, wrong_exit=0, stalled=n - total, timed_out=0),
+        meets_targets=False,  # not read: the targets are judged from the figures
+    )
 
 
 @pytest.mark.parametrize(
@@ -85,6 +99,7 @@ def _record(successes, trials=10):
 )
 def test_the_generalization_targets_are_the_pooled_rate_and_the_share_of_mazes(successes, meets):
     assert meets_generalization(_record(successes)) is meets
+    assert meets_generalization(_record(successes).to_json()) is meets  # as results.json has it
 
 
 def test_the_performance_profile_is_the_share_of_mazes_at_each_rate():
@@ -132,7 +147,7 @@ def test_the_quick_run_judges_its_controllers_on_every_split(quick_run):
     assert len(rows) == 5
     claims = {c["claim"]: c for c in results["claims"]}
     for row in rows:
-        assert claims[row["claim"]]["pass"] == row["pass"]
+        assert claims[row.claim]["pass"] == row.passed
     report = (out / "report.md").read_text()
     assert "## Generalization: mazes drawn from the family" in report
     assert (out / "figures" / "generalization_profile.png").stat().st_size > 0
@@ -196,19 +211,30 @@ def test_the_worst_test_maze_is_run_again_with_its_steps_recorded(quick_run, tmp
     result = evaluate_mazes(mazes, trial, loaded, seconds=60.0, verdicts=True)
     maze, trajectory, record = _worst_maze(mazes, result, trial, loaded, None)
     rates = [r["success_rate"] for r in result["mazes"]]
-    assert maze.name == record["maze"] == mazes[int(np.argmin(rates))].name
+    assert maze.name == record.maze == mazes[int(np.argmin(rates))].name
     assert (
-        record["details"]["success"]
-        == result["verdicts"][maze.name]["success"].astype(int).tolist()
+        record.details["success"] == result["verdicts"][maze.name]["success"].astype(int).tolist()
     )
-    assert np.asarray(trajectory.pose).shape[:1] == (len(record["details"]["success"]),)
+    assert np.asarray(trajectory.pose).shape[:1] == (len(record.details["success"]),)
     # the report's picture of it
     rundir = RunDir(tmp_path)
     (tmp_path / "figures").mkdir()
     (tmp_path / "records").mkdir()
     rundir.save_trajectories(WORST_RECORD, {"lf": trajectory}, WORST_FIELDS)
-    data = {"controllers": {"lf": {"family": "grid", "splits": {}, "worst_test_maze": record}}}
+    judged = JudgedRecord(
+        file="controllers/lf.json",
+        behavior="left",
+        program=None,
+        family="grid",
+        splits={},
+        worst_test_maze=record,
+    )
+    data = GeneralizationResult(controllers={"lf": judged}, noise=None)
     sections = generalization_sections(rundir, data)
+    # as results.json keeps it, the same sections
+    assert [x.title for x in generalization_sections(rundir, data.to_json())] == [
+        x.title for x in sections
+    ]
     assert sections[-1].title == "Generalization: the worst test maze"
     assert (tmp_path / "figures" / "generalization_worst_lf.png").stat().st_size > 0
 

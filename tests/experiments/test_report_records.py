@@ -9,21 +9,34 @@ from mbn.experiments.ablations.report import what
 from mbn.experiments.noise.over_runs import noise_over_runs
 from mbn.experiments.noise.report import claims as noise_claims
 from mbn.experiments.noise.report import levels_text
+from mbn.experiments.stages.ablations import Variant
 
 
-def _rate(rate: float) -> dict[str, float]:
-    return {"rate": rate}
+def _rate(rate: float, trials: int = 20) -> dict:
+    """A test as the noise levels and the ablations record it."""
+    return {
+        "successes": round(rate * trials),
+        "trials": trials,
+        "rate": rate,
+        "wilson95": [0.0, 1.0],
+    }
 
 
 def _ablation(what_text: str, tau_ratio: float | None, substeps: int | None) -> dict:
-    row = {
-        "what": what_text,
-        "mbn_jitter": _rate(1.0),
-        "mbn_heldout": _rate(1.0),
-        "agreement": {"rf_jitter": 1.0, "lf_jitter": 1.0},
-    }
+    """A variant as ``stages/ablations.json`` records it."""
+    row: dict = {"what": what_text, "mbn_jitter": _rate(1.0), "mbn_heldout": _rate(1.0)}
     if tau_ratio is not None:
-        row["interpreter"] = {"tau_ratio": tau_ratio, "substeps": substeps}
+        row["interpreter"] = {
+            "tau_ratio": tau_ratio,
+            "substeps": substeps,
+            "multiplier_neurons": 6,
+        }
+        row["agreement"] = {
+            "rf_jitter": 1.0,
+            "lf_jitter": 1.0,
+            "rf_heldout": 1.0,
+            "lf_heldout": 1.0,
+        }
     return row
 
 
@@ -33,21 +46,26 @@ def test_the_ablations_state_the_time_constant_each_variant_ran_at():
         "tau_10": _ablation("multipliers at τ/10, the paper's (20 sub-steps)", 0.1, 25),
         "wrong_program": _ablation("the tiles swapped", None, None),
     }
-    assert what("as_run", rows["as_run"]) == (
+    typed = {name: Variant.from_json(row) for name, row in rows.items()}
+    assert what("as_run", typed["as_run"]) == (
         "the run's MBN (no change); multipliers at τ/20, 40 sub-steps"
     )
     # the sub-steps the variant ran with, not the words written when it was defined
-    assert what("tau_10", rows["tau_10"]) == "multipliers at τ/10, 25 sub-steps, the paper's"
-    assert what("wrong_program", rows["wrong_program"]) == "the tiles swapped"
+    assert what("tau_10", typed["tau_10"]) == "multipliers at τ/10, 25 sub-steps, the paper's"
+    assert what("wrong_program", typed["wrong_program"]) == "the tiles swapped"
     rows["tau_10"]["interpreter"]["tau_ratio"] = 0.125  # as if a run had recorded another
-    row = next(
-        c for c in ablation_claims({"ablations": {"variants": rows}}) if "τ/10)" in c["claim"]
-    )
+    stage = {
+        "variants": rows,
+        "networks": {"rf_jitter": _rate(1.0)},
+        "trials": {"jitter_per_mark": 2, "heldout_repeats": 1},
+    }
+    row = next(c for c in ablation_claims({"ablations": stage}) if "τ/10)" in c["claim"])
     assert row["target"].endswith("at τ/8") and row["measured"].startswith("multipliers at τ/8,")
 
 
 def _point(rate: float) -> dict:
-    return {"jitter": {"rate": rate}, "heldout": {"rate": rate}}
+    """A controller at one noise level, as ``stages/noise_levels.json`` records it."""
+    return {"level": 0.0, "jitter": _rate(rate), "heldout": _rate(rate)}
 
 
 LEVELS = {"sonar_std": 0.03, "sonar_dropout": 0.0, "wheel_std": 0.07, "camera_miss": 0.1}
@@ -55,7 +73,14 @@ LEVELS = {"sonar_std": 0.03, "sonar_dropout": 0.0, "wheel_std": 0.07, "camera_mi
 
 def test_the_noise_claim_states_the_realistic_levels_the_run_recorded():
     realistic = {"noise": LEVELS, **{n: _point(0.9) for n in ("rf", "im_rf", "im_lf", "mbn")}}
-    data = {"realistic": realistic, "curves": {}, "channels": []}
+    data = {
+        "channels": [],
+        "levels": {},
+        "curves": {},
+        "realistic": realistic,
+        "trials": {"jitter_per_mark": 2, "heldout_repeats": 1},
+        "evolved_under": {},
+    }
     row = noise_claims({"noise_levels": data})[0]
     assert "(sonar_std = 0.03, wheel_std = 0.07, camera_miss = 0.1)" in row["measured"]
     assert "2 cm" not in row["measured"] and "5 %" not in row["measured"]

@@ -10,11 +10,13 @@ of it.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from jax import Array
 
+from mbn.experiments.pipeline.results import Record, keyed, optional
 from mbn.experiments.trials import (
     MAX_STALL_FRACTION,
     TrialGroup,
@@ -29,6 +31,14 @@ from mbn.world.rules import OPEN_BITS
 
 __all__ = [
     "MAZE_TARGET",
+    "Failures",
+    "GeneralizationClaim",
+    "GeneralizationResult",
+    "JudgedRecord",
+    "MazeRow",
+    "Passes",
+    "Pooled",
+    "SplitRecord",
     "evaluate_mazes",
     "failure_causes",
     "generalization_claims",
@@ -48,6 +58,102 @@ MAZE_TARGET = 0.95
 #: pass (each at :data:`MAZE_TARGET`).
 POOLED_TARGET = 0.95
 MAZE_SHARE_TARGET = 0.90
+
+
+@dataclass(frozen=True, kw_only=True)
+class MazeRow(Record):
+    """One maze of a split: its trials, successes and time-outs."""
+
+    maze: str
+    trials: int
+    successes: int
+    timed_out: int
+
+    @property
+    def rate(self) -> float:
+        """Its success rate (0 without trials)."""
+        return self.successes / self.trials if self.trials else 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Pooled(Record):
+    """A split's trials pooled over its mazes, with the Wilson 95 % interval of the rate."""
+
+    trials: int
+    successes: int
+    timed_out: int
+    success_rate: float
+    wilson95: list[float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Failures(Record):
+    """A split's failed trials by cause: the first wrong exit, else stalled, else timed out."""
+
+    failed: int
+    wrong_exit: int
+    stalled: int
+    timed_out: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class Passes(Record):
+    """Judged junction passes and how many took the rule's exit."""
+
+    passes: int
+    correct: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class SplitRecord(Record):
+    """What a run records of one split (:func:`split_record`): the mazes, the pooled trials,
+    how many mazes reach :data:`MAZE_TARGET`, the batch's time limit, the failures' causes,
+    whether the generalization targets are met, and, on the test split and the zero-shot suite,
+    the passes by junction kind and (an MBN's) by the tile's distance before the junction;
+    whether its mazes were those the controller's episodes were drawn from."""
+
+    mazes: list[MazeRow]
+    pooled: Pooled
+    mazes_at_95: int
+    fraction_of_mazes_at_95: float
+    seconds: float
+    failures: Failures
+    meets_targets: bool
+    junction_kinds: dict[str, Passes] | None = optional()
+    tile_distances: dict[str, Passes] | None = optional()
+    seen_in_training: bool | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class WorstMaze(Record):
+    """A controller's worst test maze: its name, success rate and the details of its trials
+    (run again recording their trajectories)."""
+
+    maze: str
+    success_rate: float
+    details: dict[str, Any]
+
+
+@dataclass(frozen=True, kw_only=True)
+class JudgedRecord(Record):
+    """One controller judged across mazes: its file, behaviour, program and family, its splits'
+    records (``train``, ``validation``, ``test``, ``zero-shot``) and its worst test maze."""
+
+    file: str
+    behavior: str
+    program: str | None
+    family: str
+    splits: dict[str, SplitRecord]
+    worst_test_maze: WorstMaze | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class GeneralizationResult(Record):
+    """What a ``generalization`` stage records (``stages/generalization.json``): by
+    controller, its :class:`JudgedRecord`, and the noise the trials ran under (None: none)."""
+
+    controllers: dict[str, JudgedRecord]
+    noise: dict[str, Any] | None
 
 
 def pooled_rows(rows: list[dict[str, Any]], target: float = MAZE_TARGET) -> dict[str, Any]:
@@ -158,21 +264,28 @@ def failure_causes(verdict: dict[str, np.ndarray]) -> dict[str, int]:
     }
 
 
-def meets_generalization(record: dict[str, Any]) -> bool:
+def meets_generalization(record: SplitRecord | dict[str, Any]) -> bool:
     """Whether a split's record meets the generalization targets: pooled success at least
     :data:`POOLED_TARGET` and at least :data:`MAZE_SHARE_TARGET` of its mazes each at
     :data:`MAZE_TARGET` (compared as fractions of whole trials and mazes)."""
-    pooled = record["pooled"]
-    n = len(record["mazes"])
+    rec = record if isinstance(record, SplitRecord) else SplitRecord.pick(record)
+    return _meets(rec.pooled.successes, rec.pooled.trials, rec.mazes_at_95, len(rec.mazes))
+
+
+def _meets(successes: int, trials: int, mazes_at_95: int, mazes: int) -> bool:
     return bool(
-        pooled["successes"] * 100 >= round(POOLED_TARGET * 100) * pooled["trials"]
-        and record["mazes_at_95"] * 100 >= round(MAZE_SHARE_TARGET * 100) * n
+        successes * 100 >= round(POOLED_TARGET * 100) * trials
+        and mazes_at_95 * 100 >= round(MAZE_SHARE_TARGET * 100) * mazes
     )
 
 
 def split_record(
-    result: dict[str, Any], *, breakdown: bool = False, mazes: list[Any] | None = None
-) -> dict[str, Any]:
+    result: dict[str, Any],
+    *,
+    breakdown: bool = False,
+    mazes: list[Any] | None = None,
+    seen_in_training: bool | None = None,
+) -> SplitRecord:
     """What a run records of :func:`evaluate_mazes` (called with ``verdicts``) on one split:
     the per-maze rows (maze, trials, successes, timed out), the pooled figures with their
     Wilson 95 % interval, how many mazes pass, the failures' causes, whether the
@@ -182,56 +295,76 @@ def split_record(
     joined = join_verdicts(list(verdicts.values()))
     pooled = result["pooled"]
     lo, hi = wilson_interval(pooled["successes"], pooled["trials"])
-    record: dict[str, Any] = {
-        "mazes": [
-            {k: r[k] for k in ("maze", "trials", "successes", "timed_out")} for r in result["mazes"]
-        ],
-        "pooled": {**pooled, "wilson95": [lo, hi]},
-        "mazes_at_95": result["mazes_at_95"],
-        "fraction_of_mazes_at_95": result["fraction_of_mazes_at_95"],
-        "seconds": result["seconds"],
-        "failures": failure_causes(joined),
-    }
-    record["meets_targets"] = meets_generalization(record)
-    if breakdown:
-        record["junction_kinds"] = junction_kinds(joined)
-        if mazes is not None and any(m.tiles for m in mazes):
-            record["tile_distances"] = tile_distances(mazes, verdicts)
-    return record
+    rows = [MazeRow.pick(r) for r in result["mazes"]]
+    tiles = breakdown and mazes is not None and any(m.tiles for m in mazes)
+    return SplitRecord(
+        mazes=rows,
+        pooled=Pooled.from_json({**pooled, "wilson95": [lo, hi]}),
+        mazes_at_95=result["mazes_at_95"],
+        fraction_of_mazes_at_95=result["fraction_of_mazes_at_95"],
+        seconds=result["seconds"],
+        failures=Failures.from_json(failure_causes(joined)),
+        meets_targets=_meets(
+            pooled["successes"], pooled["trials"], result["mazes_at_95"], len(rows)
+        ),
+        junction_kinds=(
+            {k: Passes.from_json(v) for k, v in junction_kinds(joined).items()}
+            if breakdown
+            else None
+        ),
+        tile_distances=(
+            {k: Passes.from_json(v) for k, v in tile_distances(mazes or [], verdicts).items()}
+            if tiles
+            else None
+        ),
+        seen_in_training=seen_in_training,
+    )
 
 
-def generalization_claims(data: dict[str, Any] | None) -> list[dict[str, Any]]:
-    """The claims rows of a ``generalization`` stage's data: for each controller, "holds in
-    mazes drawn from its family, never looked into" (its test split: the targets of
-    :func:`meets_generalization`), with the zero-shot suite's pooled rate beside it. Rows carry
-    ``claim``, ``paper``, ``measured``, ``target`` (the criterion) and ``pass``."""
+@dataclass(frozen=True, kw_only=True)
+class GeneralizationClaim(Record):
+    """A claims row of a ``generalization`` stage (:func:`generalization_claims`)."""
+
+    claim: str
+    paper: str
+    measured: str
+    target: str
+    passed: bool = keyed("pass")
+
+
+def generalization_claims(data: Any) -> list[GeneralizationClaim]:
+    """The claims rows of a ``generalization`` stage's result (its record,
+    :class:`GeneralizationResult`, or its JSON; None:
+    no rows): for each controller, "holds in mazes drawn from its family, never looked into"
+    (its test split: the targets of :func:`meets_generalization`), with the zero-shot suite's
+    pooled rate beside it."""
     if not data:
         return []
+    result = data if isinstance(data, GeneralizationResult) else GeneralizationResult.pick(data)
     rows = []
-    for name, rec in data["controllers"].items():
-        test = rec["splits"].get("test")
+    for name, rec in result.controllers.items():
+        test = rec.splits.get("test")
         if test is None:
             continue
-        p = test["pooled"]
-        zs = rec["splits"].get("zero-shot")
+        p = test.pooled
+        zs = rec.splits.get("zero-shot")
         zero = (
-            f"; zero-shot suite {zs['pooled']['successes']}/{zs['pooled']['trials']} "
-            f"({zs['pooled']['success_rate']:.1%})"
+            f"; zero-shot suite {zs.pooled.successes}/{zs.pooled.trials} "
+            f"({zs.pooled.success_rate:.1%})"
             if zs
             else ""
         )
         rows.append(
-            {
-                "claim": f"{name} holds in mazes drawn from the {rec['family']} family, never "
+            GeneralizationClaim(
+                claim=f"{name} holds in mazes drawn from the {rec.family} family, never "
                 "looked into (its test split)",
-                "paper": "not tested in the paper (its tests: one maze)",
-                "measured": f"{p['successes']}/{p['trials']} ({p['success_rate']:.1%}) pooled "
-                f"over {len(test['mazes'])} test mazes, {test['mazes_at_95']} of them at >= 95 %"
-                + zero,
-                "target": f"pooled >= {POOLED_TARGET:.0%} and >= {MAZE_SHARE_TARGET:.0%} of the "
+                paper="not tested in the paper (its tests: one maze)",
+                measured=f"{p.successes}/{p.trials} ({p.success_rate:.1%}) pooled "
+                f"over {len(test.mazes)} test mazes, {test.mazes_at_95} of them at >= 95 %" + zero,
+                target=f"pooled >= {POOLED_TARGET:.0%} and >= {MAZE_SHARE_TARGET:.0%} of the "
                 f"mazes at >= {MAZE_TARGET:.0%}",
-                "pass": meets_generalization(test),
-            }
+                passed=meets_generalization(test),
+            )
         )
     return rows
 

@@ -47,8 +47,13 @@ def fake_run(
             agreement[name + suffix] = {"trials": n, "same_branches": k, "rate": k / n}
     results = {
         "seed": seed,
-        "config": config,
+        "seeds": {"seed": seed},
         "quick": True,
+        "config": config,
+        "versions": dict.fromkeys(
+            ("mbn", "python", "jax", "jaxlib", "numpy", "optax", "matplotlib", "os", "platform"),
+            "test",
+        ),
         "stages": {"tests": {"agreement": agreement}},
         "tests": tests,
         "claims": [

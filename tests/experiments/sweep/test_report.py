@@ -133,7 +133,9 @@ def test_a_sweep_without_per_run_targets_counts_finished_runs_not_targets_met(an
         "failed": [],
         "meet_every_target": 2,
         "per_seed": {"0": {"state": "done"}, "1": {"state": "done"}, "2": {"state": "missing"}},
+        "tests": {},
         "targets": {},
+        "claims": [],
         **({"analysis": {}} if analysis else {}),
     }
     line = summary_line({"summary": summ, "runs": {}})

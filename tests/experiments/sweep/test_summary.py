@@ -69,7 +69,11 @@ def _results(**overrides):
         k = overrides.get(name, n)
         tests[name] = {"trials": n, "successes": k, "success_rate": k / n}
     agreement = {
-        f"im_{r}_jitter": {"trials": 200, "same_branches": overrides.get(f"agree_{r}", 200)}
+        f"im_{r}_jitter": {
+            "trials": 200,
+            "same_branches": overrides.get(f"agree_{r}", 200),
+            "rate": overrides.get(f"agree_{r}", 200) / 200,
+        }
         for r in ("rf", "lf")
     }
     return {
@@ -124,13 +128,25 @@ def test_claims_naming_a_run_s_own_connections_count_together():
 
 
 def _split(successes: list[int], trials: int = 10) -> dict:
-    return {
-        "mazes": [
-            {"maze": f"m{k}", "trials": trials, "successes": s} for k, s in enumerate(successes)
+    """A split's record as ``results.json`` keeps it."""
+    from mbn.experiments.generalization import Failures, MazeRow, Pooled, SplitRecord
+
+    total, n = sum(successes), trials * len(successes)
+    at = sum(s * 100 >= 95 * trials for s in successes)
+    return SplitRecord(
+        mazes=[
+            MazeRow(maze=f"m{k}", trials=trials, successes=s, timed_out=0)
+            for k, s in enumerate(successes)
         ],
-        "pooled": {"successes": sum(successes), "trials": trials * len(successes)},
-        "mazes_at_95": sum(s * 100 >= 95 * trials for s in successes),
-    }
+        pooled=Pooled(
+            trials=n, successes=total, timed_out=0, success_rate=total / n, wilson95=[0.0, 1.0]
+        ),
+        mazes_at_95=at,
+        fraction_of_mazes_at_95=at / len(successes),
+        seconds=60.0,
+        failures=Failures(failed=n - total, wrong_exit=0, stalled=n - total, timed_out=0),
+        meets_targets=False,
+    ).to_json()
 
 
 def test_generalization_targets_are_judged_per_seed_apart_from_the_run_targets():

@@ -14,11 +14,13 @@ from mbn.controllers import MBNControllerSpec, read_controller_spec
 from mbn.experiments.generalization import generalization_claims
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.pipeline.results import ClaimRow, RunResults
 from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.generalization3 import BehavioursGeneralization
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.programs import ProgramsStage
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET
-from mbn.experiments.stages.records import TrialSummary
+from mbn.experiments.stages.records import Tally, TrialSummary
 from mbn.experiments.stages.tests3 import Tests3Stage
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
@@ -67,9 +69,9 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     )
     curve = im.curve
     if curve:
-        rf = [r["agreement_rf"]["rate"] for r in curve]
-        lf = [r["agreement_lf"]["rate"] for r in curve]
-        first, last = len(curve[0]["connections"]), len(curve[-1]["connections"])
+        rf = [r.agreement_rf.rate for r in curve]
+        lf = [r.agreement_lf.rate for r in curve]
+        first, last = len(curve[0].connections), len(curve[-1].connections)
         worst = [min(a, b) for a, b in zip(rf, lf, strict=True)]
         out.append(
             {
@@ -125,8 +127,10 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             "pass": bool(ok),
         }
     )
-    for row in generalization_claims(stages.get("generalization")):
-        out.append({k: row[k] for k in ("claim", "measured", "target", "pass")})
+    for row in generalization_claims(stages.get(BehavioursGeneralization.name)):
+        out.append(
+            {"claim": row.claim, "measured": row.measured, "target": row.target, "pass": row.passed}
+        )
     return out
 
 
@@ -136,7 +140,7 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
 
     t3 = rundir.read_result(Tests3Stage)
     rec = rundir.load_record("mbn3_marks")
-    maze = load_maze(t3.mazes["test"])
+    maze = load_maze(t3.mazes.test)
     rules = t3.tile_rules
     initial = t3.initial if t3.initial not in (None, "none") else rules[0]
     pose, tile, t = rec["pose"], rec["tile"], rec["t"]
@@ -192,18 +196,20 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
 
 def write_report(rundir: RunDir) -> None:
     """``report.md``, ``report.html`` and the figures of a finished run."""
-    results = read_json(rundir.results)
-    stages = {name: rundir.read_stage(name) for name in results["stages"]}
-    rows = claims(stages)
+    run = RunResults.pick(read_json(rundir.results), str(rundir.results))
+    stages = {name: rundir.read_stage(name) for name in run.stages}
+    im = rundir.read_result(IMFullStage)
+    rows = [ClaimRow.from_json(c) for c in claims(stages)]
+    tallies = {name: Tally.pick(found, f"test {name}") for name, found in run.tests.items()}
     secs = [
         Section(
             "What this run did",
             [
-                f"Seed {results['seed']}. The reproduction's RF and LF; a fully programmable "
+                f"Seed {run.seed}. The reproduction's RF and LF; a fully programmable "
                 "interpreter of RF; new rules learned by DE over that fixed interpreter's "
                 "programs alone; a three-behaviour MBN whose program module alone was evolved. "
                 "The interpreter's sha256 "
-                f"({stages['im_full']['sha256'][:16]}…) was checked in every file written. "
+                f"({im.sha256[:16]}…) was checked in every file written. "
                 "docs/behaviours.md describes each stage.",
             ],
         ),
@@ -211,25 +217,22 @@ def write_report(rundir: RunDir) -> None:
             "Claims",
             table=(
                 ["claim", "measured", "target", "holds"],
-                [
-                    [c["claim"], c["measured"], c["target"], "yes" if c["pass"] else "no"]
-                    for c in rows
-                ],
+                [[c.claim, c.measured, c.judged_by, "yes" if c.passed else "no"] for c in rows],
             ),
-            status=[c["pass"] for c in rows],
+            status=[c.passed for c in rows],
         ),
         Section(
             "Tests",
             table=(
                 ["test", "passed", "rate"],
                 [
-                    [name, f"{t['successes']}/{t['trials']}", f"{t['success_rate']:.1%}"]
-                    for name, t in results["tests"].items()
+                    [name, f"{t.successes}/{t.trials}", f"{t.success_rate:.1%}"]
+                    for name, t in tallies.items()
                 ],
             ),
         ),
     ]
-    curve = stages["im_full"].get("curve") or []
+    curve = im.curve
     if curve:
         secs.append(
             Section(
@@ -242,17 +245,18 @@ def write_report(rundir: RunDir) -> None:
                     ["programmable", "added", "agreement RF", "agreement LF"],
                     [
                         [
-                            str(len(r["connections"])),
-                            connection_name(r["connections"][-1]),
-                            f"{r['agreement_rf']['rate']:.1%}",
-                            f"{r['agreement_lf']['rate']:.1%}",
+                            str(len(r.connections)),
+                            connection_name(r.connections[-1]),
+                            f"{r.agreement_rf.rate:.1%}",
+                            f"{r.agreement_lf.rate:.1%}",
                         ]
                         for r in curve
                     ],
                 ),
             )
         )
-    if stages.get("generalization"):
-        secs.extend(generalization_sections(rundir, stages["generalization"]))
+    generalization = stages.get(BehavioursGeneralization.name)
+    if generalization:
+        secs.extend(generalization_sections(rundir, generalization))
     secs.append(Section("Pictures", images=_pictures(rundir, stages)))
     write_document(rundir.root, "report", TITLE, secs)

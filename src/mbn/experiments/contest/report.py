@@ -8,6 +8,10 @@ from typing import Any
 from mbn.experiments.contest.over_runs import CLAIM_2016, CRITERION, checks_text
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
+from mbn.experiments.pipeline.results import RunResults
+from mbn.experiments.stages.contest import ContestRun, ContestStage
+from mbn.experiments.stages.contest3 import TASK, Contest3Stage
+from mbn.experiments.stages.records import Tally
 from mbn.io import read_json
 
 __all__ = ["TITLE", "claims", "write_report"]
@@ -15,17 +19,28 @@ __all__ = ["TITLE", "claims", "write_report"]
 TITLE = "mbn: learning programs against learning dynamics"
 
 
-def _evals(d: dict[str, Any]) -> str:
-    return f"{d['evaluations']}" if d["solved"] else f"> {d['budget']} (unsolved)"
+def _runs(stages: dict[str, dict[str, Any]]) -> dict[str, dict[str, ContestRun]]:
+    """By rule (the three-behaviour task's among them, where the run has it), each contender's
+    run as the report reads it."""
+    contest = ContestStage.from_json(stages[ContestStage.name])
+    three = stages.get(Contest3Stage.name)
+    runs = dict(contest.runs)
+    if three is not None:
+        runs.update(Contest3Stage.from_json(three).runs)
+    return {
+        rule: {who: ContestRun.pick(d, f"contest {rule} {who}") for who, d in by.items()}
+        for rule, by in runs.items()
+    }
 
 
 def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One run cannot judge a claim about runs: the 2016 claim is stated with what this run
     measured and judged only over runs (``mbn sweep --experiment programs-vs-dynamics``)."""
-    runs = {**stages["contest"]["runs"], **stages.get("contest3", {}).get("runs", {})}
     parts = []
-    for rule, by in runs.items():
-        parts.append(f"{rule}: " + ", ".join(f"{who} {_evals(d)}" for who, d in by.items()))
+    for rule, by in _runs(stages).items():
+        parts.append(
+            f"{rule}: " + ", ".join(f"{who} {d.evaluations_text}" for who, d in by.items())
+        )
     return [
         {
             "claim": CLAIM_2016,
@@ -36,14 +51,14 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     ]
 
 
-def _pm_text(three: dict[str, Any]) -> str:
+def _pm_text(runs: dict[str, dict[str, ContestRun]]) -> str:
     """What the MBN's program module cost (robot-free), where the run evolved one."""
-    d = three["runs"].get("three-behaviours", {}).get("programs")
-    if d is None:
+    d = runs.get(TASK, {}).get("programs")
+    if d is None or d.pm_evaluations is None:
         return ""
     return (
-        f"; the MBN's program module took {d['pm_evaluations']} evaluations without the robot "
-        f"(program reward {d['pm_fitness']:.4f})"
+        f"; the MBN's program module took {d.pm_evaluations} evaluations without the robot "
+        f"(program reward {d.pm_fitness:.4f})"
     )
 
 
@@ -53,61 +68,56 @@ def write_report(rundir: RunDir) -> None:
     from mbn.viz.runs import test_trajectories
     from mbn.world.mazes.load import load_maze
 
-    results = read_json(rundir.results)
-    stages = {name: rundir.read_stage(name) for name in results["stages"]}
-    data = dict(stages["contest"])
-    three = stages.get("contest3")
-    if three is not None:  # the three-behaviour task beside the new rules
-        for part in ("runs", "tests", "details"):
-            data[part] = {**data[part], **three[part]}
+    run = RunResults.pick(read_json(rundir.results), str(rundir.results))
+    stages = {name: rundir.read_stage(name) for name in run.stages}
+    contest = rundir.read_result(ContestStage)
+    three = rundir.read_result(Contest3Stage) if Contest3Stage.name in stages else None
+    recorded = {**contest.runs, **(three.runs if three else {})}
+    runs = _runs(stages)
+    tests = {**contest.tests, **(three.tests if three else {})}
+    details = {**contest.details, **(three.details if three else {})}
+    tally = {name: Tally.pick(t, f"test {name}") for name, t in tests.items()}
     file = "figures/contest.png"
-    contest_checks(data["runs"], rundir.root / file)
-    maze = load_maze(data["mazes"]["test"])
+    contest_checks(recorded, rundir.root / file)
+    maze = load_maze(contest.mazes.test)
     pictures = []
-    for rule, by in data["runs"].items():
+    for rule, by in runs.items():
         trajectories = rundir.load_trajectories(f"contest_{rule}")
         for who in by:
             short = f"{who}_{rule.replace('-', '_')}"
-            t = data["tests"][short]
+            t = tally[short]
             picture = f"figures/contest_{rule}_{who}.png"
             test_trajectories(
                 maze,
                 trajectories[who],
-                data["details"][short],
-                f"{who}, {rule}, final best in {maze.name}: {t['successes']}/{t['trials']}",
+                details[short],
+                f"{who}, {rule}, final best in {maze.name}: {t.successes}/{t.trials}",
                 rundir.root / picture,
             )
             pictures.append((picture, f"{rule}, {who}: the final best from each start mark"))
     rows = []
-    for rule, by in data["runs"].items():
+    for rule, by in runs.items():
         for who, d in by.items():
             short = f"{who}_{rule.replace('-', '_')}"
-            t = data["tests"]
-            cells = [
-                rule,
-                who,
-                str(d["genes"]),
-                _evals(d),
-                f"{d['best_fitness']:.2f}",
-            ]
+            cells = [rule, who, str(d.genes), d.evaluations_text, f"{d.best_fitness:.2f}"]
             for suffix in ("", "_jitter", "_heldout"):
-                x = t[f"{short}{suffix}"]
-                cells.append(f"{x['successes']}/{x['trials']}")
-            im = t.get(f"im_{short}_jitter")
-            cells.append("-" if im is None else f"{im['successes']}/{im['trials']}")
+                x = tally[f"{short}{suffix}"]
+                cells.append(f"{x.successes}/{x.trials}")
+            im = tally.get(f"im_{short}_jitter")
+            cells.append("-" if im is None else f"{im.successes}/{im.trials}")
             rows.append(cells)
     secs = [
         Section(
             "What this run did",
             [
-                f"Seed {results['seed']}. Each new rule learned by each contender with the same "
-                f"DE (population {data['popsize']}), the same crossroad episodes and the same "
-                f"budget of {data['budget']} evaluations: "
-                + "; ".join(f"**{k}**, {v}" for k, v in data["contenders"].items())
-                + f". Every {data['check_every']} generations the best so far was tested on "
-                f"{data['mazes']['test']} (every start mark and the jittered starts): a dynamics "
+                f"Seed {run.seed}. Each new rule learned by each contender with the same "
+                f"DE (population {contest.popsize}), the same crossroad episodes and the same "
+                f"budget of {contest.budget} evaluations: "
+                + "; ".join(f"**{k}**, {v}" for k, v in contest.contenders.items())
+                + f". Every {contest.check_every} generations the best so far was tested on "
+                f"{contest.mazes.test} (every start mark and the jittered starts): a dynamics "
                 "contender's as its network, program search's "
-                + checks_text([data.get("program_checks", "network")])
+                + checks_text([contest.program_checks])
                 + "; "
                 "its evaluations to success are those spent when it first passed "
                 "(docs/contest.md). One run says little: the comparison is over runs "
@@ -122,15 +132,15 @@ def write_report(rundir: RunDir) -> None:
                     "The three-behaviour task",
                     [
                         f"A controller that follows the rule of the last tile driven over "
-                        f"({', '.join(three['tile_rules'])} after a tile of 1, 2, 3 colours), "
+                        f"({', '.join(three.tile_rules)} after a tile of 1, 2, 3 colours), "
                         "learned by: "
-                        + "; ".join(f"**{k}**, {v}" for k, v in three["contenders"].items())
-                        + f". The same DE and budget ({three['budget']} evaluations); each "
+                        + "; ".join(f"**{k}**, {v}" for k, v in three.contenders.items())
+                        + f". The same DE and budget ({three.budget} evaluations); each "
                         "check runs the whole controller on "
-                        f"{three['mazes']['test']}, its junctions judged from the first tile. "
+                        f"{three.mazes.test}, its junctions judged from the first tile. "
                         "Robot episodes per evaluation (with the perturbed copies): "
-                        + ", ".join(f"{k} {v}" for k, v in three["episodes_per_evaluation"].items())
-                        + _pm_text(three)
+                        + ", ".join(f"{k} {v}" for k, v in three.episodes_per_evaluation.items())
+                        + _pm_text(runs)
                         + ".",
                     ],
                 )
@@ -148,7 +158,7 @@ def write_report(rundir: RunDir) -> None:
                     "final fitness",
                     "marks",
                     "jittered",
-                    f"held-out ({data['mazes']['heldout']})",
+                    f"held-out ({contest.mazes.heldout})",
                     "through the interpreter (jittered)",
                 ],
                 rows,

@@ -14,7 +14,8 @@ field declared with :func:`optional` is left out of the file while it is None (a
 writes only sometimes: the validation of a validated run, the restarts of several).
 
 Reading refuses a file whose keys are not the record's (a missing key without a default, or an
-unknown one) in one line naming the file and the key.
+unknown one) in one line naming the file and the key; :meth:`Record.pick` reads a record's
+fields out of a larger object (the trials and successes every test record has).
 """
 
 from __future__ import annotations
@@ -27,9 +28,13 @@ from typing import Any, ClassVar, Protocol, TypeVar
 
 from mbn.errors import MbnInputError
 
-__all__ = ["Readable", "Record", "optional"]
+if typing.TYPE_CHECKING:
+    from mbn.config import Settings
+
+__all__ = ["ClaimRow", "Readable", "Record", "RunResults", "Versions", "keyed", "optional"]
 
 R = TypeVar("R", bound="Record")
+S = TypeVar("S", bound="Settings")
 D_co = TypeVar("D_co", covariant=True)
 
 
@@ -47,9 +52,23 @@ class Readable(Protocol[D_co]):
     def from_json(cls, data: dict[str, Any], where: Any = "") -> Any: ...
 
 
-def optional(default: Any = None) -> Any:
-    """A field written only while it is not None (declare it ``T | None``)."""
-    return dataclasses.field(default=default, metadata={"omit_none": True})
+def optional(default: Any = None, *, key: str | None = None) -> Any:
+    """A field written only while it is not None (declare it ``T | None``); ``key``: its key
+    in the file where that is not the field's name (see :func:`keyed`)."""
+    meta: dict[str, Any] = {"omit_none": True}
+    if key is not None:
+        meta["key"] = key
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def keyed(key: str, default: Any = dataclasses.MISSING) -> Any:
+    """A field whose key in the file is not a Python name: ``passed: bool = keyed("pass")``
+    (a keyword), ``product_floor_error: float = keyed("max_rel_error_product_ge_0.05")``."""
+    return dataclasses.field(default=default, metadata={"key": key})
+
+
+def _key(f: dataclasses.Field[Any]) -> str:
+    return str(f.metadata.get("key", f.name))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,7 +85,7 @@ class Record:
             value = getattr(self, f.name)
             if value is None and f.metadata.get("omit_none"):
                 continue
-            out[f.name] = _to_json(value)
+            out[_key(f)] = _to_json(value)
         return out
 
     @classmethod
@@ -77,18 +96,30 @@ class Record:
         if not isinstance(data, Mapping):
             raise MbnInputError(f"{here}: expected an object, got {type(data).__name__}")
         hints = _hints_of(cls)
-        names = {f.name for f in dataclasses.fields(cls)}
+        names = {_key(f) for f in dataclasses.fields(cls)}
         unknown = [k for k in data if k not in names]
         if unknown:
             raise MbnInputError(f"{here}: unknown key {unknown[0]!r} for a {cls.__name__}")
         values: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
-            if f.name not in data:
+            key = _key(f)
+            if key not in data:
                 if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-                    raise MbnInputError(f"{here}: no {f.name!r} (a {cls.__name__} needs it)")
+                    raise MbnInputError(f"{here}: no {key!r} (a {cls.__name__} needs it)")
                 continue
-            values[f.name] = _from_json(data[f.name], hints[f.name], f"{here}.{f.name}")
+            values[f.name] = _from_json(data[key], hints[f.name], f"{here}.{key}")
         return cls(**values)
+
+    @classmethod
+    def pick(cls: type[R], data: Any, where: str = "") -> R:
+        """The record's fields read out of a larger object ``data`` (its other keys left
+        alone): what several records share, read as the one a reader needs (a test's trials and
+        successes from any experiment's test records). Missing or ill-typed keys are refused as
+        by :meth:`from_json`."""
+        if isinstance(data, Mapping):
+            names = {_key(f) for f in dataclasses.fields(cls)}
+            data = {k: v for k, v in data.items() if k in names}
+        return cls.from_json(data, where)
 
 
 def _hints_of(cls: type) -> dict[str, Any]:
@@ -136,3 +167,72 @@ def _from_json(value: Any, hint: Any, where: str) -> Any:
     if hint is bool and not isinstance(value, bool):
         raise MbnInputError(f"{where}: expected true or false, got {value!r}")
     return value
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Versions(Record):
+    """What a run's figures depend on (``results.json``'s ``versions``)."""
+
+    mbn: str
+    python: str
+    jax: str
+    jaxlib: str
+    numpy: str
+    optax: str
+    matplotlib: str
+    os: str
+    platform: str
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class ClaimRow(Record):
+    """A row of a run's claims table: the claim, what the run measured, whether it holds (None:
+    judged over runs, not per run), and the paper's figure and the criterion (the reproduction's
+    rows) or the target (the other experiments')."""
+
+    claim: str
+    measured: str
+    passed: bool | None = keyed("pass")
+    paper: str | None = optional()
+    criterion: str | None = optional()
+    target: str | None = optional()
+
+    @property
+    def judged_by(self) -> str:
+        """The criterion or target it is judged by."""
+        return self.criterion or self.target or ""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class RunResults(Record):
+    """A run's ``results.json`` as every reader shares it (the runner writes it: seeds,
+    settings, versions, the code, the stages' metrics, the tests and the claims); an
+    experiment's own extras (``variants``, ``levels``, ...) are left to its own readers, so read
+    it with :meth:`~Record.pick`: ``RunResults.pick(read_json(path), str(path))``."""
+
+    seed: int
+    seeds: dict[str, int]
+    quick: bool
+    config: dict[str, Any]
+    versions: Versions
+    code: dict[str, Any] | None = optional()  # runs before the code's identity was recorded
+    maze_splits: dict[str, list[int]] | None = optional()
+    stages: dict[str, Any]
+    tests: dict[str, Any]
+    claims: list[ClaimRow]
+
+    def settings(self, cls: type[S], where: str = "results.json") -> S:
+        """The run's recorded section of settings class ``cls``, typed; a section (or a key) the
+        run was recorded without reads as it ran before it existed (``cls.recorded_before``,
+        as :meth:`~mbn.experiments.pipeline.experiment.Experiment.config_from_dict` reads a
+        ``run.json``), never as a default of today's code that changed since."""
+        from mbn.config import from_mapping
+
+        table = self.config.get(cls.section, {})
+        if isinstance(table, Mapping):
+            table = {**cls.recorded_before, **table}
+        return from_mapping(cls, table, where=lambda key: f"{where}: config.{cls.section}.{key}")
+
+    def recorded(self, cls: type[Any]) -> bool:
+        """Whether the run recorded the section of settings class ``cls``."""
+        return cls.section in self.config

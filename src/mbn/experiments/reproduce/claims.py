@@ -68,18 +68,18 @@ def claims(
 
     paper = mul.paper_claim
     if paper is not None:  # runs before the row have no figures for it
-        v, g, d = paper["validation"], paper["paper_grid"], paper["dense_grid"]
+        v, g, d = paper.validation, paper.paper_grid, paper.dense_grid
         add(
             "The paper's 3-neuron multiplier errs by at most 5 % of the target (section 2.1)",
             PAPER_MULTIPLIER_QUOTE,
-            f"{paper['neurons']}-neuron multiplier ({paper['source']}): "
-            f"{v['fraction_within_5pct']:.0%} of the {v['pairs']} validation pairs within 5 %, "
-            f"largest relative error {v['max_rel_error']:.1%} (smallest target "
-            f"{v['min_target']:.4f}); on the paper's 10 x 10 training grid at most "
-            f"{g['max_rel_error']:.1%} ({g['fraction_within_5pct']:.0%} within 5 %); on the "
-            f"{GRID_POINTS} x {GRID_POINTS} grid where the target is >= {d['floor']:g}, at most "
-            f"{d['max_rel_error']:.1%} at {tuple(round(x, 2) for x in d['worst'])}",
-            v["max_rel_error"] <= 0.05,
+            f"{paper.neurons}-neuron multiplier ({paper.source}): "
+            f"{v.fraction_within_5pct:.0%} of the {v.pairs} validation pairs within 5 %, "
+            f"largest relative error {v.max_rel_error:.1%} (smallest target "
+            f"{v.min_target:.4f}); on the paper's 10 x 10 training grid at most "
+            f"{g.max_rel_error:.1%} ({g.fraction_within_5pct:.0%} within 5 %); on the "
+            f"{GRID_POINTS} x {GRID_POINTS} grid where the target is >= {d.floor:g}, at most "
+            f"{d.max_rel_error:.1%} at {tuple(round(x, 2) for x in d.worst)}",
+            v.max_rel_error <= 0.05,
             "every validation pair (100 uniform in (0, 1)^2, as the paper's) within 5 % of its "
             "target, none left out however small; the grid figures are shown, not judged",
         )
@@ -90,16 +90,16 @@ def claims(
         f"3 neurons, within 5 % of the target (row above); this run uses {mul.neurons}"
         + (" (docs/reproduce.md, deviations)" if mul.neurons != 3 else ""),
         f"{mul.neurons}-neuron multiplier ({mul.source}): max |error| "
-        f"{m['max_abs_error_grid']:.4f}, mean {m['mean_abs_error_grid']:.4f} on a "
-        f"{m['grid_points_per_axis']} x {m['grid_points_per_axis']} grid; "
-        f"{m['fraction_within_5pct']:.0%} of {m['num_validation_pairs']} random pairs within 5 %"
+        f"{m.max_abs_error_grid:.4f}, mean {m.mean_abs_error_grid:.4f} on a "
+        f"{m.grid_points_per_axis} x {m.grid_points_per_axis} grid; "
+        f"{m.fraction_within_5pct:.0%} of {m.num_validation_pairs} random pairs within 5 %"
         + (
-            f"; relative error at most {mul.paper_grid['max_rel_error']:.1%} on the paper's "
+            f"; relative error at most {mul.paper_grid.max_rel_error:.1%} on the paper's "
             "10 x 10 grid"
             if mul.paper_grid is not None
             else ""
         ),
-        m["max_abs_error_grid"] <= MULTIPLIER_MAX_ERROR,
+        m.max_abs_error_grid <= MULTIPLIER_MAX_ERROR,
         f"max |error| on the grid <= {MULTIPLIER_MAX_ERROR}",
     )
     rows = [
@@ -162,5 +162,5 @@ def claims(
             "all trials succeed",
         )
     for row in generalization_claims(generalization):
-        add(row["claim"], row["paper"], row["measured"], row["pass"], row["target"])
+        add(row.claim, row.paper, row.measured, row.passed, row.target)
     return out

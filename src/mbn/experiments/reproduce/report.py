@@ -9,21 +9,30 @@ the same list of sections.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from mbn.controllers import MBNControllerSpec, read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
+from mbn.experiments.pipeline.results import RunResults
 from mbn.experiments.pipeline.rundir import RunDir
-from mbn.experiments.stages.generalization import generalization_sections
+from mbn.experiments.stages.generalization import (
+    ReproduceGeneralization,
+    generalization_sections,
+)
 from mbn.experiments.stages.im import IMStage
 from mbn.experiments.stages.lf import LFStage
 from mbn.experiments.stages.lf_search import LFSearchStage
 from mbn.experiments.stages.multiplier import MultiplierStage
-from mbn.experiments.stages.pm import PMStage
+from mbn.experiments.stages.pm import LatchedStart, PMStage
 from mbn.experiments.stages.protocol import TESTED
 from mbn.experiments.stages.rf import RFResult, RFStage
-from mbn.experiments.stages.settings import InterpreterSettings
+from mbn.experiments.stages.settings import (
+    DESettings,
+    EpisodeSettings,
+    FollowerSettings,
+)
 from mbn.experiments.stages.tests import TestsStage
 from mbn.io import read_json
 from mbn.networks.programmable import differing_connections
@@ -33,15 +42,28 @@ from mbn.viz.multiplier import draw_multiplier_error
 from mbn.viz.runs import de_curves, mbn_animation, mbn_traces, test_trajectories
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["TITLE", "interpreter_settings", "write_report"]
+__all__ = ["TITLE", "write_report"]
 
 TITLE = "mbn reproduce: the Multiple Behavior Network, end to end"
 
 
-def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
-    """Draw every figure into ``figures/``; returns ``name -> (file, caption)`` (or a list)."""
-    stages = {name: rundir.read_stage(name) for name in results["stages"]}
-    images: dict[str, Any] = {}
+Image = tuple[str, str]
+
+
+@dataclass(frozen=True)
+class _Figures:
+    """The report's figures, each ``(file, caption)``."""
+
+    multiplier: Image
+    de: Image
+    trajectories: list[Image]
+    traces: Image
+    gif: Image
+
+
+def _figures(rundir: RunDir, results: dict[str, Any]) -> _Figures:
+    """Draw every figure into ``figures/``."""
+    stages = {name: rundir.read_stage(name) for name in RunResults.pick(results).stages}
     mul = rundir.read_result(MultiplierStage)
     grid = rundir.load_record("multiplier_grid")
     draw_multiplier_error(
@@ -50,16 +72,16 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
         rundir.figure_file("multiplier_error.png"),
         num_neurons=mul.neurons,
     )
-    images["multiplier"] = (
+    multiplier = (
         "figures/multiplier_error.png",
         "The multiplier's absolute and relative error over [0, 1]^2",
     )
     de_curves(stages, rundir.figure_file("de_curves.png"))
-    images["de"] = ("figures/de_curves.png", "DE: best and mean fitness per generation")
+    de = ("figures/de_curves.png", "DE: best and mean fitness per generation")
     tests = rundir.read_result(TestsStage)
-    maze = load_maze(tests.mazes["test"])
+    maze = load_maze(tests.mazes.test)
     trajectories = rundir.load_trajectories("test_trajectories")
-    images["trajectories"] = []
+    drawn: list[Image] = []
     for name, rule in TESTED:
         t = tests.tests[name]
         file = f"figures/trajectories_{name}.png"
@@ -70,9 +92,7 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
             f"{name} (rule: {rule}) in {maze.name}: {t.successes}/{t.trials}",
             rundir.root / file,
         )
-        images["trajectories"].append(
-            (file, f"{name}: the paper's protocol, one panel per start mark")
-        )
+        drawn.append((file, f"{name}: the paper's protocol, one panel per start mark"))
     spec = read_controller_spec(rundir.controller_file("mbn"))
     if not isinstance(spec, MBNControllerSpec):
         raise MbnInputError(f"{rundir.controller_file('mbn')}: not an MBN controller")
@@ -84,7 +104,7 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
         im.programs,
         rundir.figure_file("mbn_traces.png"),
     )
-    images["traces"] = (
+    traces = (
         "figures/mbn_traces.png",
         "Camera, program, interpreter neurons and motor commands around behaviour switches",
     )
@@ -96,24 +116,24 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> dict[str, Any]:
         spec.camera.range,
         rundir.figure_file("mbn.gif"),
     )
-    images["gif"] = ("figures/mbn.gif", "The MBN robot switching behaviour at tiles")
-    return images
+    gif = ("figures/mbn.gif", "The MBN robot switching behaviour at tiles")
+    return _Figures(multiplier, de, drawn, traces, gif)
 
 
-def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -> list[Section]:
-    s = results["stages"]
+def _sections(rundir: RunDir, results: dict[str, Any], images: _Figures) -> list[Section]:
+    run = RunResults.pick(results, str(rundir.results))
     secs = []
     quick = " This is a **quick** smoke run: tiny budgets, the figures are not the paper's." * bool(
-        results["quick"]
+        run.quick
     )
-    v = results["versions"]
+    v = run.versions
     secs.append(
         Section(
             "Run",
             [
-                f"Seed {results['seed']} (derived seeds: "
-                + ", ".join(f"{k} {val}" for k, val in results["seeds"].items() if k != "seed")
-                + f"). mbn {v['mbn']}, JAX {v['jax']}, Python {v['python']} on {v['platform']}."
+                f"Seed {run.seed} (derived seeds: "
+                + ", ".join(f"{k} {val}" for k, val in run.seeds.items() if k != "seed")
+                + f"). mbn {v.mbn}, JAX {v.jax}, Python {v.python} on {v.platform}."
                 + quick,
                 "Paper: Montone, Donnarumma & Prevete, *A robotic scenario for programmable "
                 "fixed-weight neural networks exhibiting multiple behaviors*, ICANNGA 2011. "
@@ -121,25 +141,25 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
             ],
         )
     )
-    claims = results["claims"]
+    claims = run.claims
     secs.append(
         Section(
             "Claims: the paper and this run",
-            [f"{sum(c['pass'] for c in claims)} of {len(claims)} claims hold."],
+            [f"{sum(bool(c.passed) for c in claims)} of {len(claims)} claims hold."],
             table=(
                 ["claim", "paper", "measured", "criterion", "holds"],
                 [
-                    [c["claim"], c["paper"], c["measured"], c["criterion"], _yes(c["pass"])]
+                    [c.claim, c.paper or "", c.measured, c.judged_by, _yes(bool(c.passed))]
                     for c in claims
                 ],
             ),
-            status=[c["pass"] for c in claims],
+            status=[c.passed for c in claims],
         )
     )
     tested = rundir.read_result(TestsStage)
     proto = tested.protocol
-    jit = proto["jitter"]
-    mbn_initial = proto.get("mbn_initial", "none")  # runs before the MBN's initial state: none
+    jit = proto.jitter
+    mbn_initial = proto.mbn_initial  # runs before the MBN's initial state: none
     mbn_junctions = (
         "whose junctions count from the first tile it drives over"
         if mbn_initial == "none"
@@ -168,17 +188,17 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
             "Tests",
             [
                 f"A trial succeeds when the robot takes the rule's exit at each of its first "
-                f"{proto['junctions']} junctions and is stalled at most "
-                f"{proto['max_stall_fraction']:.0%} of the time until it leaves the last one; "
-                f"{proto['seconds']:g} s per trial ({proto['mbn_seconds']:g} s for the MBN, "
+                f"{proto.junctions} junctions and is stalled at most "
+                f"{proto.max_stall_fraction:.0%} of the time until it leaves the last one; "
+                f"{proto.seconds:g} s per trial ({proto.mbn_seconds:g} s for the MBN, "
                 f"{mbn_junctions}); a trial that ends before its last junction with no wrong exit "
                 "and no stall failure is counted as timed out (not a success). Paper protocol: "
                 "the start "
-                f"marks of `{tested.mazes['test']}`; `_jitter`: "
-                f"{proto['jitter_trials']} (lateral +-{jit[0]:g} m, along +-{jit[1]:g} m, heading "
+                f"marks of `{tested.mazes.test}`; `_jitter`: "
+                f"{proto.jitter_trials} (lateral +-{jit[0]:g} m, along +-{jit[1]:g} m, heading "
                 f"+-{jit[2]:g} deg); "
-                f"`_heldout`: maze `{tested.mazes['heldout']}`, not used in any "
-                f"training: {proto['heldout_trials']}.",
+                f"`_heldout`: maze `{tested.mazes.heldout}`, not used in any "
+                f"training: {proto.heldout_trials}.",
                 "Interpreter and network take the same branch at every junction in: "
                 + "; ".join(
                     f"{k} {a.same_branches}/{a.trials} ({a.rate:.1%})"
@@ -194,8 +214,9 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
         )
     )
     m = rundir.read_result(MultiplierStage)
-    tau_ratio, substeps = interpreter_settings(results)
-    grid = m.metrics["grid_points_per_axis"]
+    im = rundir.read_result(IMStage)  # the interpreter the run embedded its multipliers in
+    tau_ratio, substeps = im.tau_ratio, im.substeps
+    grid = m.metrics.grid_points_per_axis
     secs.append(
         Section(
             "Multiplier",
@@ -203,11 +224,11 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 f"{m.neurons}-neuron multiplier, {m.source}, embedded in the interpreter "
                 f"at tau/{1 / tau_ratio:g} (tau_m = {tau_ratio:g} tau), integrated in "
                 f"{substeps} steps per robot step. "
-                f"Max |error| {m.metrics['max_abs_error_grid']:.4f} and mean "
-                f"{m.metrics['mean_abs_error_grid']:.4f} on a {grid} x {grid} grid of "
+                f"Max |error| {m.metrics.max_abs_error_grid:.4f} and mean "
+                f"{m.metrics.mean_abs_error_grid:.4f} on a {grid} x {grid} grid of "
                 "[0, 1]^2."
             ],
-            images=[images["multiplier"]],
+            images=[images.multiplier],
         )
     )
     lf, im = rundir.read_result(LFStage), rundir.read_result(IMStage)
@@ -218,13 +239,15 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
         Section(
             "Evolution",
             [
-                *_de_text(results),
+                *_de_text(rundir, run),
                 f"RF: {_count(rf.generations, 'generation')}"
                 + (f" in each of {restarts} independent runs" if restarts > 1 else "")
                 + f", best fitness {rf.best_fitness:.2f} "
-                f"({_fitness_episodes(results, rf.episodes)}, averaged over the "
+                f"({_fitness_episodes(rundir, run, rf.episodes)}, averaged over the "
                 f"genome and {rf.noise.copies} copies perturbed by N(0, "
-                f"{rf.noise.sigma}²); " + _crossroad_score(results, rf) + f"the paper's terms of "
+                f"{rf.noise.sigma}²); "
+                + _crossroad_score(rundir, run, rf)
+                + f"the paper's terms of "
                 f"the best: F_M {rf.paper_F_M:.2f}, F_R {rf.paper_F_R:.2f}, F_L "
                 f"{rf.paper_F_L:.2f}).",
                 f"LF: the 3 connections re-evolved are {connection_names(lf.connections)} "
@@ -261,7 +284,7 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 + f", camera range {pm.camera_range:g} m. "
                 + _pm_start(pm.initial),
             ],
-            images=[images["de"]],
+            images=[images.de],
         )
     )
     secs.append(
@@ -271,7 +294,7 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 "Each test's paper-protocol trials drawn on the maze (tiles: orange one-colour, "
                 "blue/magenta two-colour; shaded cells are junctions)."
             ],
-            images=images["trajectories"],
+            images=images.trajectories,
         )
     )
     secs.append(
@@ -282,11 +305,12 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
                 "sends, the interpreter's neurons and the motor commands; and the same episode "
                 "as an animation."
             ],
-            images=[images["traces"], images["gif"]],
+            images=[images.traces, images.gif],
         )
     )
-    if s.get("generalization"):
-        secs.extend(generalization_sections(rundir, s["generalization"]))
+    generalization = run.stages.get(ReproduceGeneralization.name)
+    if generalization:
+        secs.extend(generalization_sections(rundir, generalization))
     timings = rundir.read_timings()
     if timings:
         secs.append(
@@ -301,89 +325,74 @@ def _sections(rundir: RunDir, results: dict[str, Any], images: dict[str, Any]) -
     return secs
 
 
-def _pm_start(start: dict[str, Any] | None) -> str:
+def _pm_start(recorded: dict[str, Any] | None) -> str:
     """What the report says of the MBN's initial state (``stages.pm.initial``)."""
-    if start is None:
+    if recorded is None:
         return "The MBN starts with its PM at rest (potentials 0), sending neither program."
-    if start["rule"] is None:
+    start = LatchedStart.from_json(recorded, "stages/pm.json: initial")
+    if start.rule is None or start.program is None:
         return "The PM did not settle after a one-colour tile: the MBN starts with its PM at rest."
-    if start["is_rf_program"]:
-        rf = f" (RF's program to within {start['tolerance']:g})"
+    if start.is_rf_program:
+        rf = f" (RF's program to within {start.tolerance:g})"
     else:
         rf = (
-            f" (RF's program: {_vec(start['rf_program'])}; largest difference "
-            f"{start['max_distance_to_rf_program']:.3f})"
+            f" (RF's program: {_vec(start.rf_program or [])}; largest difference "
+            f"{start.max_distance_to_rf_program:.3f})"
         )
     return (
         f"The MBN starts in the state its PM latches after a one-colour tile (settled within "
-        f"{start['settled_after_seconds']:g} s), sending {_vec(start['program'])}{rf}; it "
-        f"is judged by the {start['rule']} rule before its first tile."
+        f"{start.settled_after_seconds:g} s), sending {_vec(start.program)}{rf}; it "
+        f"is judged by the {start.rule} rule before its first tile."
     )
 
 
-def interpreter_settings(results: dict[str, Any]) -> tuple[float, int]:
-    """The multipliers' time constant over the neurons' and the integration steps per robot
-    step the run's interpreter ran with: the ``im`` stage's record, else the run's recorded
-    ``[interpreter]`` (a run recorded before the section ran with what
-    ``InterpreterSettings.recorded_before`` says); never a default of today's code."""
-    im = results["stages"]["im"]
-    recorded = {
-        **InterpreterSettings.recorded_before,
-        **results.get("config", {}).get("interpreter", {}),
-    }
-    return (
-        float(im.get("tau_ratio", recorded["tau_ratio"])),
-        int(im.get("substeps", recorded["substeps"])),
-    )
-
-
-def _de_text(results: dict[str, Any]) -> list[str]:
-    """The DE settings the run recorded (``[de]``, ``[followers]``), as a sentence (none for a
-    run that recorded none)."""
-    config = results.get("config", {})
-    de, followers = config.get("de"), config.get("followers")
-    if not de:
+def _de_text(rundir: RunDir, run: RunResults) -> list[str]:
+    """The DE settings the run recorded (``[de]``, ``[followers]``, ``[episodes]``), as a
+    sentence (none for a run that recorded no ``[de]``)."""
+    if not run.recorded(DESettings):
         return []
-    followers = followers or {}
+    where = str(rundir.results)
+    de = run.settings(DESettings, where)
     bound = ""
-    if "weight_bound" in followers:
-        w = followers["weight_bound"]
-        bound += f"; the followers' genes in [-{w:g}, {w:g}]"
-    maze = _maze_episodes(results)
-    if maze is not None:
-        bound += (
-            f", maze episodes of {maze['seconds']:g} s ({maze['mazes']} mazes x {maze['starts']} "
-            f"starts a draw from a pool of {maze['pool']} {maze['family']} train mazes, drawn "
-            + (f"again every {maze['redraw']} generations" if maze["redraw"] else "once")
-            + ")"
-        )
-    elif "episode_seconds" in followers:
-        bound += f", crossroad episodes of {followers['episode_seconds']:g} s"
+    if run.recorded(FollowerSettings):  # runs before the section: no bound, no episode length
+        followers = run.settings(FollowerSettings, where)
+        w = followers.weight_bound
+        bound = f"; the followers' genes in [-{w:g}, {w:g}]"
+        maze = _maze_episodes(rundir, run)
+        if maze is not None:
+            bound += (
+                f", maze episodes of {maze.seconds:g} s ({maze.mazes} mazes x {maze.starts} "
+                f"starts a draw from a pool of {maze.pool} {maze.family} train mazes, drawn "
+                + (f"again every {maze.redraw} generations" if maze.redraw else "once")
+                + ")"
+            )
+        else:
+            bound += f", crossroad episodes of {followers.episode_seconds:g} s"
     return [
-        f"DE/best/1/bin for every evolved stage: population {de['popsize']}, F {de['F']:g}, "
-        f"CR {de['CR']:g}{bound}."
+        f"DE/best/1/bin for every evolved stage: population {de.popsize}, F {de.F:g}, "
+        f"CR {de.CR:g}{bound}."
     ]
 
 
-def _maze_episodes(results: dict[str, Any]) -> dict[str, Any] | None:
+def _maze_episodes(rundir: RunDir, run: RunResults) -> EpisodeSettings | None:
     """The run's recorded ``[episodes]`` when its followers evolved on maze episodes, else None
     (the crossroads; also a run recorded before the section existed)."""
-    episodes = results.get("config", {}).get("episodes") or {}
-    return episodes if episodes.get("kind") == "maze" else None
+    episodes = run.settings(EpisodeSettings, str(rundir.results))
+    return episodes if episodes.kind == "maze" else None
 
 
-def _fitness_episodes(results: dict[str, Any], crossroad_episodes: int) -> str:
+def _fitness_episodes(rundir: RunDir, run: RunResults, crossroad_episodes: int) -> str:
     """What RF's best fitness sums over, as the run recorded it."""
-    maze = _maze_episodes(results)
+    maze = _maze_episodes(rundir, run)
     if maze is None:
         return f"branch fitness over {crossroad_episodes} crossroad episodes"
-    return f"junction fitness over the {maze['mazes'] * maze['starts']} maze episodes of a draw"
+    return f"junction fitness over the {maze.mazes * maze.starts} maze episodes of a draw"
 
 
-def _crossroad_score(results: dict[str, Any], rf: RFResult) -> str:
+def _crossroad_score(rundir: RunDir, run: RunResults, rf: RFResult) -> str:
     """For a run evolved on maze episodes, the best's branch fitness on the crossroads (its
     recorded score), where the paper's terms below come from."""
-    if _maze_episodes(results) is None:
+    if _maze_episodes(rundir, run) is None:
         return ""
     return f"on {rf.episodes} crossroad episodes its branch fitness is {rf.branch_fitness:.2f} and "
 

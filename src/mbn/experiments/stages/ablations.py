@@ -29,9 +29,10 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Genome
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.pipeline.results import Record
+from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import test_specs
+from mbn.experiments.stages.records import RateRecord, TrialCounts
 from mbn.experiments.stages.settings import InterpreterSettings
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
@@ -42,7 +43,14 @@ from mbn.networks.programmable import Programmable, build_interpreter
 from mbn.world.mazes.load import load_maze
 from mbn.world.rollout import Shared
 
-__all__ = ["VARIANTS", "AblationsResult", "AblationsSettings", "AblationsStage"]
+__all__ = [
+    "VARIANTS",
+    "AblationsResult",
+    "AblationsSettings",
+    "AblationsStage",
+    "InterpreterRan",
+    "Variant",
+]
 
 _DOC = "docs/ablations.md"
 
@@ -176,13 +184,38 @@ def _agreements(
 
 
 @dataclass(frozen=True, kw_only=True)
+class InterpreterRan(Record):
+    """The interpreter a variant ran with: its multipliers' time constant ratio, sub-steps and
+    multiplier size."""
+
+    tau_ratio: float
+    substeps: int
+    multiplier_neurons: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class Variant(Record):
+    """One ablation: what it changed, the MBN's jittered and held-out trials, and, where the
+    interpreter changed, the interpreter it ran, its agreement with RF and LF (``rf_jitter``,
+    ``lf_jitter``, ``rf_heldout``, ``lf_heldout``) and its own trials with each program."""
+
+    what: str
+    mbn_jitter: RateRecord
+    mbn_heldout: RateRecord
+    interpreter: InterpreterRan | None = optional()
+    agreement: dict[str, float] | None = optional()
+    im_rf_jitter: RateRecord | None = optional()
+    im_lf_jitter: RateRecord | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
 class AblationsResult(Record):
     """What the ``ablations`` stage records (``stages/ablations.json``): each variant of the
     MBN's program path with its success, the networks' own success, and the trials per test."""
 
-    variants: dict[str, dict[str, Any]]
-    networks: dict[str, dict[str, Any]]
-    trials: dict[str, int]
+    variants: dict[str, Variant]
+    networks: dict[str, RateRecord]
+    trials: TrialCounts
 
 
 class AblationsStage(Stage[AblationsResult]):
@@ -339,5 +372,4 @@ class AblationsStage(Stage[AblationsResult]):
         )
 
     def summary(self, result: AblationsResult) -> str:
-        data = result.to_json()
-        return ", ".join(f"{v} {r['mbn_jitter']['rate']:.0%}" for v, r in data["variants"].items())
+        return ", ".join(f"{v} {r.mbn_jitter.rate:.0%}" for v, r in result.variants.items())

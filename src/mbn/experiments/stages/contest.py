@@ -69,6 +69,7 @@ from mbn.experiments.stages.programs import (
     program_network,
 )
 from mbn.experiments.stages.protocol import SUFFIXES
+from mbn.experiments.stages.records import TestMazes
 from mbn.experiments.stages.settings import DESettings, FollowerSettings
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.stages.tests3 import Tests3Settings, trial_specs
@@ -88,7 +89,9 @@ from mbn.world.rules import parse_rule, parse_rules
 __all__ = [
     "CONTENDERS",
     "Contender",
+    "ContestCheck",
     "ContestResult",
+    "ContestRun",
     "ContestSettings",
     "ContestStage",
     "check",
@@ -406,6 +409,45 @@ def contend(
 
 
 @dataclass(frozen=True, kw_only=True)
+class ContestCheck(Record):
+    """One check of a contender's best so far: the generation and evaluations spent, its
+    fitness, its successes / trials on the start marks and the jittered starts (None: not run
+    after the marks failed), and whether it passed."""
+
+    generation: int
+    evaluations: int
+    best_fitness: float
+    marks: list[int]
+    jitter: list[int] | None
+    success: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContestRun(Record):
+    """What a report reads of one contender's run (``runs[rule][who]`` of ``stages/contest.json``
+    and ``stages/contest3.json``; read with :meth:`~Record.pick`): solved or not, the
+    evaluations it took (None: unsolved), its budget, final fitness, genes and checks, whether
+    its final best passed, and, for program search, the program found and (the three-behaviour
+    task) its program module's evaluations and reward."""
+
+    solved: bool
+    evaluations: int | None
+    budget: int
+    best_fitness: float
+    checks: list[ContestCheck]
+    genes: int
+    final_success: bool
+    program: list[float] | None = None
+    pm_evaluations: int | None = None
+    pm_fitness: float | None = None
+
+    @property
+    def evaluations_text(self) -> str:
+        """``1200``, or ``> 4000 (unsolved)``."""
+        return f"{self.evaluations}" if self.solved else f"> {self.budget} (unsolved)"
+
+
+@dataclass(frozen=True, kw_only=True)
 class ContestResult(Record):
     """What the ``contest`` stage records (``stages/contest.json``): by rule and contender, its
     run (solved, the evaluations it took, its checks, its network), the tests and agreements of
@@ -419,7 +461,7 @@ class ContestResult(Record):
     budget: int
     popsize: int
     check_every: int
-    mazes: dict[str, str]
+    mazes: TestMazes
     sha256: str
     contenders: dict[str, str]
     program_checks: str
@@ -527,10 +569,9 @@ class ContestStage(Stage[ContestResult]):
         )
 
     def summary(self, result: ContestResult) -> str:
-        data = result.to_json()
         parts = []
-        for rule, by in data["runs"].items():
+        for rule, by in result.runs.items():
             for who, d in by.items():
-                e = d["evaluations"]
+                e = ContestRun.pick(d, f"contest {rule} {who}").evaluations
                 parts.append(f"{rule} {who}: " + (f"{e} evaluations" if e else "unsolved"))
         return "; ".join(parts)

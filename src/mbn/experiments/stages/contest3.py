@@ -75,6 +75,7 @@ from mbn.experiments.stages.programs import (
     program_fitness,
     program_network,
 )
+from mbn.experiments.stages.records import TestMazes
 from mbn.experiments.stages.settings import DESettings, FollowerSettings
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.stages.tests3 import Tests3Settings, trial_specs
@@ -193,7 +194,7 @@ class Contest3Result(Record):
     new_rule: str
     neurons: int
     episodes_per_evaluation: dict[str, Any]
-    mazes: dict[str, str]
+    mazes: TestMazes
     sha256: str
     contenders: dict[str, str]
 

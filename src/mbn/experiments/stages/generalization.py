@@ -35,13 +35,16 @@ from mbn.config import Settings, setting
 from mbn.controllers import make_controller, read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.generalization import (
+    GeneralizationResult,
+    JudgedRecord,
+    SplitRecord,
+    WorstMaze,
     evaluate_mazes,
     meets_generalization,
     pooled_rows,
     split_record,
 )
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import (
     maze_episodes,
     noise_key,
@@ -178,7 +181,7 @@ def judging_batches(
 
 def _worst_maze(
     mazes: list[Any], result: dict[str, Any], trial: TrialSpec, loaded: Any, key: Any
-) -> tuple[Any, Any, dict[str, Any]]:
+) -> tuple[Any, Any, WorstMaze]:
     """The test maze with the fewest successes (the first of equals) run again, every other
     step recorded, for the report's picture of its failed trials: ``(maze, trajectory,
     record)``, the record naming the maze and each trial's verdict."""
@@ -204,22 +207,8 @@ def _worst_maze(
     )
     v = verdicts["worst"]
     trajectory = jax.tree.map(lambda a: np.asarray(a)[slices["worst"]], rollout.trajectory)
-    record = {
-        "maze": maze.name,
-        "success_rate": rates[m],
-        "details": verdict_details(v),
-    }
+    record = WorstMaze(maze=maze.name, success_rate=rates[m], details=verdict_details(v))
     return maze, trajectory, record
-
-
-@dataclass(frozen=True, kw_only=True)
-class GeneralizationResult(Record):
-    """What a ``generalization`` stage records (``stages/generalization.json``): by
-    controller, its file, behaviour, program, maze family and its split records (validation,
-    test, zero-shot), and the noise the trials ran under (None: none)."""
-
-    controllers: dict[str, dict[str, Any]]
-    noise: dict[str, Any] | None
 
 
 class GeneralizationStage(Stage[GeneralizationResult]):
@@ -239,11 +228,11 @@ class GeneralizationStage(Stage[GeneralizationResult]):
     def run(self, ctx: StageContext) -> GeneralizationResult:
         s: GeneralizationSettings = ctx.settings
         counts = {"train": s.gap_mazes, "validation": s.gap_mazes, "test": s.test_mazes}
-        out: dict[str, Any] = {}
+        out: dict[str, JudgedRecord] = {}
         # under the run's noise, as its tests (its own stream)
         noise = run_noise(ctx)
         key = noise_key(ctx, GENERALIZATION_NOISE_KEY)
-        worst: dict[str, tuple[Any, Any, dict[str, Any]]] = {}
+        worst: dict[str, tuple[Any, Any, WorstMaze]] = {}
         for j in self.controllers(ctx):
             spec = read_controller_spec(ctx.rundir.controller_file(j.file))
             loaded = make_controller(
@@ -285,7 +274,7 @@ class GeneralizationStage(Stage[GeneralizationResult]):
                         "verdicts": {m.name: judged["verdicts"][m.name] for m in mazes},
                     }
                     start += len(mazes)
-            splits: dict[str, Any] = {}
+            splits: dict[str, SplitRecord] = {}
             for split, mazes, seen in parts:
                 one = judged_by_split[split]
                 rows = one["mazes"]
@@ -295,46 +284,41 @@ class GeneralizationStage(Stage[GeneralizationResult]):
                     "seconds": one["seconds"],
                     "verdicts": one["verdicts"],
                 }
-                record = split_record(
+                splits[split] = split_record(
                     result,
                     breakdown=split in ("test", "zero-shot"),
                     mazes=mazes if j.behavior == "tiles" else None,
+                    seen_in_training=seen,
                 )
-                record["seen_in_training"] = seen
-                splits[split] = record
                 if split == "test" and s.worst_maze:
                     worst[j.name] = _worst_maze(mazes, result, trial, loaded, key)
-            out[j.name] = {
-                "file": f"controllers/{j.file}.json",
-                "behavior": j.behavior,
-                "program": j.program,
-                "family": family,
-                "splits": splits,
-                **({"worst_test_maze": worst[j.name][2]} if j.name in worst else {}),
-            }
+            out[j.name] = JudgedRecord(
+                file=f"controllers/{j.file}.json",
+                behavior=j.behavior,
+                program=j.program,
+                family=family,
+                splits=splits,
+                worst_test_maze=worst[j.name][2] if j.name in worst else None,
+            )
         if worst:
             trajectories = {name: w[1] for name, w in worst.items()}
             ctx.rundir.save_trajectories(WORST_RECORD, trajectories, WORST_FIELDS)
-        return GeneralizationResult.from_json(
-            {
-                "controllers": out,
-                "noise": noise.as_dict() if noise.enabled else None,
-            }
+        return GeneralizationResult(
+            controllers=out, noise=noise.as_dict() if noise.enabled else None
         )
 
     def metrics(self, data: dict[str, Any]) -> dict[str, Any]:
         return data
 
     def summary(self, result: GeneralizationResult) -> str:
-        data = result.to_json()
         parts = []
-        for name, rec in data["controllers"].items():
-            test = rec["splits"].get("test")
+        for name, rec in result.controllers.items():
+            test = rec.splits.get("test")
             if test is None:
                 continue
             parts.append(
-                f"{name} {test['pooled']['success_rate']:.1%} ({test['mazes_at_95']}/"
-                f"{len(test['mazes'])})" + ("" if meets_generalization(test) else " x")
+                f"{name} {test.pooled.success_rate:.1%} ({test.mazes_at_95}/"
+                f"{len(test.mazes)})" + ("" if meets_generalization(test) else " x")
             )
         return "test split: " + ", ".join(parts)
 
@@ -347,14 +331,15 @@ class ReproduceGeneralization(GeneralizationStage):
     judged = REPRODUCE_JUDGED
 
 
-def _rate(record: dict[str, Any]) -> str:
-    p = record["pooled"]
-    lo, hi = p["wilson95"]
-    return f"{p['successes']}/{p['trials']} = {p['success_rate']:.1%} [{lo:.1%}, {hi:.1%}]"
+def _rate(record: SplitRecord) -> str:
+    p = record.pooled
+    lo, hi = p.wilson95
+    return f"{p.successes}/{p.trials} = {p.success_rate:.1%} [{lo:.1%}, {hi:.1%}]"
 
 
-def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
-    """The report's sections of a ``generalization`` stage's data: the splits side by side
+def generalization_sections(rundir: Any, data: GeneralizationResult | dict[str, Any]) -> list[Any]:
+    """The report's sections of a ``generalization`` stage's result (its record or its JSON,
+    as ``results.json`` keeps it): the splits side by side
     (the generalization gap), the performance profile on the test split, where the misses are
     (causes, junction kinds) and the worst test maze's trials. Figures go to ``figures/``."""
     from mbn.experiments.pipeline.document import Section
@@ -362,25 +347,26 @@ def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
     from mbn.viz.runs import test_trajectories
     from mbn.world.mazes.load import load_maze
 
-    controllers = data["controllers"]
+    result = data if isinstance(data, GeneralizationResult) else GeneralizationResult.pick(data)
+    controllers = result.controllers
     rows, status = [], []
     for name, rec in controllers.items():
         for split in SPLIT_ORDER:
-            r = rec["splits"].get(split)
+            r = rec.splits.get(split)
             if r is None:
                 continue
-            f = r["failures"]
+            f = r.failures
             rows.append(
                 [
                     name,
-                    f"{rec['family']}/{split}" + (" (seen)" if r["seen_in_training"] else ""),
+                    f"{rec.family}/{split}" + (" (seen)" if r.seen_in_training else ""),
                     _rate(r),
-                    f"{r['mazes_at_95']}/{len(r['mazes'])}",
-                    f"{f['wrong_exit']} / {f['stalled']} / {f['timed_out']}",
-                    ("yes" if r["meets_targets"] else "no") if split == "test" else "-",
+                    f"{r.mazes_at_95}/{len(r.mazes)}",
+                    f"{f.wrong_exit} / {f.stalled} / {f.timed_out}",
+                    ("yes" if r.meets_targets else "no") if split == "test" else "-",
                 ]
             )
-            status.append(r["meets_targets"] if split == "test" else None)
+            status.append(r.meets_targets if split == "test" else None)
     sections = [
         Section(
             "Generalization: mazes drawn from the family",
@@ -404,9 +390,9 @@ def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
         )
     ]
     curves = {
-        name: [m["successes"] / m["trials"] for m in rec["splits"]["test"]["mazes"]]
+        name: [m.successes / m.trials for m in rec.splits["test"].mazes]
         for name, rec in controllers.items()
-        if "test" in rec["splits"]
+        if "test" in rec.splits
     }
     images = []
     if curves:
@@ -415,9 +401,9 @@ def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
         images.append((file, "Fraction of the test mazes at a success rate of at least x"))
     kinds: dict[str, dict[str, str]] = {}
     for name, rec in controllers.items():
-        test = rec["splits"].get("test")
-        for kind, k in (test or {}).get("junction_kinds", {}).items():
-            kinds.setdefault(kind, {})[name] = f"{k['correct']}/{k['passes']}"
+        test = rec.splits.get("test")
+        for kind, k in ((test and test.junction_kinds) or {}).items():
+            kinds.setdefault(kind, {})[name] = f"{k.correct}/{k.passes}"
     names = list(controllers)
     sections.append(
         Section(
@@ -435,9 +421,9 @@ def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
     )
     distances: dict[str, dict[str, str]] = {}
     for name, rec in controllers.items():
-        test = rec["splits"].get("test")
-        for d, k in (test or {}).get("tile_distances", {}).items():
-            distances.setdefault(d, {})[name] = f"{k['correct']}/{k['passes']}"
+        test = rec.splits.get("test")
+        for d, k in ((test and test.tile_distances) or {}).items():
+            distances.setdefault(d, {})[name] = f"{k.correct}/{k.passes}"
     if distances:
         tiled = [n for n in names if any(n in v for v in distances.values())]
         sections.append(
@@ -460,17 +446,18 @@ def generalization_sections(rundir: Any, data: dict[str, Any]) -> list[Any]:
     except MbnInputError:  # no record: a run made before it existed
         trajectories = {}
     for name, rec in controllers.items():
-        w = rec.get("worst_test_maze")
+        w = rec.worst_test_maze
         if w is None or name not in trajectories:
             continue
-        maze = load_maze(w["maze"])
+        maze = load_maze(w.maze)
         file = f"figures/generalization_worst_{name}.png"
-        d = w["details"]
+        details = w.details
+        won = details["success"]  # the verdicts' fields (trials.verdict_details)
         test_trajectories(
             maze,
             trajectories[name],
-            d,
-            f"{name}: worst test maze {maze.name}: {sum(d['success'])}/{len(d['success'])}",
+            details,
+            f"{name}: worst test maze {maze.name}: {sum(won)}/{len(won)}",
             rundir.root / file,
         )
         worst_images.append((file, f"{name}: the worst test maze, one panel per trial"))

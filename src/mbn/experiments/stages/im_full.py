@@ -42,7 +42,14 @@ from mbn.networks.programmable import (
 from mbn.notation import connection_name
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["FULL_CONNECTIONS", "IMFullResult", "IMFullSettings", "IMFullStage", "nested_sets"]
+__all__ = [
+    "FULL_CONNECTIONS",
+    "CurvePoint",
+    "IMFullResult",
+    "IMFullSettings",
+    "IMFullStage",
+    "nested_sets",
+]
 
 #: The follower genome (W 3 x 3, WE on the diagonal) and the turning neuron's two other inputs
 #: (the LF search's candidates reach them), 0-based.
@@ -150,6 +157,25 @@ def _spec(
 
 
 @dataclass(frozen=True, kw_only=True)
+class CurvePoint(Record):
+    """A point of the agreement curve: the programmable connections (the last one added), and
+    the interpreter's agreement with and success as RF and LF on the jittered test."""
+
+    connections: list[str]
+    agreement_rf: Agreement
+    success_rf: TrialSummary
+    agreement_lf: Agreement
+    success_lf: TrialSummary
+
+    def holds(self) -> bool:
+        """Whether it meets the targets as both RF and LF (agreement and jittered success)."""
+        return all(
+            a.rate >= AGREEMENT_TARGET and t.success_rate >= ROBUST_TARGET
+            for a, t in ((self.agreement_rf, self.success_rf), (self.agreement_lf, self.success_lf))
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
 class IMFullResult(Record):
     """What the ``im_full`` stage records (``stages/im_full.json``): the interpreter's
     connections and sizes, its time constants and step, its digest (which the stages that
@@ -171,7 +197,7 @@ class IMFullResult(Record):
     programs: dict[str, list[float]]
     tests: dict[str, TrialSummary]
     agreement: dict[str, Agreement]
-    curve: list[dict[str, Any]]
+    curve: list[CurvePoint]
     largest_set_meeting_targets: int | None
 
 
@@ -232,7 +258,7 @@ class IMFullStage(Stage[IMFullResult]):
                 done += 1
                 ctx.progress.update(bar, completed=done, info=f"{short}{suffix}")
 
-        curve = []
+        curve: list[CurvePoint] = []
         if s.curve:
             first = [p.connection for p in differing_connections(rf, lf, margin=0.0)]
             sets = nested_sets(first, conns)
@@ -248,17 +274,10 @@ class IMFullStage(Stage[IMFullResult]):
                     )
                     row[f"agreement_{short}"] = agreement(got, references[rule]["_jitter"])
                     row[f"success_{short}"] = summary(got)
-                curve.append(row)
+                curve.append(CurvePoint.from_json(row))
                 ctx.progress.update(bar, completed=k + 1, info=f"{len(subset)} connections")
 
-        def holds(row: dict[str, Any]) -> bool:
-            return all(
-                row[f"agreement_{x}"]["rate"] >= AGREEMENT_TARGET
-                and row[f"success_{x}"]["success_rate"] >= ROBUST_TARGET
-                for x in ("rf", "lf")
-            )
-
-        largest = max((len(r["connections"]) for r in curve if holds(r)), default=None)
+        largest = max((len(r.connections) for r in curve if r.holds()), default=None)
         return IMFullResult(
             connections=[str(c) for c in interp.connections],
             connections_paper_notation=[connection_name(c) for c in interp.connections],

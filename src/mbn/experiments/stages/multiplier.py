@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import jax
 import numpy as np
@@ -12,7 +11,7 @@ import numpy as np
 from mbn.config import Locator, Settings, setting
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.pipeline.results import Record, optional
+from mbn.experiments.pipeline.results import Record, keyed, optional
 from mbn.experiments.pipeline.runconfig import RunSettings
 from mbn.experiments.stages.keys import KEYS
 from mbn.networks.multiplier import (
@@ -28,7 +27,15 @@ from mbn.networks.multiplier import (
     validation_pairs,
 )
 
-__all__ = ["MultiplierResult", "MultiplierSettings", "MultiplierStage"]
+__all__ = [
+    "FixedPointCheck",
+    "MultiplierMetrics",
+    "MultiplierResult",
+    "MultiplierSettings",
+    "MultiplierStage",
+    "PaperClaim",
+    "RelativeErrors",
+]
 
 #: Points per axis of the error grid recorded for the report.
 GRID_POINTS = 101
@@ -68,6 +75,58 @@ class MultiplierSettings(Settings):
 
 
 @dataclass(frozen=True, kw_only=True)
+class FixedPointCheck(Record):
+    """The multiplier's output settled: how far it moves over a second settling time and with
+    a finer step (:func:`~mbn.networks.multiplier.evaluate`)."""
+
+    max_abs_diff_2T: float
+    max_abs_diff_fine_step: float
+    passed: bool
+
+
+@dataclass(frozen=True, kw_only=True)
+class MultiplierMetrics(Record):
+    """The multiplier's errors (:func:`~mbn.networks.multiplier.evaluate`): on random pairs
+    (relative error, and where the product is at least 0.05; absolute) and on a dense grid."""
+
+    num_validation_pairs: int
+    fraction_within_5pct: float
+    max_rel_error: float
+    max_rel_error_product_floor: float = keyed("max_rel_error_product_ge_0.05")
+    max_abs_error_validation: float
+    grid_points_per_axis: int
+    max_abs_error_grid: float
+    mean_abs_error_grid: float
+    fixed_point: FixedPointCheck
+
+
+@dataclass(frozen=True, kw_only=True)
+class RelativeErrors(Record):
+    """Relative errors on a set of pairs (:func:`~mbn.networks.multiplier.relative_errors`):
+    how many, the least target kept (``floor``), the share within 5 %, the largest error and
+    the pair where it is."""
+
+    pairs: int
+    floor: float
+    min_target: float
+    fraction_within_5pct: float
+    max_rel_error: float
+    worst: list[float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PaperClaim(Record):
+    """The paper's 3-neuron multiplier checked against its 5 % claim: on 100 random pairs (the
+    paper's test), on the paper's 10 x 10 training grid, and on a dense grid away from 0."""
+
+    neurons: int
+    source: str
+    validation: RelativeErrors
+    paper_grid: RelativeErrors
+    dense_grid: RelativeErrors
+
+
+@dataclass(frozen=True, kw_only=True)
 class MultiplierResult(Record):
     """What the ``multiplier`` stage records (``stages/multiplier.json``): where the multiplier
     came from, its size, its errors on 100 random pairs and the dense grid (``metrics``), the
@@ -75,9 +134,9 @@ class MultiplierResult(Record):
 
     source: str
     neurons: int
-    metrics: dict[str, Any]
-    paper_claim: dict[str, Any] | None = optional()  # None: a run from before it was recorded
-    paper_grid: dict[str, Any] | None = optional()
+    metrics: MultiplierMetrics
+    paper_claim: PaperClaim | None = optional()  # None: a run from before it was recorded
+    paper_grid: RelativeErrors | None = optional()
 
 
 class MultiplierStage(Stage[MultiplierResult]):
@@ -109,18 +168,24 @@ class MultiplierStage(Stage[MultiplierResult]):
         validation = validation_pairs(jax.random.fold_in(ctx.key, 1), 100)
         measured = evaluate(mul, validation, precision=precision)
         paper = mul if n == PAPER_NEURONS else load_default(PAPER_NEURONS)
-        paper_claim = {
-            "neurons": PAPER_NEURONS,
-            "source": source if n == PAPER_NEURONS else f"shipped ({SHIPPED[PAPER_NEURONS]})",
+        paper_claim = PaperClaim(
+            neurons=PAPER_NEURONS,
+            source=source if n == PAPER_NEURONS else f"shipped ({SHIPPED[PAPER_NEURONS]})",
             # the paper's test: 100 random pairs, every one within 5 % of its target
-            "validation": relative_errors(paper, validation, precision=precision),
-            # the paper's own grid: its 100 training pairs, equally spaced in (0, 1)^2
-            "paper_grid": relative_errors(paper, training_pairs(), precision=precision),
-            # the dense grid where the target is not near 0
-            "dense_grid": relative_errors(
-                paper, dense_grid(GRID_POINTS), floor=RELATIVE_FLOOR, precision=precision
+            validation=RelativeErrors.from_json(
+                relative_errors(paper, validation, precision=precision)
             ),
-        }
+            # the paper's own grid: its 100 training pairs, equally spaced in (0, 1)^2
+            paper_grid=RelativeErrors.from_json(
+                relative_errors(paper, training_pairs(), precision=precision)
+            ),
+            # the dense grid where the target is not near 0
+            dense_grid=RelativeErrors.from_json(
+                relative_errors(
+                    paper, dense_grid(GRID_POINTS), floor=RELATIVE_FLOOR, precision=precision
+                )
+            ),
+        )
         save_multiplier(ctx.rundir.controller_file("multiplier"), mul, metrics)
         grid = np.asarray(dense_grid(GRID_POINTS))
         ctx.rundir.save_record(
@@ -132,11 +197,13 @@ class MultiplierStage(Stage[MultiplierResult]):
         return MultiplierResult(
             source=source,
             neurons=n,
-            metrics=measured,
+            metrics=MultiplierMetrics.from_json(measured),
             paper_claim=paper_claim,
-            paper_grid=relative_errors(mul, training_pairs(), precision=precision),
+            paper_grid=RelativeErrors.from_json(
+                relative_errors(mul, training_pairs(), precision=precision)
+            ),
         )
 
     def summary(self, data: MultiplierResult) -> str:
-        grid = data.metrics["max_abs_error_grid"]
+        grid = data.metrics.max_abs_error_grid
         return f"{data.source}, max |error| on the grid {grid:.4f}"

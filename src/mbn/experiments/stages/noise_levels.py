@@ -7,7 +7,7 @@ at every level. Each (channel, level) draws its noise from the stage's key folde
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 
@@ -18,6 +18,7 @@ from mbn.experiments.pipeline.results import Record
 from mbn.experiments.stages.common import run_noise
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.protocol import TESTED, test_specs
+from mbn.experiments.stages.records import RateRecord, TrialCounts
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialGroup, rate_record, run_trial_groups
 from mbn.world.mazes.load import load_maze
@@ -27,6 +28,7 @@ __all__ = [
     "CHANNELS",
     "CONTROLLERS",
     "REALISTIC",
+    "LevelPoint",
     "NoiseLevelsResult",
     "NoiseLevelsSettings",
     "NoiseLevelsStage",
@@ -117,6 +119,15 @@ class NoiseLevelsSettings(Settings):
 
 
 @dataclass(frozen=True, kw_only=True)
+class LevelPoint(Record):
+    """A controller at one noise level: its jittered and held-out trials."""
+
+    level: float
+    jitter: RateRecord
+    heldout: RateRecord
+
+
+@dataclass(frozen=True, kw_only=True)
 class NoiseLevelsResult(Record):
     """What the ``noise_levels`` stage records (``stages/noise_levels.json``): the channels and
     their levels, each controller's success curve over them, the realistic noise's results,
@@ -124,10 +135,24 @@ class NoiseLevelsResult(Record):
 
     channels: list[str]
     levels: dict[str, list[float]]
-    curves: dict[str, Any]
+    curves: dict[str, dict[str, list[LevelPoint]]]
     realistic: dict[str, Any]
-    trials: dict[str, int]
+    trials: TrialCounts
     evolved_under: dict[str, Any]
+
+    #: The key of the realistic noise's levels among its controllers' points.
+    REALISTIC_NOISE: ClassVar[str] = "noise"
+
+    def realistic_point(self, controller: str) -> LevelPoint:
+        """A controller's trials under the realistic noise."""
+        return LevelPoint.from_json(
+            self.realistic[controller], f"noise_levels: realistic.{controller}"
+        )
+
+    @property
+    def realistic_noise(self) -> dict[str, float]:
+        """The realistic noise's levels, by channel."""
+        return dict(self.realistic[self.REALISTIC_NOISE])
 
 
 class NoiseLevelsStage(Stage[NoiseLevelsResult]):
@@ -220,7 +245,7 @@ class NoiseLevelsStage(Stage[NoiseLevelsResult]):
                 "levels": {c: list(getattr(s, c)) for c in s.channels},
                 "curves": curves,
                 "realistic": {
-                    "noise": REALISTIC.as_dict(),
+                    NoiseLevelsResult.REALISTIC_NOISE: REALISTIC.as_dict(),
                     **{n: out[n]["realistic"][0] for n in CONTROLLERS},
                 },
                 "trials": {
@@ -233,8 +258,6 @@ class NoiseLevelsStage(Stage[NoiseLevelsResult]):
         )
 
     def summary(self, result: NoiseLevelsResult) -> str:
-        data = result.to_json()
-        r = data["realistic"]
         return "realistic noise: " + ", ".join(
-            f"{n} {r[n]['jitter']['rate']:.0%}" for n in CONTROLLERS
+            f"{n} {result.realistic_point(n).jitter.rate:.0%}" for n in CONTROLLERS
         )

@@ -51,7 +51,7 @@ from mbn.world.engine import CameraConfig
 from mbn.world.mazes.builtin import APPROACHES, check_approaches
 from mbn.world.sensors import NoiseConfig
 
-__all__ = ["PMResult", "PMSettings", "PMStage"]
+__all__ = ["LatchedStart", "PMResult", "PMSettings", "PMStage"]
 
 #: The program-reward phase before a robot reward (``shaping_generations``) of attempt a draws
 #: from ``fold_in(attempt's key, SHAPING_KEY)``.
@@ -152,6 +152,28 @@ class PMSettings(Settings):
                 "episodes under [noise] is not supported; the default reward ('programs') needs "
                 "no robot (docs/noise.md)"
             )
+
+
+@dataclass(frozen=True, kw_only=True)
+class LatchedStart(Record):
+    """The MBN's start as ``stages/pm.json`` records it (``initial``): the tile shown, the rule
+    the latched state stands for (None: it did not settle), RF's program, whether it settled
+    and, when it did, how soon, the state, the program it sends, its motor mismatches against
+    RF and LF, its largest difference from RF's program and whether that is within
+    ``tolerance``. Read with :meth:`~mbn.experiments.pipeline.results.Record.from_json`."""
+
+    tile: int
+    rule: str | None
+    rf_program: list[float] | None
+    settled: bool
+    settled_after_seconds: float | None = None
+    potentials: list[float] | None = None
+    program: list[float] | None = None
+    mismatch_rf: float | None = None
+    mismatch_lf: float | None = None
+    max_distance_to_rf_program: float | None = None
+    is_rf_program: bool = False
+    tolerance: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

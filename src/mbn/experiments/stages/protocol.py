@@ -4,8 +4,9 @@ from which the ``protocol`` block of ``results.json`` is built."""
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
 
+from mbn.experiments.pipeline.results import Record
 from mbn.experiments.trials import MAX_STALL_FRACTION, TrialSpec
 
 __all__ = [
@@ -15,6 +16,7 @@ __all__ = [
     "TESTED",
     "TEST_NAMES",
     "WHO",
+    "Protocol",
     "protocol_block",
     "test_specs",
 ]
@@ -93,16 +95,33 @@ def _trials(spec: TrialSpec) -> str:
     return f"{spec.repeats} per start mark, all jittered"
 
 
-def protocol_block(plain: dict[str, TrialSpec], mbn: dict[str, TrialSpec]) -> dict[str, Any]:
+@dataclass(frozen=True, kw_only=True)
+class Protocol(Record):
+    """How the tests judged their trials (``results.json``'s ``stages.tests.protocol``): the
+    junctions judged, the stall limit, the trial's and the MBN's seconds, the MBN's rule before
+    its first tile (``"none"`` in runs recorded before it started in a state), the jitter
+    (lateral m, along m, heading deg) and the trials of the jittered and held-out tests."""
+
+    junctions: int
+    max_stall_fraction: float
+    seconds: float
+    mbn_seconds: float
+    mbn_initial: str = "none"
+    jitter: list[float]
+    jitter_trials: str
+    heldout_trials: str
+
+
+def protocol_block(plain: dict[str, TrialSpec], mbn: dict[str, TrialSpec]) -> Protocol:
     """The ``protocol`` of ``results.json`` from the specs that ran (a plain network's and the
     MBN's)."""
-    return {
-        "junctions": plain[""].junctions,
-        "max_stall_fraction": MAX_STALL_FRACTION,
-        "seconds": plain[""].seconds,
-        "mbn_seconds": mbn[""].seconds,
-        "mbn_initial": mbn[""].initial,
-        "jitter": list(plain["_jitter"].jitter),
-        "jitter_trials": _trials(plain["_jitter"]),
-        "heldout_trials": _trials(plain["_heldout"]),
-    }
+    return Protocol(
+        junctions=plain[""].junctions,
+        max_stall_fraction=MAX_STALL_FRACTION,
+        seconds=plain[""].seconds,
+        mbn_seconds=mbn[""].seconds,
+        mbn_initial=mbn[""].initial,
+        jitter=list(plain["_jitter"].jitter),
+        jitter_trials=_trials(plain["_jitter"]),
+        heldout_trials=_trials(plain["_heldout"]),
+    )

@@ -13,7 +13,11 @@ __all__ = [
     "AgreementCheck",
     "History",
     "Perturbation",
+    "RateRecord",
     "Restart",
+    "Tally",
+    "TestMazes",
+    "TrialCounts",
     "TrialSummary",
     "Validation",
 ]
@@ -56,6 +60,46 @@ class Restart(Record):
     history: History
     best_genome: list[float]
     validation: Validation | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class RateRecord(Record):
+    """Successes of trials with the rate and its Wilson 95 % interval (how the noise levels and
+    the ablations record a test: :func:`~mbn.experiments.trials.rate_record`)."""
+
+    successes: int
+    trials: int
+    rate: float
+    wilson95: list[float]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrialCounts(Record):
+    """The trials per test of the noise levels and the ablations: jittered trials per start
+    mark, repeats per held-out mark."""
+
+    jitter_per_mark: int
+    heldout_repeats: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class TestMazes(Record):
+    """A test stage's mazes: the paper protocol's (or the stage's own) and the held-out one,
+    by name."""
+
+    test: str
+    heldout: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tally(Record):
+    """What every test record of every experiment has (a :class:`TrialSummary`, a noise
+    level's or an ablation's test): its trials, successes and success rate; read with
+    :meth:`~mbn.experiments.pipeline.results.Record.pick`."""
+
+    trials: int
+    successes: int
+    success_rate: float
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -27,10 +27,11 @@ from mbn.experiments.stages.protocol import (
     SUFFIXES,
     TEST_NAMES,
     TESTED,
+    Protocol,
     protocol_block,
     test_specs,
 )
-from mbn.experiments.stages.records import Agreement, TrialSummary
+from mbn.experiments.stages.records import Agreement, TestMazes, TrialSummary
 from mbn.experiments.stages.settings import TestsSettings
 from mbn.experiments.trials import (
     TrialGroup,
@@ -70,8 +71,8 @@ class TestsResult(Record):
     tests: dict[str, TrialSummary]
     agreement: dict[str, Agreement]
     details: dict[str, Any]
-    mazes: dict[str, str]
-    protocol: dict[str, Any]
+    mazes: TestMazes
+    protocol: Protocol
     recording: dict[str, Any]
 
 
@@ -182,7 +183,7 @@ class TestsStage(Stage[TestsResult]):
                 "agreement": agreement,
                 "details": details,
                 "mazes": {"test": s.maze, "heldout": s.heldout_maze},
-                "protocol": protocol_block(ran["rf"], ran["mbn"]),
+                "protocol": protocol_block(ran["rf"], ran["mbn"]).to_json(),
                 "recording": {"start_mark": start},
             }
         )

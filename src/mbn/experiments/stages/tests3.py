@@ -29,7 +29,7 @@ from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.programs import ProgramsStage, check_digest
 from mbn.experiments.stages.protocol import SUFFIXES
-from mbn.experiments.stages.records import Agreement, TrialSummary
+from mbn.experiments.stages.records import Agreement, TestMazes, TrialSummary
 from mbn.experiments.stages.tests import TestsSettings
 from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_trials, summary
 from mbn.networks.ctrnn import CTRNN
@@ -87,7 +87,7 @@ class Tests3Result(Record):
     agreement: dict[str, Agreement]
     sha256: str
     sha256_unchanged_in: list[str]
-    mazes: dict[str, str]
+    mazes: TestMazes
     marks: dict[str, int]
     initial: str | None
     tile_rules: list[str]

@@ -17,6 +17,14 @@ from typing import Any
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
+from mbn.experiments.sweep.records import (
+    ClaimOverRuns,
+    ReusedStages,
+    SweepFile,
+    SweepHead,
+    SweepSettingsRecord,
+    SweepSummary,
+)
 from mbn.experiments.sweep.run import (
     SWEEP_FILE,
     read_sweep,
@@ -66,33 +74,34 @@ def _clock(seconds: float | None) -> str:
     return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
 
 
-def has_run_targets(summ: dict[str, Any]) -> bool:
+def has_run_targets(summ: SweepSummary) -> bool:
     """Whether the sweep's experiment judges each run by targets (the reproduction, the new
     behaviours) or only measures the runs (programs against dynamics, the ablations, the noise
     levels: no per-run target)."""
-    return bool(summ.get("targets"))
+    return summ.judged
 
 
 def summary_line(data: dict[str, Any]) -> str:
     """The sweep in one line: seeds meeting every target, failures named, wall time."""
-    summ = data["summary"]
-    n = len(summ["seeds"])
-    if has_run_targets(summ):
-        line = f"sweep: {summ['meet_every_target']}/{n} seeds meet every target"
-        if summ.get("meet_every_generalization_target") is not None:
-            line += f", {summ['meet_every_generalization_target']}/{n} every generalization target"
+    sweep = SweepFile.pick(data, SWEEP_FILE)
+    summ = sweep.summary
+    n = len(summ.seeds)
+    if summ.judged:
+        line = f"sweep: {summ.meet_every_target}/{n} seeds meet every target"
+        if summ.meet_every_generalization_target is not None:
+            line += f", {summ.meet_every_generalization_target}/{n} every generalization target"
     else:  # an experiment without per-run targets (compared over runs)
-        line = f"sweep: {summ['finished']}/{n} seeds finished (no per-run targets)"
-    failed = [(s, data["runs"].get(str(s), {}).get("error")) for s in summ["failed"]]
+        line = f"sweep: {summ.finished}/{n} seeds finished (no per-run targets)"
+    failed = [(s, sweep.run(s).error) for s in summ.failed]
     if failed:
         first = "; ".join(f"seed {s}: {e}" for s, e in failed[:3])
         more = f"; {len(failed) - 3} more" if len(failed) > 3 else ""
         line += f", {len(failed)} failed ({first}{more})"
-    missing = [s for s, v in summ["per_seed"].items() if v["state"] == "missing"]
+    missing = [s for s, v in summ.per_seed.items() if v.state == "missing"]
     if missing:
         line += f", {len(missing)} not run"
-    if data.get("seconds") is not None:
-        line += f", {_clock(data['seconds'])}"
+    if sweep.seconds is not None:
+        line += f", {_clock(sweep.seconds)}"
     return line
 
 
@@ -103,23 +112,23 @@ def _sections(
     spec: SweepSpec,
     extra: list[Section] | None = None,
 ) -> list[Section]:
-    summ = data["summary"]
-    settings = data["settings"]
-    seeds = summ["seeds"]
+    sweep = SweepFile.pick(data, str(out / SWEEP_FILE))
+    summ = sweep.summary
+    seeds = summ.seeds
     n = len(seeds)
     secs: list[Section] = []
     quick = " This is a **quick** sweep: tiny budgets, not the paper's figures." * bool(
-        settings["quick"]
+        sweep.settings and sweep.settings.quick
     )
     secs.append(
         Section(
             "Sweep",
             [
                 f"{n} seeds ({format_seeds(seeds)}), each a full `{spec.command}` run in "
-                f"`seed-K/`; {summ['finished']} finished, {len(summ['failed'])} failed. "
+                f"`seed-K/`; {summ.finished} finished, {len(summ.failed)} failed. "
                 + (
-                    f"**{summ['meet_every_target']} of {n} seeds meet every target.**"
-                    if has_run_targets(summ)
+                    f"**{summ.meet_every_target} of {n} seeds meet every target.**"
+                    if summ.judged
                     else "The runs have no per-run targets: they are compared over runs."
                 )
                 + quick,
@@ -131,39 +140,39 @@ def _sections(
     target_of = {t.test: t for t in spec.targets if t.source == "tests"}
     rows, status = [], []
     for name in spec.tests:
-        t = summ["tests"][name]
+        t = summ.tests[name]
         tg = target_of.get(name)
-        met = summ["targets"][tg.name]["seeds_meeting"] if tg else None
-        lo, hi = t["pooled"]["wilson95"]
+        met = summ.targets[tg.name].seeds_meeting if tg else None
+        lo, hi = t.pooled.wilson95
         rows.append(
             [
                 name,
                 tg.label if tg else "–",
-                "–" if met is None else f"{met}/{summ['finished']}",
-                f"{_pct(t['median'])} [{_pct(t['q1'])}, {_pct(t['q3'])}]",
-                _pct(t["min"]),
-                f"{t['pooled']['successes']}/{t['pooled']['trials']}",
+                "–" if met is None else f"{met}/{summ.finished}",
+                f"{_pct(t.median)} [{_pct(t.q1)}, {_pct(t.q3)}]",
+                _pct(t.min),
+                f"{t.pooled.successes}/{t.pooled.trials}",
                 f"[{_pct(lo)}, {_pct(hi)}]",
             ]
         )
-        status.append(None if met is None else met == summ["finished"] and met > 0)
+        status.append(None if met is None else met == summ.finished and met > 0)
     for tg in spec.targets:
         if tg.source != "agreement":
             continue
-        a = summ["targets"][tg.name]
-        lo, hi = a["pooled"]["wilson95"]
+        a = summ.targets[tg.name]
+        lo, hi = a.pooled.wilson95
         rows.append(
             [
                 f"agreement {tg.test}",
                 tg.label,
-                f"{a['seeds_meeting']}/{summ['finished']}",
-                f"{_pct(a['median'])} [{_pct(a['q1'])}, {_pct(a['q3'])}]",
-                _pct(a["min"]),
-                f"{a['pooled']['hits']}/{a['pooled']['trials']}",
+                f"{a.seeds_meeting}/{summ.finished}",
+                f"{_pct(a.median)} [{_pct(a.q1)}, {_pct(a.q3)}]",
+                _pct(a.min),
+                f"{a.pooled.hits}/{a.pooled.trials}",
                 f"[{_pct(lo)}, {_pct(hi)}]",
             ]
         )
-        status.append(a["seeds_meeting"] == summ["finished"] and a["seeds_meeting"] > 0)
+        status.append(a.seeds_meeting == summ.finished and a.seeds_meeting > 0)
     secs.append(
         Section(
             "Tests over seeds",
@@ -179,43 +188,38 @@ def _sections(
             status=status,
         )
     )
-    secs.append(_seeds_section(data, seeds))
-    claims = summ["claims"]
-    if claims or not summ["finished"]:  # runs that make no claim (a lab's own may make none)
+    secs.append(_seeds_section(sweep, seeds))
+    claims = summ.claims
+    if claims or not summ.finished:  # runs that make no claim (a lab's own may make none)
         secs.append(
             Section(
                 "Claims over runs",
                 [
-                    f"Each claim of the claims table, and in how many of the {summ['finished']} "
+                    f"Each claim of the claims table, and in how many of the {summ.finished} "
                     "finished runs it holds (each run judges it by the criterion shown)."
                 ],
                 table=(
                     ["claim", "criterion", "runs reproducing it"],
-                    [[c["claim"], c["criterion"], _claim_count(c)] for c in claims],
+                    [[c.claim, c.criterion, _claim_count(c)] for c in claims],
                 ),
-                status=[
-                    None
-                    if c.get("judged", c["runs"]) == 0
-                    else c["hold"] == c.get("judged", c["runs"])
-                    for c in claims
-                ],
+                status=[None if c.judged_runs == 0 else c.hold == c.judged_runs for c in claims],
             )
         )
     secs.append(Section("Figures", [], images=images))
     return secs
 
 
-def _claim_count(c: dict[str, Any]) -> str:
+def _claim_count(c: ClaimOverRuns) -> str:
     """'k of N' runs reproducing a claim; where some runs could not judge it (their verdict
     None: e.g. an ablation of an MBN that itself fails), 'k of J judged (N - J not testable)';
     a claim no run judges is 'not judged per run' (an experiment's analysis over runs may judge
     it)."""
-    judged = c.get("judged", c["runs"])
+    judged = c.judged_runs
     if judged == 0:
-        return f"not judged per run ({c['runs']} runs)"
-    if judged < c["runs"]:
-        return f"{c['hold']} of {judged} judged ({c['runs'] - judged} not testable)"
-    return f"{c['hold']} of {c['runs']}"
+        return f"not judged per run ({c.runs} runs)"
+    if judged < c.runs:
+        return f"{c.hold} of {judged} judged ({c.runs - judged} not testable)"
+    return f"{c.hold} of {c.runs}"
 
 
 def summarize_folder(out: Path) -> dict[str, Any]:
@@ -224,36 +228,36 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     ``sweep.html``. Returns ``sweep.json``."""
     out = Path(out)
     data = read_sweep(out)
-    settings = data["settings"]
-    spec = sweep_spec(settings.get("experiment"))
-    seeds = [int(s) for s in settings.get("seeds", [])]
+    head = SweepHead.pick(data, str(out / SWEEP_FILE))
+    settings = head.settings or SweepSettingsRecord(seeds=[], quick=False)
+    spec = sweep_spec(settings.experiment)
+    seeds = [int(s) for s in settings.seeds]
     # the sweep's recorded config, checked as this version reads it, compared as recorded
-    spec.load().config_from_dict(settings.get("config"), str(out / SWEEP_FILE))
+    spec.load().config_from_dict(settings.config, str(out / SWEEP_FILE))
     runs: dict[int, dict[str, Any] | None] = {}
     for s in seeds:
-        done = seed_state(out, s, dict(settings.get("config") or {})) == "done"
+        done = seed_state(out, s, dict(settings.config or {})) == "done"
         runs[s] = read_json(seed_dir(out, s) / "results.json") if done else None
     errors = {
-        s: str(data["runs"][str(s)].get("error"))
+        s: str(head.run(s).error)
         for s in seeds
-        if runs[s] is None and data.get("runs", {}).get(str(s), {}).get("state") == "failed"
+        if runs[s] is None and head.run(s).state == "failed"
     }
     spec = with_recorded_tests(spec, runs)
-    summ = summarize(runs, errors, spec)
-    done_seeds = [s for s in seeds if runs[s] is not None]
-    for seed, names in finished_taken(out, done_seeds).items():
-        summ["per_seed"][str(seed)]["taken"] = names
-    data["summary"] = summ
     finished = [s for s in seeds if runs[s] is not None]
+    summ = summarize(runs, errors, spec, taken=finished_taken(out, finished))
     images: list[tuple[str, str]] = []
     (out / "figures").mkdir(exist_ok=True)
     extra: list[Section] = []
     if spec.analysis is not None:
         completed = {s: r for s, r in runs.items() if r is not None}
-        summ["analysis"], extra, more = spec.analysis(out, completed) if completed else ({}, [], [])
+        analysis, extra, more = spec.analysis(out, completed) if completed else ({}, [], [])
+        summ = {**summ, "analysis": analysis}
         images.extend(more)
+    data = {**data, "summary": summ}
+    summary = SweepSummary.pick(summ, str(out / SWEEP_FILE))
     if spec.generalization and finished:
-        extra.append(_generalization_section(out, summ, runs, spec))
+        extra.append(_generalization_section(out, summary, runs, spec))
     if finished:
         curves = de_curves(out, finished, spec)
         if curves:
@@ -265,11 +269,11 @@ def summarize_folder(out: Path) -> dict[str, Any]:
                     "over the seeds, the median run drawn",
                 )
             )
-        rates = {n: summ["tests"][n]["rates"] for n in spec.tests}
+        rates = {n: summary.numbers(summary.tests[n].rates) for n in spec.tests}
         thresholds = {t.test: float(t.threshold) for t in spec.targets if t.source == "tests"}
         for t in spec.targets:
             if t.source == "agreement":
-                rates[f"agree {t.test}"] = summ["targets"][t.name]["rates"]
+                rates[f"agree {t.test}"] = summary.numbers(summary.targets[t.name].rates)
                 thresholds[f"agree {t.test}"] = float(t.threshold)
         groups = [(title, list(tests)) for title, tests in spec.groups]
         groups.append(
@@ -289,13 +293,16 @@ def summarize_folder(out: Path) -> dict[str, Any]:
 
 def _generalization_section(
     out: Path,
-    summ: dict[str, Any],
+    summ: SweepSummary,
     runs: dict[int, dict[str, Any] | None],
     spec: SweepSpec,
 ) -> Section:
     """The sweep's generalization: per seed, each generalization target (test split pooled and
     mazes at 95 %, zero-shot pooled) met or not with its figure, and the performance profile on
     the test split (one curve per seed, a panel per controller)."""
+    from mbn.experiments.generalization import GeneralizationResult
+    from mbn.experiments.pipeline.results import RunResults
+    from mbn.experiments.stages.generalization import GeneralizationStage
     from mbn.experiments.sweep.targets import measure, meets
     from mbn.viz.generalization import performance_profile_panels
 
@@ -311,15 +318,15 @@ def _generalization_section(
             hits, trials = measure(t, r)
             ok = meets(t, hits, trials)
             cells.append(f"{hits}/{trials}" + ("" if ok else " ✗") if trials else "–")
-        v = summ["per_seed"][str(s)]
-        rows.append([str(s), *cells, "yes" if v.get("meets_generalization") else "no"])
-        status.append(bool(v.get("meets_generalization")))
-        gen = r.get("stages", {}).get("generalization") or {}
-        for name, rec in (gen.get("controllers") or {}).items():
-            test = rec["splits"].get("test")
+        v = summ.per_seed[str(s)]
+        rows.append([str(s), *cells, "yes" if v.meets_generalization else "no"])
+        status.append(bool(v.meets_generalization))
+        found = RunResults.pick(r, f"seed {s}: results.json").stages.get(GeneralizationStage.name)
+        gen = GeneralizationResult.pick(found, f"seed {s}: generalization") if found else None
+        for name, rec in (gen.controllers if gen else {}).items():
+            test = rec.splits.get("test")
             if test:
-                rates = [m["successes"] / m["trials"] for m in test["mazes"]]
-                profiles.setdefault(name, {})[f"seed {s}"] = rates
+                profiles.setdefault(name, {})[f"seed {s}"] = [m.rate for m in test.mazes]
     images = []
     if profiles:
         performance_profile_panels(profiles, out / "figures" / "sweep_profile.png")
@@ -330,11 +337,11 @@ def _generalization_section(
                 "per seed",
             )
         )
-    count = summ.get("meet_every_generalization_target")
+    count = summ.meet_every_generalization_target
     return Section(
         "Generalization over seeds",
         [
-            f"**{count} of {len(summ['seeds'])} seeds meet every generalization target**: on "
+            f"**{count} of {len(summ.seeds)} seeds meet every generalization target**: on "
             "the test split (100 mazes drawn from the family before any run, used by no "
             "selection) pooled success >= 95 % and >= 90 % of the mazes each at >= 95 %, and "
             "pooled >= 90 % on the zero-shot suite, for each controller. Cells: hits/trials "
@@ -349,51 +356,44 @@ def _generalization_section(
 
 def finished_taken(out: Path, seeds: list[int]) -> dict[int, list[str]]:
     """Per seed, the stages its run took from another run (``--reuse``: ``run.json``'s
-    ``reused``), where it took any."""
+    ``reused``), where it took any (a ``run.json`` that cannot be read counts as none)."""
     taken: dict[int, list[str]] = {}
     for seed in seeds:
         path = seed_dir(out, seed) / "run.json"
         try:
-            entries = read_json(path).get("reused") if path.exists() else None
+            reused = ReusedStages.pick(read_json(path), str(path)).reused if path.exists() else []
         except MbnInputError:
-            entries = None
-        names = [
-            n
-            for e in (entries if isinstance(entries, list) else [])
-            if isinstance(e, dict)
-            for n in e.get("stages", [])
-            if isinstance(n, str)
-        ]
+            reused = []
+        names = [n for entry in reused or [] for n in entry.stages]
         if names:
             taken[seed] = names
     return taken
 
 
-def _seeds_section(data: dict[str, Any], seeds: list[int]) -> Section:
+def _seeds_section(sweep: SweepFile, seeds: list[int]) -> Section:
     """One row per seed: its state, the targets it missed (or its error) and its time; an
     experiment without per-run targets has no "meets every target" column (a finished run is
     only finished: its figures are compared over the runs)."""
-    summ = data["summary"]
-    judged = has_run_targets(summ)
+    summ = sweep.summary
+    judged = summ.judged
     rows: list[list[str]] = []
     status: list[bool | None] = []
     for s in seeds:
-        v = summ["per_seed"][str(s)]
-        run = data["runs"].get(str(s), {})
-        clock = _clock(run.get("seconds"))
-        if v.get("taken"):  # --reuse: the time is of the stages it ran
-            clock += f" (took {', '.join(v['taken'])} from another run)"
-        if v["state"] == "done":
+        v = summ.per_seed[str(s)]
+        clock = _clock(sweep.run(s).seconds)
+        if v.taken:  # --reuse: the time is of the stages it ran
+            clock += f" (took {', '.join(v.taken)} from another run)"
+        if v.state == "done":
             if judged:
-                missed = ", ".join(v["missed"]) or "none"
-                rows.append([str(s), "done", missed, clock, "yes" if v["meets_all"] else "no"])
-                status.append(v["meets_all"])
+                missed = ", ".join(v.missed or []) or "none"
+                rows.append([str(s), "done", missed, clock, "yes" if v.meets_all else "no"])
+                status.append(v.meets_all)
             else:
                 rows.append([str(s), "done", "–", clock])
                 status.append(None)
         else:
-            rows.append([str(s), v["state"], v.get("error") or "–", clock, *(["no"] * judged)])
-            status.append(False if judged or v["state"] == "failed" else None)
+            rows.append([str(s), v.state, v.error or "–", clock, *(["no"] * judged)])
+            status.append(False if judged or v.state == "failed" else None)
     if judged:
         header = ["seed", "run", "targets missed (or error)", "time", "meets every target"]
         text = "Targets missed are named; a run that crashed shows its error."

@@ -18,6 +18,7 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from mbn.experiments.stages.records import Tally
 from mbn.experiments.sweep.specs import SweepSpec, sweep_spec
 from mbn.experiments.sweep.targets import TARGETS, Target, measure, meets
 from mbn.stats import Z95, describe, wilson_interval
@@ -53,6 +54,7 @@ def summarize(
     runs: Mapping[int, Mapping[str, Any] | None],
     errors: Mapping[int, str] | None = None,
     spec: SweepSpec | None = None,
+    taken: Mapping[int, list[str]] | None = None,
 ) -> dict[str, Any]:
     """The statistics of a sweep.
 
@@ -60,6 +62,8 @@ def summarize(
         runs: ``seed -> results.json`` of every seed (``None``: the seed has no finished run).
         errors: ``seed -> one-line error`` of the seeds whose run crashed.
         spec: the experiment's targets and tests (default: the reproduction's).
+        taken: ``seed -> the stages its run took from another run`` (``--reuse``), recorded
+            in its ``per_seed`` entry.
 
     Returns:
         ``{"seeds", "finished", "failed", "meet_every_target",
@@ -85,16 +89,19 @@ def summarize(
                 g = seed_verdict(r, spec.generalization)
                 per_seed[str(s)]["meets_generalization"] = g["meets_all"]
                 per_seed[str(s)]["missed_generalization"] = g["missed"]
+            if taken and taken.get(s):
+                per_seed[str(s)]["taken"] = list(taken[s])
     tests: dict[str, Any] = {}
     for name in spec.tests:
         rates, succ, trials = [], 0, 0
-        for r in finished.values():
-            if name not in r["tests"]:
+        for s, r in finished.items():
+            found = r.get("tests", {}).get(name)
+            if found is None:
                 continue
-            t = r["tests"][name]
-            rates.append(float(t["success_rate"]))
-            succ += int(t["successes"])
-            trials += int(t["trials"])
+            tally = Tally.pick(found, f"seed {s}: test {name}")
+            rates.append(float(tally.success_rate))
+            succ += tally.successes
+            trials += tally.trials
         lo, hi = wilson_interval(succ, trials)
         tests[name] = {
             "rates": rates,

@@ -18,11 +18,13 @@ ROBUST_TARGET`, :data:`~mbn.experiments.stages.protocol.AGREEMENT_TARGET`), comp
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET, WHO
+from mbn.experiments.stages.records import Agreement, Tally
 
 __all__ = [
     "GENERALIZATION_TARGETS",
@@ -128,20 +130,39 @@ TARGETS: tuple[Target, ...] = (
 )
 
 
-def measure(target: Target, results: dict[str, Any]) -> tuple[int, int]:
-    """``(hits, trials)`` of ``target`` in one run's ``results.json`` (successes of a test,
-    same branches of an agreement; ``(0, 0)`` where the run has no such record)."""
+def _record_at(results: Mapping[str, Any], path: tuple[str, ...]) -> Any:
+    """The JSON object at ``path`` in a ``results.json`` (None where the run did not record
+    it): where a target's record lies, as :attr:`Target.path` declares it."""
     record: Any = results
-    for key in target.path:
-        if not isinstance(record, dict) or key not in record:
-            return 0, 0  # the run did not record it: no trials, not met
+    for key in path:
+        if not isinstance(record, Mapping) or key not in record:
+            return None
         record = record[key]
-    if target.source == "split_pooled":
-        return int(record["pooled"]["successes"]), int(record["pooled"]["trials"])
-    if target.source == "split_mazes":
-        return int(record["mazes_at_95"]), len(record["mazes"])
-    hits = record["successes"] if target.source == "tests" else record["same_branches"]
-    return int(hits), int(record["trials"])
+    return record
+
+
+def measure(target: Target, results: Mapping[str, Any]) -> tuple[int, int]:
+    """``(hits, trials)`` of ``target`` in one run's ``results.json`` (successes of a test,
+    same branches of an agreement, a split's pooled successes or its mazes at 95 %; ``(0, 0)``
+    where the run has no such record). The record is read typed (:class:`Tally`,
+    :class:`Agreement`, :class:`SplitRecord`); a record of the wrong shape is refused in one
+    line naming the target."""
+    from mbn.experiments.generalization import SplitRecord
+
+    found = _record_at(results, target.path)
+    if found is None:
+        return 0, 0  # the run did not record it: no trials, not met
+    where = f"target {target.name}"
+    if target.source in SPLIT_SOURCES:
+        split = SplitRecord.pick(found, where)
+        if target.source == "split_pooled":
+            return split.pooled.successes, split.pooled.trials
+        return split.mazes_at_95, len(split.mazes)
+    if target.source == "tests":
+        test = Tally.pick(found, where)
+        return test.successes, test.trials
+    agreement = Agreement.pick(found, where)
+    return agreement.same_branches, agreement.trials
 
 
 def generalization_targets(
