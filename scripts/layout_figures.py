@@ -12,7 +12,8 @@ commit's in a git worktree), as ``docs/architecture.md`` reports them:
 - **string look-ups of settings**: ``ctx.section("name")`` and ``config["name"]``;
 - **string look-ups of stage results**: ``ctx.read("name")`` and ``read_stage("name")``
   outside the pipeline's serialisation (``pipeline/``), and subscripts with a string
-  (``stages["tests"]["agreement"]``, ``.get("key")``) in the claims, reports and sweep targets;
+  (``stages["tests"]["agreement"]``, ``.get("key")``) in the code of the claims, reports and
+  sweep targets (found in the syntax tree: a docstring or a list literal does not count);
 - **``dict[str, Any]`` annotations** in ``src/mbn``.
 
     python scripts/layout_figures.py [SRC] [--json out.json]   # SRC: default src/mbn
@@ -21,6 +22,7 @@ commit's in a git worktree), as ``docs/architecture.md`` reports them:
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import re
 import sys
@@ -74,7 +76,27 @@ _SECTION = re.compile(
     r"""\.section\(\s*["'][a-z_0-9]+["']\s*\)|config\[\s*["'][a-z_0-9]+["']\s*\]"""
 )
 _READ = re.compile(r"""(?:ctx\.read|\.read_stage)\(\s*["'][a-z_0-9]+["']\s*\)""")
-_SUBSCRIPT = re.compile(r"""\[\s*["'][A-Za-z_0-9]+["']\s*\]|\.get\(\s*["'][A-Za-z_0-9]+["']""")
+
+
+def string_subscripts(text: str) -> list[tuple[int, str]]:
+    """``(line, key)`` of every subscript by a string constant (``x["key"]``) and every
+    ``.get("key", ...)`` in the code of ``text``."""
+    found = []
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, ast.Subscript):
+            key = node.slice
+        elif (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and node.func.attr == "get"
+            and node.args
+        ):
+            key = node.args[0]
+        else:
+            continue
+        if isinstance(key, ast.Constant) and isinstance(key.value, str):
+            found.append((node.lineno, key.value))
+    return found
 
 
 def _reader_files(src: Path) -> list[Path]:
@@ -102,7 +124,7 @@ def figures(src: Path) -> dict[str, object]:
         "settings_string_lookups": sum(len(_SECTION.findall(f.read_text())) for f in files),
         "result_reads_by_name": sum(len(_READ.findall(f.read_text())) for f in outside_pipeline),
         "result_string_subscripts": sum(
-            len(_SUBSCRIPT.findall(f.read_text())) for f in _reader_files(src)
+            len(string_subscripts(f.read_text())) for f in _reader_files(src)
         ),
         "dict_str_any_annotations": sum(f.read_text().count("dict[str, Any]") for f in files),
     }

@@ -21,7 +21,7 @@ from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.programs import ProgramsStage
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET
 from mbn.experiments.stages.records import Tally, TrialSummary
-from mbn.experiments.stages.tests3 import Tests3Stage
+from mbn.experiments.stages.tests3 import MarksRecording, Tests3Stage
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
 from mbn.notation import connection_name
@@ -139,11 +139,11 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
     from mbn.viz.behaviours import code_traces, rule_paths
 
     t3 = rundir.read_result(Tests3Stage)
-    rec = rundir.load_record("mbn3_marks")
+    rec = MarksRecording.read(rundir)
     maze = load_maze(t3.mazes.test)
     rules = t3.tile_rules
     initial = t3.initial if t3.initial not in (None, "none") else rules[0]
-    pose, tile, t = rec["pose"], rec["tile"], rec["t"]
+    pose, tile, t = rec.pose, rec.tile, rec.t
     images = []
     file = "figures/mbn3_paths.png"
     rule_paths(
@@ -153,14 +153,14 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
         rules,
         initial,
         f"Three-behaviour MBN in {maze.name}, from each start mark: the path coloured by the "
-        f"rule in force ({int(np.sum(rec['success']))}/{len(rec['success'])} succeed)",
+        f"rule in force ({int(np.sum(rec.success))}/{len(rec.success)} succeed)",
         rundir.root / file,
     )
     images.append((file, "The three-behaviour MBN's paths, coloured by the rule in force"))
     spec = read_controller_spec(rundir.controller_file("mbn3"))
     assert isinstance(spec, MBNControllerSpec)
     pm = spec.program_module
-    codes = np.asarray(firing_rate(pm, jnp.asarray(rec["pm_y"], pm.W.dtype)))
+    codes = np.asarray(firing_rate(pm, jnp.asarray(rec.pm_y, pm.W.dtype)))
     b = int(np.argmax((np.diff(tile, axis=1) != 0).sum(1)))  # the mark with most switches
     file = "figures/mbn3_codes.png"
     code_traces(
@@ -177,11 +177,11 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
         maze,
         pose[b],
         rundir.root / file,
-        ranges=rec["ranges"][b],
+        ranges=rec.ranges[b],
         sonars=spec.interpreter_spec.sensors.sonars,
-        camera=rec["camera"][b],
+        camera=rec.camera[b],
         tile=tile[b],
-        stalled=rec["stalled"][b],
+        stalled=rec.stalled[b],
         t=t,
         fps=15.0,
         max_frames=150,

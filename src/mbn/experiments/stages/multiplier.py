@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import jax
 import numpy as np
@@ -29,6 +30,7 @@ from mbn.networks.multiplier import (
 
 __all__ = [
     "FixedPointCheck",
+    "MultiplierGrid",
     "MultiplierMetrics",
     "MultiplierResult",
     "MultiplierSettings",
@@ -72,6 +74,23 @@ class MultiplierSettings(Settings):
                 f"{' or '.join(map(str, sorted(SHIPPED)))} neurons, not {self.neurons}; set "
                 "[multiplier] retrain = true (or pass --retrain) to train one"
             )
+
+
+#: The record of the multiplier's output on the dense grid (``records/NAME.npz``).
+GRID_RECORD = "multiplier_grid"
+
+
+class MultiplierGrid(NamedTuple):
+    """The multiplier's output on the dense grid of [0, 1]^2 (``records/multiplier_grid.npz``,
+    one array per field): the grid's pairs and the outputs, for the report's error map."""
+
+    grid: np.ndarray
+    output: np.ndarray
+
+    @classmethod
+    def read(cls, rundir: Any) -> MultiplierGrid:
+        """The grid of a run folder."""
+        return cls(**rundir.load_record(GRID_RECORD))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -188,10 +207,8 @@ class MultiplierStage(Stage[MultiplierResult]):
         )
         save_multiplier(ctx.rundir.controller_file("multiplier"), mul, metrics)
         grid = np.asarray(dense_grid(GRID_POINTS))
-        ctx.rundir.save_record(
-            "multiplier_grid",
-            {"grid": grid, "output": np.asarray(multiply(mul, grid, precision=precision))},
-        )
+        output = np.asarray(multiply(mul, grid, precision=precision))
+        ctx.rundir.save_record(GRID_RECORD, MultiplierGrid(grid=grid, output=output)._asdict())
         # the time constant it is embedded at is the interpreter's ([interpreter] tau_ratio,
         # recorded by stage im), not the multiplier's
         return MultiplierResult(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -35,7 +35,7 @@ from mbn.experiments.trials import TrialSpec, agreement, run_loaded_trials, run_
 from mbn.networks.ctrnn import CTRNN
 from mbn.world.mazes.load import load_maze
 
-__all__ = ["Tests3Result", "Tests3Settings", "Tests3Stage", "trial_specs"]
+__all__ = ["MarksRecording", "Tests3Result", "Tests3Settings", "Tests3Stage", "trial_specs"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,31 @@ def trial_specs(
             base, repeats=t.heldout_repeats, seed=ctx.seeds["heldout_jitter"]
         ),
     }
+
+
+#: The record of the three-behaviour MBN's trials from the start marks (``records/NAME.npz``).
+MARKS_RECORD = "mbn3_marks"
+
+
+class MarksRecording(NamedTuple):
+    """The three-behaviour MBN's trials from the start marks, every step recorded
+    (``records/mbn3_marks.npz``, one array per field): times, poses, the tile in force, the
+    sonar ranges, the camera, the stalled steps, the program module's potentials, and each
+    trial's success."""
+
+    t: np.ndarray
+    pose: np.ndarray
+    tile: np.ndarray
+    ranges: np.ndarray
+    camera: np.ndarray
+    stalled: np.ndarray
+    pm_y: np.ndarray
+    success: np.ndarray
+
+    @classmethod
+    def read(cls, rundir: Any) -> MarksRecording:
+        """The recording of a run folder."""
+        return cls(**rundir.load_record(MARKS_RECORD))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -154,19 +179,17 @@ class Tests3Stage(Stage[Tests3Result]):
                     )
                     traj = result.trajectory
                     assert traj is not None
-                    ctx.rundir.save_record(
-                        "mbn3_marks",
-                        {
-                            "t": np.asarray(traj.t),
-                            "pose": np.asarray(traj.pose),
-                            "tile": np.asarray(traj.tile),
-                            "ranges": np.asarray(traj.ranges),
-                            "camera": np.asarray(traj.camera),
-                            "stalled": np.asarray(traj.stalled),
-                            "pm_y": np.asarray(traj.controller.pm_y),
-                            "success": np.asarray(got["success"]),
-                        },
+                    recording = MarksRecording(
+                        t=np.asarray(traj.t),
+                        pose=np.asarray(traj.pose),
+                        tile=np.asarray(traj.tile),
+                        ranges=np.asarray(traj.ranges),
+                        camera=np.asarray(traj.camera),
+                        stalled=np.asarray(traj.stalled),
+                        pm_y=np.asarray(traj.controller.pm_y),
+                        success=np.asarray(got["success"]),
                     )
+                    ctx.rundir.save_record(MARKS_RECORD, recording._asdict())
                 else:
                     got, _, _ = run_loaded_trials(mazes[suffix], specs[suffix], loaded)
                 tests[f"{name}{suffix}"] = summary(got)
