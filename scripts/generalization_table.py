@@ -20,6 +20,12 @@ Seeds missing from either sweep, or not finished, are listed as such (never drop
 
     python scripts/generalization_table.py --reproduce runs/gen-reproduce \\
         --new-behaviours runs/gen-nb [--zero-shot] [--json table.json]
+
+A sweep made in installments (a few seeds at a time, each with its own ``--json``) is one table
+again with ``--combine``: the installments' seeds side by side, in the order given (a seed in two
+installments is refused):
+
+    python scripts/generalization_table.py --combine seeds-0/table.json seeds-1/table.json ...
 """
 
 from __future__ import annotations
@@ -115,6 +121,20 @@ def table(reproduce: Path, new_behaviours: Path) -> dict[str, Any]:
     return out
 
 
+def combine(paths: list[Path]) -> dict[str, Any]:
+    """The tables of several installments (each written by ``--json``) as one."""
+    out: dict[str, Any] = {"seeds": {}}
+    for path in paths:
+        data = _load(path)
+        if not isinstance(data, dict) or not isinstance(data.get("seeds"), dict):
+            raise SystemExit(f"{path}: not a table written by --json")
+        for seed, row in data["seeds"].items():
+            if seed in out["seeds"]:
+                raise SystemExit(f"{path}: seed {seed} is in an earlier installment too")
+            out["seeds"][seed] = row
+    return out
+
+
 def _pct(hits: int, trials: int) -> str:
     return f"{100 * hits / trials:.1f}"
 
@@ -203,14 +223,22 @@ def markdown(data: dict[str, Any], zero_shot: bool) -> str:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    p.add_argument("--reproduce", type=Path, required=True, help="a sweep of mbn reproduce")
+    p.add_argument("--reproduce", type=Path, help="a sweep of mbn reproduce")
+    p.add_argument("--new-behaviours", type=Path, help="a sweep of mbn run new-behaviours")
     p.add_argument(
-        "--new-behaviours", type=Path, required=True, help="a sweep of mbn run new-behaviours"
+        "--combine", type=Path, nargs="+", help="tables of installments (--json) as one table"
     )
     p.add_argument("--zero-shot", action="store_true", help="each zero-shot maze, per seed")
     p.add_argument("--json", type=Path, help="also write the table's figures here")
     args = p.parse_args()
-    data = table(args.reproduce, args.new_behaviours)
+    if args.combine:
+        if args.reproduce or args.new_behaviours:
+            p.error("--combine takes tables, not sweeps")
+        data = combine(args.combine)
+    elif args.reproduce and args.new_behaviours:
+        data = table(args.reproduce, args.new_behaviours)
+    else:
+        p.error("give --reproduce and --new-behaviours, or --combine")
     print(markdown(data, args.zero_shot))
     if args.json:
         tmp = args.json.with_suffix(".tmp")
