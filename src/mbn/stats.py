@@ -1,9 +1,15 @@
 """Statistics shared by the pipeline's checks and the reports: pass/fail counts (the Wilson
 interval), and runs compared by the evaluations they needed to succeed, unsuccessful runs
 censored at the budget (quantiles, the fraction solved against evaluations, the ratio of
-medians with a bootstrap interval, the Mann–Whitney U test and the Vargha–Delaney A12), and a
-split's performance profile. A base module (NumPy only): the experiments, their reports and the
-pictures (:mod:`mbn.viz`) all read it."""
+medians with a bootstrap interval, the Mann–Whitney U test and the Vargha–Delaney A12), the
+statistics of runs as rliable reports them (the interquartile mean and the probability of
+improvement, each with a bootstrap interval; Agarwal et al., NeurIPS 2021), Holm's correction
+across the comparisons of one table, and a split's performance profile.
+
+Where SciPy computes the same thing it does (``scipy.stats.binomtest(...).proportion_ci``,
+``mannwhitneyu``, ``bootstrap``, ``trim_mean``); ``tests/experiments/test_stats.py`` checks its
+figures against the formulas written out. A base module (NumPy and SciPy only): the
+experiments, their reports and the pictures (:mod:`mbn.viz`) all read it."""
 
 from __future__ import annotations
 
@@ -16,9 +22,13 @@ __all__ = [
     "Z95",
     "censored_quantiles",
     "describe",
+    "holm",
+    "iqm",
+    "iqm_interval",
     "mann_whitney",
     "median_ratio",
     "performance_profile",
+    "probability_of_improvement",
     "solved_curve",
     "wilson_interval",
 ]
@@ -43,18 +53,22 @@ def describe(values: Sequence[float]) -> dict[str, float]:
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z95) -> tuple[float, float]:
-    """The Wilson score interval of ``successes`` in ``trials`` (``(nan, nan)`` without
-    trials). It holds the observed rate: at 0 and at ``trials`` successes one end is that rate
-    exactly (in floats the formula's end can miss it by a rounding error)."""
+    """The Wilson score interval of ``successes`` in ``trials`` at the two-sided level of the
+    normal quantile ``z`` (``(nan, nan)`` without trials): SciPy's
+    ``binomtest(successes, trials).proportion_ci(method="wilson")``. It holds the observed
+    rate: at 0 and at ``trials`` successes one end is that rate exactly."""
     if trials <= 0:
         return math.nan, math.nan
     if not 0 <= successes <= trials:
         raise ValueError(f"successes {successes} not in [0, {trials}]")
-    n, p = float(trials), successes / trials
-    denom = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half))
+    from scipy.stats import binomtest
+
+    level = math.erf(z / math.sqrt(2))
+    ci = binomtest(int(successes), int(trials)).proportion_ci(
+        confidence_level=level, method="wilson"
+    )
+    p = successes / trials
+    return min(p, float(ci.low)), max(p, float(ci.high))
 
 
 # --- runs compared: evaluations to success, censored at the budget -------------------------
@@ -206,43 +220,129 @@ def mann_whitney(
     """The Mann–Whitney U test of evaluations to success, ``a`` against ``b`` (unsuccessful runs
     tied with each other above every solved run, a run solved at ``budget`` included; ranks
     averaged over ties): ``U`` of ``a``, the two-sided p-value of the normal approximation with
-    the tie correction (and a continuity correction of 0.5), and the Vargha–Delaney effect size
-    ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a`` needs more evaluations than
-    one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
+    the tie correction and a continuity correction of 0.5 (SciPy's ``mannwhitneyu(...,
+    method="asymptotic")``; 1 where every run ties), its signed normal deviate ``z``, and the
+    Vargha–Delaney effect size ``A12`` = P(a > b) + P(a = b)/2: the chance that a run of ``a``
+    needs more evaluations than one of ``b`` (0.5: no difference; below 0.5, ``a`` is faster).
     """
+    from scipy.stats import mannwhitneyu, norm
+
     ta, tb = _times_or_inf(a, budget), _times_or_inf(b, budget)
     m, n = ta.size, tb.size
     if m == 0 or n == 0:
         return {"U": None, "p": None, "A12": None, "z": None}
     pooled = np.concatenate([ta, tb])
-    ranks = _average_ranks(pooled)
-    u = float(ranks[:m].sum() - m * (m + 1) / 2)
-    a12 = u / (m * n)
-    mean = m * n / 2
-    _, counts = np.unique(pooled, return_counts=True)
-    N = m + n
-    var = m * n / 12 * ((N + 1) - float((counts**3 - counts).sum()) / (N * (N - 1)))
-    if var <= 0:  # every run tied
-        return {"U": u, "p": 1.0, "A12": a12, "z": 0.0}
-    z = (abs(u - mean) - 0.5) / math.sqrt(var)
-    z = max(z, 0.0)
-    p = math.erfc(z / math.sqrt(2))
-    return {"U": u, "p": min(1.0, p), "A12": a12, "z": math.copysign(z, u - mean)}
+    if np.all(pooled == pooled[0]):  # every run tied: no evidence either way
+        return {"U": m * n / 2, "p": 1.0, "A12": 0.5, "z": 0.0}
+    # infinities (unsolved runs) rank above every number and tie with each other
+    result = mannwhitneyu(ta, tb, alternative="two-sided", method="asymptotic", use_continuity=True)
+    u = float(result.statistic)
+    p = min(1.0, float(result.pvalue))
+    z = float(norm.isf(p / 2)) if p < 1 else 0.0
+    return {"U": u, "p": p, "A12": u / (m * n), "z": math.copysign(z, u - m * n / 2)}
 
 
-def _average_ranks(x: np.ndarray) -> np.ndarray:
-    """Ranks from 1, ties given the mean of the ranks they span."""
-    order = np.argsort(x, kind="stable")
-    ranks = np.empty(x.size, dtype=float)
-    sx = x[order]
-    i = 0
-    while i < x.size:
-        j = i
-        while j + 1 < x.size and sx[j + 1] == sx[i]:
-            j += 1
-        ranks[order[i : j + 1]] = (i + j) / 2 + 1
-        i = j + 1
-    return ranks
+# --- runs compared as rliable compares them -----------------------------------------------------
+
+
+def iqm(values: Sequence[float] | np.ndarray) -> float:
+    """The interquartile mean: the mean of the middle half of ``values`` (SciPy's
+    ``trim_mean(values, 0.25)``; NaN for none), robust to the outlying runs a mean is not and
+    using more of them than a median (Agarwal et al. 2021)."""
+    from scipy.stats import trim_mean
+
+    a = np.asarray(values, float)
+    return float(trim_mean(a, 0.25)) if a.size else math.nan
+
+
+def iqm_interval(
+    values: Sequence[float], *, seed: int = 0, resamples: int = 2000, level: float = 0.95
+) -> dict[str, float]:
+    """The interquartile mean of ``values`` with a percentile bootstrap interval over the runs
+    (SciPy's ``bootstrap``, ``seed``: its generator)."""
+    from scipy.stats import bootstrap
+
+    a = np.asarray(values, float)
+    point = iqm(a)
+    if a.size < 2 or np.all(a == a[0]):
+        return {"iqm": point, "low": point, "high": point}
+    res = bootstrap(
+        (a,),
+        lambda x, axis: _trim_mean(x, axis),
+        n_resamples=resamples,
+        confidence_level=level,
+        method="percentile",
+        rng=np.random.default_rng(seed),
+    )
+    return {
+        "iqm": point,
+        "low": float(res.confidence_interval.low),
+        "high": float(res.confidence_interval.high),
+    }
+
+
+def _trim_mean(x: np.ndarray, axis: int) -> np.ndarray:
+    from scipy.stats import trim_mean
+
+    return np.asarray(trim_mean(x, 0.25, axis=axis))
+
+
+def probability_of_improvement(
+    a: Sequence[float],
+    b: Sequence[float],
+    *,
+    seed: int = 0,
+    resamples: int = 2000,
+    level: float = 0.95,
+) -> dict[str, float]:
+    """P(a > b) + P(a = b)/2 over runs of ``a`` and ``b`` (a score where higher is better: a
+    success rate; for evaluations to success pass them negated), with a percentile bootstrap
+    interval that resamples each side's runs apart (stratified by side, as rliable does;
+    SciPy's ``bootstrap``, ``seed``: its generator). 0.5: neither is better."""
+    from scipy.stats import bootstrap
+
+    x, y = np.asarray(a, float), np.asarray(b, float)
+    if x.size == 0 or y.size == 0:
+        return {"p": math.nan, "low": math.nan, "high": math.nan}
+    point = float(_improvement(x, y, -1))
+    if x.size < 2 or y.size < 2 or np.all(np.concatenate([x, y]) == x[0]):
+        return {"p": point, "low": point, "high": point}
+    res = bootstrap(
+        (x, y),
+        _improvement,
+        n_resamples=resamples,
+        confidence_level=level,
+        method="percentile",
+        rng=np.random.default_rng(seed),
+    )
+    return {
+        "p": point,
+        "low": float(res.confidence_interval.low),
+        "high": float(res.confidence_interval.high),
+    }
+
+
+def _improvement(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    """P(x > y) + P(x = y)/2 along ``axis`` (the runs) of each batch."""
+    xa, ya = np.moveaxis(x, axis, -1), np.moveaxis(y, axis, -1)
+    gt = (xa[..., :, None] > ya[..., None, :]).mean(axis=(-2, -1))
+    eq = (xa[..., :, None] == ya[..., None, :]).mean(axis=(-2, -1))
+    return np.asarray(gt + eq / 2)
+
+
+def holm(pvalues: Sequence[float | None]) -> list[float | None]:
+    """Holm's step-down adjustment of the p-values of one table's comparisons (Holm 1979):
+    the k-th smallest of m is multiplied by m - k + 1, then made non-decreasing and capped at 1;
+    an adjusted p-value below alpha rejects at family-wise error alpha. None (no test) stays
+    None and does not count among the m."""
+    idx = [i for i, p in enumerate(pvalues) if p is not None and not math.isnan(p)]
+    out: list[float | None] = [None] * len(pvalues)
+    m = len(idx)
+    running = 0.0
+    for k, i in enumerate(sorted(idx, key=lambda i: float(pvalues[i] or 0.0))):
+        running = max(running, min(1.0, (m - k) * float(pvalues[i] or 0.0)))
+        out[i] = running
+    return out
 
 
 def performance_profile(

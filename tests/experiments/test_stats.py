@@ -85,3 +85,61 @@ def test_median_ratio_and_its_interval():
     r = median_ratio(a, [None, None, 100], budget=1000, resamples=500)
     assert r["ratio"] == 0.0 and r["low"] == 0.0
     assert not math.isnan(r["undefined_resamples"])
+
+
+def _wilson_by_formula(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """The Wilson interval written out (the formula mbn computed by hand before SciPy)."""
+    p = k / n
+    denom = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    return min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half))
+
+
+@pytest.mark.parametrize("n", [1, 5, 10, 11, 20, 187, 200, 204, 1000])
+def test_the_wilson_interval_is_the_formula_s_to_a_rounding_error(n):
+    from mbn.stats import wilson_interval
+
+    for k in range(n + 1):
+        lo, hi = wilson_interval(k, n)
+        want = _wilson_by_formula(k, n)
+        assert lo == pytest.approx(want[0], abs=1e-15) and hi == pytest.approx(want[1], abs=1e-15)
+    # the observed rate at the ends exactly, nothing without trials
+    assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0
+    assert all(math.isnan(x) for x in wilson_interval(0, 0))
+
+
+def test_iqm_is_the_mean_of_the_middle_half_with_a_bootstrap_interval():
+    from mbn.stats import iqm, iqm_interval
+
+    values = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 100.0]  # the middle half: 2, 3, 4, 5
+    assert iqm(values) == pytest.approx(3.5, abs=1e-12)
+    out = iqm_interval(values, seed=1)
+    assert out["iqm"] == pytest.approx(3.5) and out["low"] <= 3.5 <= out["high"]
+    assert out["high"] < 100  # the outlier does not carry the interval
+    assert iqm_interval(values, seed=1) == out  # same seed, same interval
+    same = iqm_interval([0.7] * 5)
+    assert same["low"] == same["iqm"] == same["high"] == pytest.approx(0.7, abs=1e-15)
+    assert math.isnan(iqm([]))
+
+
+def test_probability_of_improvement_counts_pairs_and_half_the_ties():
+    from mbn.stats import probability_of_improvement
+
+    a, b = [1.0, 1.0, 0.9, 0.8], [0.9, 0.7, 0.7, 0.6]
+    # pairs: 1 > all 4 (x2), 0.9 > 3 and ties 1, 0.8 > 3: (4 + 4 + 3.5 + 3) / 16
+    got = probability_of_improvement(a, b, seed=3)
+    assert got["p"] == pytest.approx(14.5 / 16, abs=1e-12)
+    assert 0.5 < got["low"] <= got["p"] <= got["high"] <= 1.0
+    back = probability_of_improvement(b, a, seed=3)
+    assert back["p"] == pytest.approx(1 - got["p"], abs=1e-12)
+    assert probability_of_improvement([0.5] * 3, [0.5] * 4)["p"] == 0.5
+
+
+def test_holm_adjusts_the_smallest_p_by_the_number_of_comparisons_step_down():
+    from mbn.stats import holm
+
+    # Holm (1979) step-down: sorted 0.01, 0.02, 0.03, 0.04 x 4, 3, 2, 1 -> 0.04, 0.06, 0.06, 0.06
+    assert holm([0.03, 0.01, 0.04, 0.02]) == pytest.approx([0.06, 0.04, 0.06, 0.06])
+    assert holm([0.5, None, 0.9]) == pytest.approx([1.0, None, 1.0], nan_ok=True)
+    assert holm([0.001]) == [0.001] and holm([]) == []

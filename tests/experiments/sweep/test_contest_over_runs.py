@@ -66,7 +66,19 @@ def test_statistics_count_runs_and_censor_the_unsolved():
         for w in s["contenders"]
     }
     vs = s["versus"]["neighbour"]
-    assert vs["mann_whitney"] == mann_whitney(times["programs"], times["neighbour"], BUDGET)
+    u = mann_whitney(times["programs"], times["neighbour"], BUDGET)
+    assert {k: v for k, v in vs["mann_whitney"].items() if k != "p_holm"} == u
+    # Holm across the rule's two comparisons: the smaller p doubled, the larger at least it
+    ps = {who: s["versus"][who]["mann_whitney"]["p"] for who in ("scratch", "neighbour")}
+    low, high = sorted(ps, key=lambda w: ps[w])
+    assert s["versus"][low]["mann_whitney"]["p_holm"] == pytest.approx(min(1, 2 * ps[low]))
+    assert s["versus"][high]["mann_whitney"]["p_holm"] == pytest.approx(
+        max(min(1, 2 * ps[low]), ps[high])
+    )
+    # programs needs fewer evaluations than neighbour in most pairs of runs
+    poi = vs["improvement"]
+    assert 0.5 < poi["p"] <= 1 and poi["low"] <= poi["p"] <= poi["high"]
+    assert poi["p"] == pytest.approx(1 - u["A12"], abs=1e-12)  # the same pairs, seen from b
     assert vs["ratio"] == median_ratio(times["programs"], times["neighbour"], BUDGET, seed=0)
     assert vs["ratio"]["ratio"] == pytest.approx(540 / 900)
     # scratch's median is censored: programs' ratio to it is 0

@@ -5,7 +5,9 @@ Per rule and contender: the runs that reached test success within the budget (k 
 95 %), the median [IQR] of evaluations to success with unsuccessful runs censored at the budget,
 the fraction of runs solved against evaluations, and the runs whose final best passes the test.
 Per rule, program search against each dynamics contender: the ratio of median evaluations with
-a bootstrap 95 % interval, the Mann–Whitney U test and the Vargha–Delaney A12. The median run
+a bootstrap 95 % interval, the Mann–Whitney U test (its p-value also Holm-adjusted across the
+rule's comparisons), the Vargha–Delaney A12 and the probability of improvement with a
+stratified bootstrap interval (``mbn.stats``). The median run
 of each contender (by evaluations to success, the lower of the two middle runs of an even
 count) is named, with its controller file; and every run's evaluations, seed by seed.
 """
@@ -20,8 +22,10 @@ from typing import Any
 from mbn.experiments.pipeline.document import Section
 from mbn.stats import (
     censored_quantiles,
+    holm,
     mann_whitney,
     median_ratio,
+    probability_of_improvement,
     solved_curve,
     wilson_interval,
 )
@@ -201,12 +205,25 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
                 versus[who] = {
                     "ratio": median_ratio(a, b, budget, seed=BOOTSTRAP_SEED),
                     "mann_whitney": mann_whitney(a, b, budget),
+                    # fewer evaluations is better: the scores are the evaluations negated, an
+                    # unsolved run -infinity (ties with the other unsolved runs)
+                    "improvement": probability_of_improvement(
+                        _scores(a), _scores(b), seed=BOOTSTRAP_SEED
+                    ),
                 }
+            adjusted = holm([v["mann_whitney"]["p"] for v in versus.values()])
+            for v, p_holm in zip(versus.values(), adjusted, strict=True):
+                v["mann_whitney"]["p_holm"] = p_holm
         per_rule[rule] = {"budget": budget, "contenders": contenders, "versus": versus}
     ways = sorted({str(r.get("program_checks", "network")) for r in runs.values()})
     out = {"rules": per_rule, "reference": REFERENCE, "program_checks": ways}
     out["claim"] = claim_over_runs(out)
     return out
+
+
+def _scores(times: list[float | None]) -> list[float]:
+    """Evaluations to success as scores where higher is better (an unsolved run: -inf)."""
+    return [-math.inf if t is None else -float(t) for t in times]
 
 
 def _ratio_text(r: Mapping[str, Any]) -> str:
@@ -291,13 +308,18 @@ def contest_over_runs(
         vs_rows = []
         for who, v in data["versus"].items():
             u = v["mann_whitney"]
+            poi = v.get("improvement")  # sweeps summarized before it: none
             vs_rows.append(
                 [
                     f"{stats['reference']} : {who}",
                     _ratio_text(v["ratio"]),
                     "–" if u["U"] is None else f"{u['U']:.1f}",
                     "–" if u["p"] is None else f"{u['p']:.3g}",
+                    "–" if u.get("p_holm") is None else f"{u['p_holm']:.3g}",
                     "–" if u["A12"] is None else f"{u['A12']:.2f}",
+                    "–"
+                    if poi is None or math.isnan(poi["p"])
+                    else f"{poi['p']:.2f} [{poi['low']:.2f}, {poi['high']:.2f}]",
                 ]
             )
         secs.append(
@@ -339,11 +361,26 @@ def contest_over_runs(
                         "or an end of its interval can be 0 or unbounded); "
                         "the Mann–Whitney U test of the evaluations (unsolved runs tied with each "
                         "other, above every solved run; two-sided, normal approximation with "
-                        "tie correction) and the "
+                        "tie correction), its p-value adjusted by Holm's step-down method across "
+                        "the comparisons of this table (p Holm), the "
                         "Vargha–Delaney A12 = P(program search needs more) (0.5: no "
-                        "difference; below 0.5, program search is faster).",
+                        "difference; below 0.5, program search is faster), and the probability "
+                        "of improvement as rliable reports it, P(program search needs fewer) "
+                        "with ties counted half, with a bootstrap 95 % interval that resamples "
+                        "each contender's runs apart (2000 resamples).",
                     ],
-                    table=(["contenders", "ratio [95 %]", "U", "p", "A12"], vs_rows),
+                    table=(
+                        [
+                            "contenders",
+                            "ratio [95 %]",
+                            "U",
+                            "p",
+                            "p Holm",
+                            "A12",
+                            "P(improvement) [95 %]",
+                        ],
+                        vs_rows,
+                    ),
                 )
             )
     claim = stats["claim"]
