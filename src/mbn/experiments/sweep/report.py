@@ -74,13 +74,6 @@ def _clock(seconds: float | None) -> str:
     return f"{h} h {m:02d} min" if h else (f"{m} min {s:02d} s" if m else f"{s} s")
 
 
-def has_run_targets(summ: SweepSummary) -> bool:
-    """Whether the sweep's experiment judges each run by targets (the reproduction, the new
-    behaviours) or only measures the runs (programs against dynamics, the ablations, the noise
-    levels: no per-run target)."""
-    return summ.judged
-
-
 def summary_line(data: dict[str, Any]) -> str:
     """The sweep in one line: seeds meeting every target, failures named, wall time."""
     sweep = SweepFile.pick(data, SWEEP_FILE)
