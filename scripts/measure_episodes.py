@@ -4,7 +4,10 @@ For each arm (a named ``[episodes]`` / ``[followers]`` override of ``mbn reprodu
 and each seed, run the ``rf`` stage of ``mbn reproduce`` (with the multiplier it needs; with
 ``--lf`` the LF search and LF as well) into ``OUT/ARM/seed-S``, then judge its right-follower
 (and left-follower) on the ``grid`` family's **validation** split
-(100 mazes, every start mark once, as ``mbn evaluate --maze grid/validation``). One JSON line per
+(100 mazes, every start mark once, as ``mbn evaluate --maze grid/validation``), or on the mazes
+``--judge`` names (the ``select-*`` arms choose among candidates on the validation split, so
+they are judged on train mazes outside every run's pool, ``grid/train:900000-900099``; how many
+of the judged mazes were in the run's pool is recorded). One JSON line per
 arm and seed is appended to ``OUT/measure.jsonl``: the validation figures, the stage's seconds
 and robot-steps. Done pairs are skipped, so the script resumes where it stopped (a stage resumes
 from its checkpoints).
@@ -57,6 +60,13 @@ ARMS: dict[str, dict[str, dict[str, Any]]] = {
     "lean": _arm(4, 4, 10, 2, rf=150, lf=35),
     # the same, drawn again every N generations for other N: never, every generation, 50
     **{f"lean-n{n}": _arm(4, 4, n, 2, rf=150, lf=35) for n in (0, 1, 50)},
+    # the final choice among candidates (RF restarts, LF finalists) on the test's own criterion:
+    # every start mark once in each of the validation split's 100 mazes, a maze passing with
+    # every trial, 90 % of them passing (the defaults: 20 mazes, 2 starts a mark); judged on
+    # mazes no run chooses on (--judge grid/train:900000-900099), never the validation split it
+    # chose on
+    "select-default": {},
+    "select-val100": {"validation": {"split_mazes": 100, "split_jitter_per_mark": 1}},
     # the paper's protocol (docs/configs/paper.toml)
     "crossroads": {
         "episodes": {"kind": "crossroads"},
@@ -89,12 +99,15 @@ def _done(out: Path) -> set[tuple[str, int]]:
     return {(r["arm"], r["seed"]) for r in map(json.loads, path.read_text().splitlines())}
 
 
-def measure(out: Path, arm: str, seed: int, lf: bool = False) -> dict[str, Any]:
+def measure(
+    out: Path, arm: str, seed: int, lf: bool = False, judge_on: str = "grid/validation"
+) -> dict[str, Any]:
     from mbn.config import read_toml
     from mbn.controllers import make_controller, read_controller_spec
     from mbn.experiments.generalization import evaluate_mazes
     from mbn.experiments.pipeline.runner import run_experiment
     from mbn.experiments.reproduce import REPRODUCE
+    from mbn.experiments.stages.settings import EpisodeSettings
     from mbn.experiments.trials import TrialSpec
     from mbn.precision import ROBOT, scope
     from mbn.world.mazes.load import load_mazes
@@ -118,7 +131,19 @@ def measure(out: Path, arm: str, seed: int, lf: bool = False) -> dict[str, Any]:
     wall = time.perf_counter() - t0
     timings = json.loads((folder / "timings.json").read_text())
     rf = json.loads((folder / "stages" / "rf.json").read_text())
-    mazes, split = load_mazes("grid/validation")
+    mazes, split = load_mazes(judge_on)
+    # mazes of the family's train split that the run's episodes were drawn from (its pool)
+    from mbn.experiments.maze_task import MazeTask
+
+    episodes = config.get(EpisodeSettings)
+    pool = set(
+        MazeTask(
+            family=episodes.family,
+            pool=episodes.pool,
+            seed=REPRODUCE.seeds(seed)["crossroad_jitter"],
+        ).pool_seeds()
+    )
+    in_pool = sum(int(m.name.split(":")[1]) in pool for m in mazes if ":" in m.name)
 
     def judge(name: str, behavior: str) -> dict[str, Any]:
         with scope(ROBOT):  # as `mbn evaluate` judges
@@ -132,6 +157,7 @@ def measure(out: Path, arm: str, seed: int, lf: bool = False) -> dict[str, Any]:
         "seed": seed,
         "settings": ARMS[arm],
         "split": split,
+        "judged_mazes_in_training_pool": in_pool,
         "pooled": judged["pooled"],
         "mazes_at_95": judged["mazes_at_95"],
         "rf_seconds": timings["stages"]["rf"],
@@ -191,7 +217,16 @@ def main() -> int:
         action="store_true",
         help="also run the LF search and LF, and judge LF on the validation split (left)",
     )
+    p.add_argument(
+        "--judge",
+        default="grid/validation",
+        help="the mazes the followers are judged in (default the validation split; the "
+        "select-* arms choose on it, so judge them elsewhere: grid/train:900000-900099)",
+    )
     args = p.parse_args()
+    if args.judge.split(":")[0].endswith("/test"):
+        print("--judge: the test split is only ever a test", file=sys.stderr)
+        return 2
     if args.summary:
         summary(args.out)
         return 0
@@ -205,7 +240,7 @@ def main() -> int:
         for arm in arms:
             if (arm, seed) in _done(args.out):
                 continue
-            row = measure(args.out, arm, seed, lf=args.lf)
+            row = measure(args.out, arm, seed, lf=args.lf, judge_on=args.judge)
             with open(args.out / "measure.jsonl", "a") as f:
                 f.write(json.dumps(row) + "\n")
             print(
