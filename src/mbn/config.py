@@ -38,6 +38,7 @@ __all__ = [
     "Settings",
     "TomlDocument",
     "from_mapping",
+    "from_recorded",
     "plain_text",
     "read_toml",
     "section_description",
@@ -272,6 +273,15 @@ def read_toml(path: str | Path) -> TomlDocument:
         if m:
             lines.setdefault((table, m.group(1)), number)
     return TomlDocument(path=path, data=data, lines=lines)
+
+
+def from_recorded(cls: type[S], table: Any, where: Any = None) -> S:
+    """Settings ``cls`` as a run recorded them (``table``: its section of a recorded config;
+    missing: ``{}``): a key the run was recorded without reads as it ran before the key existed
+    (``cls.recorded_before``), then the class's default; ``where`` as :func:`from_mapping`."""
+    if isinstance(table, dict):
+        table = {**cls.recorded_before, **table}
+    return from_mapping(cls, table, where=where)
 
 
 def from_mapping(

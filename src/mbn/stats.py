@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -260,25 +261,30 @@ def iqm_interval(
 ) -> dict[str, float]:
     """The interquartile mean of ``values`` with a percentile bootstrap interval over the runs
     (SciPy's ``bootstrap``, ``seed``: its generator)."""
-    from scipy.stats import bootstrap
-
     a = np.asarray(values, float)
     point = iqm(a)
     if a.size < 2 or np.all(a == a[0]):
         return {"iqm": point, "low": point, "high": point}
+    low, high = _bootstrap_ends((a,), _trim_mean, seed, resamples, level)
+    return {"iqm": point, "low": low, "high": high}
+
+
+def _bootstrap_ends(
+    samples: tuple[np.ndarray, ...], statistic: Any, seed: int, resamples: int, level: float
+) -> tuple[float, float]:
+    """The ends of SciPy's percentile bootstrap interval of ``statistic`` (vectorised over an
+    ``axis``), each sample resampled apart (``seed``: its NumPy generator)."""
+    from scipy.stats import bootstrap
+
     res = bootstrap(
-        (a,),
-        lambda x, axis: _trim_mean(x, axis),
+        samples,
+        statistic,
         n_resamples=resamples,
         confidence_level=level,
         method="percentile",
         rng=np.random.default_rng(seed),
     )
-    return {
-        "iqm": point,
-        "low": float(res.confidence_interval.low),
-        "high": float(res.confidence_interval.high),
-    }
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 def _trim_mean(x: np.ndarray, axis: int) -> np.ndarray:
@@ -299,27 +305,14 @@ def probability_of_improvement(
     success rate; for evaluations to success pass them negated), with a percentile bootstrap
     interval that resamples each side's runs apart (stratified by side, as rliable does;
     SciPy's ``bootstrap``, ``seed``: its generator). 0.5: neither is better."""
-    from scipy.stats import bootstrap
-
     x, y = np.asarray(a, float), np.asarray(b, float)
     if x.size == 0 or y.size == 0:
         return {"p": math.nan, "low": math.nan, "high": math.nan}
     point = float(_improvement(x, y, -1))
     if x.size < 2 or y.size < 2 or np.all(np.concatenate([x, y]) == x[0]):
         return {"p": point, "low": point, "high": point}
-    res = bootstrap(
-        (x, y),
-        _improvement,
-        n_resamples=resamples,
-        confidence_level=level,
-        method="percentile",
-        rng=np.random.default_rng(seed),
-    )
-    return {
-        "p": point,
-        "low": float(res.confidence_interval.low),
-        "high": float(res.confidence_interval.high),
-    }
+    low, high = _bootstrap_ends((x, y), _improvement, seed, resamples, level)
+    return {"p": point, "low": low, "high": high}
 
 
 def _improvement(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:

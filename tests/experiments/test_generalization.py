@@ -21,6 +21,7 @@ from mbn.experiments.generalization import (
 )
 from mbn.world.mazes import families
 from mbn.world.rules import open_mask
+from tests.split_records import split_record_of
 
 
 @pytest.mark.parametrize(
@@ -66,28 +67,6 @@ def test_failures_are_counted_once_by_their_first_cause():
     assert failure_causes(verdict) == {"failed": 4, "wrong_exit": 1, "stalled": 1, "timed_out": 2}
 
 
-def _record(successes, trials=10):
-    from mbn.experiments.generalization import Failures, MazeRow, Pooled, SplitRecord
-
-    mazes = [
-        MazeRow(maze=f"m{k}", trials=trials, successes=s, timed_out=0)
-        for k, s in enumerate(successes)
-    ]
-    total, n = sum(successes), trials * len(mazes)
-    at = sum(s >= 0.95 * trials for s in successes)
-    return SplitRecord(
-        mazes=mazes,
-        pooled=Pooled(
-            trials=n, successes=total, timed_out=0, success_rate=total / n, wilson95=[0.0, 1.0]
-        ),
-        mazes_at_95=at,
-        fraction_of_mazes_at_95=at / len(mazes),
-        seconds=10.0,
-        failures=Failures(failed=n - total, wrong_exit=0, stalled=n - total, timed_out=0),
-        meets_targets=False,  # not read: the targets are judged from the figures
-    )
-
-
 @pytest.mark.parametrize(
     ("successes", "meets"),
     [
@@ -98,8 +77,10 @@ def _record(successes, trials=10):
     ],
 )
 def test_the_generalization_targets_are_the_pooled_rate_and_the_share_of_mazes(successes, meets):
-    assert meets_generalization(_record(successes)) is meets
-    assert meets_generalization(_record(successes).to_json()) is meets  # as results.json has it
+    assert meets_generalization(split_record_of(successes)) is meets
+    assert (
+        meets_generalization(split_record_of(successes).to_json()) is meets
+    )  # as results.json has it
 
 
 def test_the_performance_profile_is_the_share_of_mazes_at_each_rate():

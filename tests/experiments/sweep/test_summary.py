@@ -9,6 +9,7 @@ from scipy.stats import binomtest
 
 from mbn.experiments.sweep.summary import describe, seed_verdict, summarize, wilson_interval
 from mbn.experiments.sweep.targets import TARGETS, meets
+from tests.split_records import split_record_of
 
 
 def test_wilson_interval_known_values():
@@ -129,24 +130,7 @@ def test_claims_naming_a_run_s_own_connections_count_together():
 
 def _split(successes: list[int], trials: int = 10) -> dict:
     """A split's record as ``results.json`` keeps it."""
-    from mbn.experiments.generalization import Failures, MazeRow, Pooled, SplitRecord
-
-    total, n = sum(successes), trials * len(successes)
-    at = sum(s * 100 >= 95 * trials for s in successes)
-    return SplitRecord(
-        mazes=[
-            MazeRow(maze=f"m{k}", trials=trials, successes=s, timed_out=0)
-            for k, s in enumerate(successes)
-        ],
-        pooled=Pooled(
-            trials=n, successes=total, timed_out=0, success_rate=total / n, wilson95=[0.0, 1.0]
-        ),
-        mazes_at_95=at,
-        fraction_of_mazes_at_95=at / len(successes),
-        seconds=60.0,
-        failures=Failures(failed=n - total, wrong_exit=0, stalled=n - total, timed_out=0),
-        meets_targets=False,
-    ).to_json()
+    return split_record_of(successes, trials).to_json()
 
 
 def test_generalization_targets_are_judged_per_seed_apart_from_the_run_targets():

@@ -105,7 +105,7 @@ def write_report(rundir: RunDir) -> None:
 
     run = RunResults.pick(read_json(rundir.results), str(rundir.results))
     stages = {name: rundir.read_stage(name) for name in run.stages}
-    data = rundir.read_result(AblationsStage)
+    data = AblationsStage.from_json(stages[AblationsStage.name])
     rows = claims(stages)
     file = "figures/ablations.png"
     ablation_bars({k: v.to_json() for k, v in data.variants.items()}, rundir.root / file)

@@ -21,7 +21,7 @@ from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.programs import ProgramsStage
 from mbn.experiments.stages.protocol import AGREEMENT_TARGET, ROBUST_TARGET
 from mbn.experiments.stages.records import Tally, TrialSummary
-from mbn.experiments.stages.tests3 import MarksRecording, Tests3Stage
+from mbn.experiments.stages.tests3 import MARKS_RECORD, MarksRecording, Tests3Stage
 from mbn.io import read_json
 from mbn.networks.ctrnn import firing_rate
 from mbn.notation import connection_name
@@ -139,7 +139,7 @@ def _pictures(rundir: RunDir, stages: dict[str, dict[str, Any]]) -> list[tuple[s
     from mbn.viz.behaviours import code_traces, rule_paths
 
     t3 = rundir.read_result(Tests3Stage)
-    rec = MarksRecording.read(rundir)
+    rec = rundir.load_record_as(MARKS_RECORD, MarksRecording)
     maze = load_maze(t3.mazes.test)
     rules = t3.tile_rules
     initial = t3.initial if t3.initial not in (None, "none") else rules[0]
@@ -198,7 +198,7 @@ def write_report(rundir: RunDir) -> None:
     """``report.md``, ``report.html`` and the figures of a finished run."""
     run = RunResults.pick(read_json(rundir.results), str(rundir.results))
     stages = {name: rundir.read_stage(name) for name in run.stages}
-    im = rundir.read_result(IMFullStage)
+    im = IMFullStage.from_json(stages[IMFullStage.name])
     rows = [ClaimRow.from_json(c) for c in claims(stages)]
     tallies = {name: Tally.pick(found, f"test {name}") for name, found in run.tests.items()}
     secs = [

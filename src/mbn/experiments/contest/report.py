@@ -9,8 +9,8 @@ from mbn.experiments.contest.over_runs import CLAIM_2016, CRITERION, checks_text
 from mbn.experiments.pipeline import RunDir
 from mbn.experiments.pipeline.document import Section, claims_section, write_document
 from mbn.experiments.pipeline.results import RunResults
-from mbn.experiments.stages.contest import ContestRun, ContestStage
-from mbn.experiments.stages.contest3 import TASK, Contest3Stage
+from mbn.experiments.stages.contest import ContestResult, ContestRun, ContestStage
+from mbn.experiments.stages.contest3 import TASK, Contest3Result, Contest3Stage
 from mbn.experiments.stages.records import Tally
 from mbn.io import read_json
 
@@ -19,14 +19,19 @@ __all__ = ["TITLE", "claims", "write_report"]
 TITLE = "mbn: learning programs against learning dynamics"
 
 
-def _runs(stages: dict[str, dict[str, Any]]) -> dict[str, dict[str, ContestRun]]:
+def _records(stages: dict[str, dict[str, Any]]) -> tuple[ContestResult, Contest3Result | None]:
+    """The contest's record and the three-behaviour task's (None where the run has none)."""
+    three = stages.get(Contest3Stage.name)
+    return (
+        ContestStage.from_json(stages[ContestStage.name]),
+        None if three is None else Contest3Stage.from_json(three),
+    )
+
+
+def _runs(contest: ContestResult, three: Contest3Result | None) -> dict[str, dict[str, ContestRun]]:
     """By rule (the three-behaviour task's among them, where the run has it), each contender's
     run as the report reads it."""
-    contest = ContestStage.from_json(stages[ContestStage.name])
-    three = stages.get(Contest3Stage.name)
-    runs = dict(contest.runs)
-    if three is not None:
-        runs.update(Contest3Stage.from_json(three).runs)
+    runs = {**contest.runs, **(three.runs if three else {})}
     return {
         rule: {who: ContestRun.pick(d, f"contest {rule} {who}") for who, d in by.items()}
         for rule, by in runs.items()
@@ -36,8 +41,12 @@ def _runs(stages: dict[str, dict[str, Any]]) -> dict[str, dict[str, ContestRun]]
 def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
     """One run cannot judge a claim about runs: the 2016 claim is stated with what this run
     measured and judged only over runs (``mbn sweep --experiment programs-vs-dynamics``)."""
+    return _claims(_runs(*_records(stages)))
+
+
+def _claims(runs: dict[str, dict[str, ContestRun]]) -> list[dict[str, Any]]:
     parts = []
-    for rule, by in _runs(stages).items():
+    for rule, by in runs.items():
         parts.append(
             f"{rule}: " + ", ".join(f"{who} {d.evaluations_text}" for who, d in by.items())
         )
@@ -70,10 +79,9 @@ def write_report(rundir: RunDir) -> None:
 
     run = RunResults.pick(read_json(rundir.results), str(rundir.results))
     stages = {name: rundir.read_stage(name) for name in run.stages}
-    contest = rundir.read_result(ContestStage)
-    three = rundir.read_result(Contest3Stage) if Contest3Stage.name in stages else None
+    contest, three = _records(stages)
     recorded = {**contest.runs, **(three.runs if three else {})}
-    runs = _runs(stages)
+    runs = _runs(contest, three)
     tests = {**contest.tests, **(three.tests if three else {})}
     details = {**contest.details, **(three.details if three else {})}
     tally = {name: Tally.pick(t, f"test {name}") for name, t in tests.items()}
@@ -146,7 +154,7 @@ def write_report(rundir: RunDir) -> None:
                 )
             ]
         ),
-        claims_section(claims(stages)),
+        claims_section(_claims(runs)),
         Section(
             "Contenders",
             table=(

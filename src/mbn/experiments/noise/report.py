@@ -97,7 +97,7 @@ def write_report(rundir: RunDir) -> None:
 
     run = RunResults.pick(read_json(rundir.results), str(rundir.results))
     stages = {name: rundir.read_stage(name) for name in run.stages}
-    data = rundir.read_result(NoiseLevelsStage)
+    data = NoiseLevelsStage.from_json(stages[NoiseLevelsStage.name])
     rows = claims(stages)
     images = []
     for channel in data.channels:

@@ -8,7 +8,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from mbn.config import Settings, TomlDocument, from_mapping
+from mbn.config import Settings, TomlDocument, from_mapping, from_recorded
 from mbn.errors import MbnInputError
 from mbn.experiments.pipeline.registry import Registry
 from mbn.experiments.pipeline.runconfig import RunConfig, RunSettings
@@ -103,11 +103,10 @@ class Experiment:
         sections = []
         for name, cls in types.items():
             # a section (or a key) the run was recorded without ran as it did before it existed
-            table = data.get(name, {})
-            if isinstance(table, dict):
-                table = {**cls.recorded_before, **table}
             sections.append(
-                from_mapping(cls, table, where=lambda key, t=name: f"{where}: config.{t}.{key}")
+                from_recorded(
+                    cls, data.get(name, {}), where=lambda key, t=name: f"{where}: config.{t}.{key}"
+                )
             )
         return RunConfig(tuple(sections))
 

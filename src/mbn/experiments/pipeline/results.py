@@ -226,12 +226,13 @@ class RunResults(Record):
         run was recorded without reads as it ran before it existed (``cls.recorded_before``,
         as :meth:`~mbn.experiments.pipeline.experiment.Experiment.config_from_dict` reads a
         ``run.json``), never as a default of today's code that changed since."""
-        from mbn.config import from_mapping
+        from mbn.config import from_recorded
 
-        table = self.config.get(cls.section, {})
-        if isinstance(table, Mapping):
-            table = {**cls.recorded_before, **table}
-        return from_mapping(cls, table, where=lambda key: f"{where}: config.{cls.section}.{key}")
+        return from_recorded(
+            cls,
+            self.config.get(cls.section, {}),
+            where=lambda key: f"{where}: config.{cls.section}.{key}",
+        )
 
     def recorded(self, cls: type[Any]) -> bool:
         """Whether the run recorded the section of settings class ``cls``."""

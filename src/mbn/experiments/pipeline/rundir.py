@@ -17,6 +17,7 @@ from __future__ import annotations
 import io
 import shutil
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -33,6 +34,7 @@ from mbn.io import atomic_open, expect_object, read_json, write_json_atomic
 __all__ = ["SUBFOLDERS", "Checkpoint", "RunDir"]
 
 D = TypeVar("D")
+T = TypeVar("T")
 
 #: The folders of a run.
 SUBFOLDERS = ("checkpoints", "stages", "records", "controllers", "figures")
@@ -223,6 +225,11 @@ class RunDir:
                 return {k: z[k] for k in z.files}
         except (OSError, ValueError) as exc:
             raise MbnInputError(f"{path}: unreadable record ({exc})") from None
+
+    def load_record_as(self, name: str, cls: Callable[..., T]) -> T:
+        """The record ``name`` as ``cls`` built from its arrays by field (a ``NamedTuple`` of
+        the record's fields, as the stage that saved it declares them)."""
+        return cls(**self.load_record(name))
 
     def save_trajectories(
         self, name: str, trajectories: dict[str, Any], fields: tuple[str, ...]

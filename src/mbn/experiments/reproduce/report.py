@@ -24,7 +24,7 @@ from mbn.experiments.stages.generalization import (
 from mbn.experiments.stages.im import IMStage
 from mbn.experiments.stages.lf import LFStage
 from mbn.experiments.stages.lf_search import LFSearchStage
-from mbn.experiments.stages.multiplier import MultiplierGrid, MultiplierStage
+from mbn.experiments.stages.multiplier import GRID_RECORD, MultiplierGrid, MultiplierStage
 from mbn.experiments.stages.pm import LatchedStart, PMStage
 from mbn.experiments.stages.protocol import TESTED
 from mbn.experiments.stages.rf import RFResult, RFStage
@@ -65,7 +65,7 @@ def _figures(rundir: RunDir, results: dict[str, Any]) -> _Figures:
     """Draw every figure into ``figures/``."""
     stages = {name: rundir.read_stage(name) for name in RunResults.pick(results).stages}
     mul = rundir.read_result(MultiplierStage)
-    grid = MultiplierGrid.read(rundir)
+    grid = rundir.load_record_as(GRID_RECORD, MultiplierGrid)
     draw_multiplier_error(
         grid.grid,
         grid.output,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import jax
 import numpy as np
@@ -86,11 +86,6 @@ class MultiplierGrid(NamedTuple):
 
     grid: np.ndarray
     output: np.ndarray
-
-    @classmethod
-    def read(cls, rundir: Any) -> MultiplierGrid:
-        """The grid of a run folder."""
-        return cls(**rundir.load_record(GRID_RECORD))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -96,11 +96,6 @@ class MarksRecording(NamedTuple):
     pm_y: np.ndarray
     success: np.ndarray
 
-    @classmethod
-    def read(cls, rundir: Any) -> MarksRecording:
-        """The recording of a run folder."""
-        return cls(**rundir.load_record(MARKS_RECORD))
-
 
 @dataclass(frozen=True, kw_only=True)
 class Tests3Result(Record):

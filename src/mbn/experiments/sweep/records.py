@@ -153,8 +153,10 @@ class RunEntry(Record):
 
 @dataclass(frozen=True, kw_only=True)
 class SweepSettingsRecord(Record):
-    """``sweep.json``'s ``settings``: the experiment (None: the reproduction), the seeds,
-    whether quick, and the recorded config."""
+    """``sweep.json``'s ``settings`` as :meth:`~mbn.experiments.sweep.run.SweepSettings.to_dict`
+    writes them, read back without building the config: the experiment (None: the
+    reproduction), the seeds, whether quick, and the recorded config (checked apart, by the
+    experiment's ``config_from_dict``)."""
 
     experiment: str | None = None
     seeds: list[int]
