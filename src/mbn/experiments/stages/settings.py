@@ -262,22 +262,24 @@ class ValidationSettings(Settings):
         source="docs/reproduce.md (Validation: which agreement holds in the tests)",
     )
     split_mazes: int = setting(
-        20,
+        100,
         doc="with maze episodes ([episodes] kind = maze): the candidates are checked in the "
         "first N mazes of the validation split of their family (the followers' and the "
         "programs': [episodes] family; an MBN's: the family of its tile kinds, tiles2 or "
-        "tiles3), instead of maze and extra_mazes",
+        "tiles3), instead of maze and extra_mazes (100: the whole split, as many mazes as the "
+        "test split judges)",
         low=1,
         high=100,
-        source="docs/generalization.md (Validation on the validation split)",
+        source="docs/generalization.md (Validation on the validation split: the test's criterion)",
     )
     split_jitter_per_mark: int = setting(
-        2,
-        doc="with maze episodes: starts per start mark of each validation maze (the mark and "
-        "jittered ones)",
+        1,
+        doc="with maze episodes: starts per start mark of each validation maze (the mark, then "
+        "jittered ones; 1: each mark once, the test split's trials, so a maze reaches target "
+        "as a test maze does)",
         low=1,
         high=1000,
-        source="docs/generalization.md (Validation on the validation split)",
+        source="docs/generalization.md (Validation on the validation split: the test's criterion)",
     )
     maze_share: float = setting(
         0.9,
