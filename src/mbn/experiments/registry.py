@@ -269,6 +269,12 @@ register(
     sweep="mbn.experiments.behaviours.sweep:NEW_BEHAVIOURS_SPEC",
 )
 register(
+    "switch",
+    "mbn.experiments.switch:SWITCH",
+    help="the switch between programs: the interpreter running mixtures of two programs, and "
+    "the equilibria of the networks they decode to (docs/switch.md)",
+)
+register(
     "noise",
     "mbn.experiments.noise:NOISE",
     help="the reproduction's controllers under each channel of the noise model, level by level "

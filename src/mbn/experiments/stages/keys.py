@@ -25,6 +25,7 @@ KEYS: dict[str, int] = {
     "contest3": 15,
     "generalization": 16,
     "generalization3": 17,
+    "interpolation": 18,
 }
 
 #: The first number the stages of experiments outside the library may take.
