@@ -273,6 +273,7 @@ register(
     "mbn.experiments.switch:SWITCH",
     help="the switch between programs: the interpreter running mixtures of two programs, and "
     "the equilibria of the networks they decode to (docs/switch.md)",
+    sweep="mbn.experiments.switch.sweep:SWITCH_SPEC",
 )
 register(
     "noise",

@@ -7,7 +7,7 @@ from typing import Any
 
 from mbn.viz.style import new_figure, save_png
 
-__all__ = ["interpolation_figure"]
+__all__ = ["interpolation_figure", "share_over_runs"]
 
 #: Probes drawn in the equilibria panel (the junctions with a choice), with their colours.
 _PROBES = (("LSR", "C0"), ("LR", "C1"), ("LS", "C2"), ("SR", "C3"))
@@ -68,4 +68,35 @@ def interpolation_figure(pairs: dict[str, Any], path: Path) -> None:
         else:
             ax.set_xlabel("α")
     fig.suptitle("Programs P(α) = α P1 + (1 − α) P2 through the fixed interpreter")
+    save_png(fig, path)
+
+
+def share_over_runs(runs: dict[int, dict[str, Any]], path: Path) -> None:
+    """One panel per pair: every run's share of P1's exits at the differing junction passes
+    along alpha (thin), and their median (thick); ``runs`` maps a seed to its results'
+    ``pairs`` (:func:`mbn.experiments.switch.over_runs.brief`)."""
+    import numpy as np
+
+    names = list(dict.fromkeys(name for pairs in runs.values() for name in pairs))
+    fig = new_figure((3.6 * max(len(names), 1) + 0.6, 3.4))
+    axes = fig.subplots(1, max(len(names), 1), squeeze=False)[0]
+    for ax, name in zip(axes, names, strict=False):
+        curves = []
+        for _, pairs in sorted(runs.items()):
+            if name not in pairs:
+                continue
+            b = pairs[name]
+            share = [np.nan if s is None else 100 * s for s in b["first_share"]]
+            ax.plot(b["alphas"], share, color="0.6", lw=0.7)
+            curves.append((b["alphas"], share))
+        if curves and all(c[0] == curves[0][0] for c in curves):
+            median = np.nanmedian(np.array([c[1] for c in curves]), axis=0)
+            ax.plot(curves[0][0], median, color="k", lw=2, label=f"median of {len(curves)} runs")
+            ax.legend(fontsize=7, frameon=False, loc="upper left")
+        first, second = name.split(":")
+        ax.set_title(f"{first} (α=1) : {second} (α=0)", fontsize=9)
+        ax.set_xlabel("α")
+        ax.set_ylim(-3, 103)
+    axes[0].set_ylabel("P1's exit where the rules differ (%)")
+    fig.suptitle("The switch between programs, every run")
     save_png(fig, path)

@@ -27,6 +27,7 @@ from mbn.experiments.stages.settings import (
     derived_seeds,
 )
 from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.switch.over_runs import brief
 from mbn.experiments.switch.report import claims, write_report
 
 __all__ = ["RUN_KIND", "STAGES", "SWITCH"]
@@ -54,7 +55,8 @@ QUICK: dict[str, dict[str, Any]] = {
 def _results(
     rundir: RunDir, stages: dict[str, dict[str, Any]], config: RunConfig
 ) -> dict[str, Any]:
-    return {"claims": claims(stages)}
+    data = InterpolationStage.from_json(stages[InterpolationStage.name])
+    return {"pairs": brief(data), "claims": claims(stages)}
 
 
 #: The experiment ``mbn run switch`` runs.
