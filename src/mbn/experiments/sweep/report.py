@@ -272,13 +272,14 @@ def summarize_folder(out: Path) -> dict[str, Any]:
         groups.append(
             ("Interpreter agreement (jittered)", [k for k in rates if k.startswith("agree ")])
         )
-        rate_boxes(rates, thresholds, out / "figures" / "sweep_rates.png", groups)
-        images.append(
-            (
-                "figures/sweep_rates.png",
-                "Per-seed success rates of each test (dots: seeds; red: the target)",
+        if any(tests for _, tests in groups):  # runs that record no tests: no box plot
+            rate_boxes(rates, thresholds, out / "figures" / "sweep_rates.png", groups)
+            images.append(
+                (
+                    "figures/sweep_rates.png",
+                    "Per-seed success rates of each test (dots: seeds; red: the target)",
+                )
             )
-        )
     write_sweep(out, data)
     write_document(out, "sweep", spec.title, _sections(out, data, images, spec, extra))
     return data

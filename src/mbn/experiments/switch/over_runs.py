@@ -100,11 +100,11 @@ def switch_over_runs(
         Section(
             "The switch between programs, over the runs",
             [
-                f"{n} runs (seeds {', '.join(map(str, stats['seeds']))}). Per claim, the runs "
-                "that meet it and the seeds that do not (the criteria were stated before the "
-                "runs: docs/switch.md). Per pair, where P1's share of the differing junction "
-                "passes crosses one half, and the width in α from 10 % to 90 %: median "
-                "[quartiles] over the runs where it crosses.",
+                f"{n} run{'s' * (n != 1)} (seeds {', '.join(map(str, stats['seeds']))}). "
+                "Per claim, the runs that meet it and the seeds that do not (the criteria "
+                "were stated before the runs: docs/switch.md). Per pair, where P1's share of "
+                "the differing junction passes crosses one half, and the width in α from 10 % "
+                "to 90 %: median [quartiles] over the runs where it crosses.",
             ],
             table=(["claim", "target", "runs meeting it", "seeds missing it"], claim_rows),
         ),
