@@ -1,12 +1,12 @@
 """Controller files and controllers ready to run (``docs/controllers.md``).
 
-* :mod:`mbn.controllers.spec` — what a file of ``mbn``'s three kinds holds, validated objects;
+* :mod:`mbn.controllers.spec` — what a file of ``mbn``'s kinds holds, validated objects;
 * :mod:`mbn.controllers.kinds` — what a kind of controller provides to be saved, loaded,
   evaluated, drawn and evolved (:class:`ControllerKind`), and the one registry of kinds
   (:func:`register_controller_kind`; ``docs/architecture.md``, "Adding a controller kind");
 * :mod:`mbn.controllers.codec` — the JSON form: the only code that knows the file format;
 * :mod:`mbn.controllers.load` — a spec made ready to run (:class:`LoadedController`);
-* :mod:`mbn.controllers.builtin` — ``mbn``'s three kinds, registered as any other (imported
+* :mod:`mbn.controllers.builtin` — ``mbn``'s kinds, registered as any other (imported
   here, so that they are registered whenever a controller is read, written or run).
 """
 
@@ -39,12 +39,16 @@ from mbn.controllers.spec import (
     KIND_CTRNN,
     KIND_INTERPRETER,
     KIND_MBN,
+    KIND_SWITCHED,
     KINDS,
     ControllerSpec,
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
     PMInitial,
+    SwitchedControllerSpec,
+    decoded_networks,
+    switched_from_mbn,
 )
 
 __all__ = [
@@ -52,6 +56,7 @@ __all__ = [
     "KIND_CTRNN",
     "KIND_INTERPRETER",
     "KIND_MBN",
+    "KIND_SWITCHED",
     "CTRNNControllerSpec",
     "ControllerKind",
     "ControllerSpec",
@@ -60,12 +65,14 @@ __all__ = [
     "MBNControllerSpec",
     "PMInitial",
     "Runner",
+    "SwitchedControllerSpec",
     "check_body",
     "check_step",
     "check_trial_length",
     "controller_from_dict",
     "controller_kind",
     "controller_to_dict",
+    "decoded_networks",
     "kind_of",
     "load_controller",
     "make_controller",
@@ -74,5 +81,6 @@ __all__ = [
     "registered_kinds",
     "save_controller",
     "step_beyond_limit",
+    "switched_from_mbn",
     "unregister_controller_kind",
 ]

@@ -1,4 +1,4 @@
-"""``mbn``'s three controller kinds, registered as any other (:mod:`mbn.controllers.kinds`): their
+"""``mbn``'s controller kinds, registered as any other (:mod:`mbn.controllers.kinds`): their
 files are written and read by :mod:`mbn.controllers.codec`, run by the runners of
 :mod:`mbn.controllers.load`.
 
@@ -10,7 +10,10 @@ files are written and read by :mod:`mbn.controllers.codec`, run by the runners o
   fixed interpreter);
 * :data:`MBN_KIND` (``mbn.controller.mbn``): drawn as its interpreter's original network, its
   programs and its program module; not evolved through a kind (the ``pm`` stage evolves its
-  program module, ``docs/reproduce.md``).
+  program module, ``docs/reproduce.md``);
+* :data:`SWITCHED_KIND` (``mbn.controller.switched``): the MBN's baselines, followers switched by
+  the tiles; drawn as each network's ``W``, ``WE`` and biases; not evolved through a kind (its
+  networks are followers evolved or decoded elsewhere).
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from mbn.controllers.codec import (
     interpreter_from_body,
     mbn_body,
     mbn_from_body,
+    switched_body,
+    switched_from_body,
 )
 from mbn.controllers.kinds import ControllerKind, Runner, register_controller_kind
 from mbn.controllers.load import (
@@ -35,20 +40,33 @@ from mbn.controllers.load import (
     ctrnn_step_beyond_limit,
     interpreter_runner,
     mbn_runner,
+    switched_runner,
+    switched_step_beyond_limit,
 )
 from mbn.controllers.spec import (
     KIND_CTRNN,
     KIND_INTERPRETER,
     KIND_MBN,
+    KIND_SWITCHED,
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
+    SwitchedControllerSpec,
 )
 from mbn.errors import MbnInputError
 from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.world.sensors import NoiseConfig
 
-__all__ = ["CTRNN_KIND", "INTERPRETER_KIND", "MBN_KIND", "CTRNNKind", "InterpreterKind", "MBNKind"]
+__all__ = [
+    "CTRNN_KIND",
+    "INTERPRETER_KIND",
+    "MBN_KIND",
+    "SWITCHED_KIND",
+    "CTRNNKind",
+    "InterpreterKind",
+    "MBNKind",
+    "SwitchedKind",
+]
 
 #: The name a program evolved on the fixed interpreter is stored under.
 EVOLVED_PROGRAM = "evolved"
@@ -176,6 +194,34 @@ class MBNKind(ControllerKind):
         return {**_interpreter_weights(spec.interpreter_spec), **pm}
 
 
+class SwitchedKind(ControllerKind):
+    """``mbn.controller.switched``: followers switched by the tiles (weights swapped, or a gate)."""
+
+    name = KIND_SWITCHED
+    spec_type = SwitchedControllerSpec
+
+    def to_dict(self, spec: Any) -> dict[str, Any]:
+        return switched_body(spec)
+
+    def from_dict(self, data: dict[str, Any], where: str) -> Any:
+        return switched_from_body(data, where)
+
+    def runner(
+        self, spec: Any, program: str | None, noise: NoiseConfig | None, where: str
+    ) -> Runner:
+        return switched_runner(spec, program, noise, where)
+
+    def step_beyond_limit(self, spec: Any, where: str) -> str | None:
+        return switched_step_beyond_limit(spec, where)
+
+    def weights(self, spec: Any) -> Mapping[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {}
+        for rule, net in spec.networks.items():
+            out.update(_network_weights(net, f"{rule} "))
+        return out
+
+
 CTRNN_KIND = register_controller_kind(CTRNNKind())
 INTERPRETER_KIND = register_controller_kind(InterpreterKind())
 MBN_KIND = register_controller_kind(MBNKind())
+SWITCHED_KIND = register_controller_kind(SwitchedKind())

@@ -2,7 +2,7 @@
 :func:`save_controller` (atomic, checked to load back) and :func:`read_controller_spec`.
 
 The only code that knows the file format (``docs/controllers.md``): the header every controller
-file starts with, and the fields of ``mbn``'s three kinds (:func:`ctrnn_body` and
+file starts with, and the fields of ``mbn``'s kinds (:func:`ctrnn_body` and
 :func:`ctrnn_from_body`, ... , which :mod:`mbn.controllers.builtin` registers); a file's kind is
 found in the registry of kinds (:mod:`mbn.controllers.kinds`), where a kind kept outside ``mbn``
 reads and writes its own fields. Every error is one line naming the file and the field. The
@@ -39,6 +39,7 @@ from mbn.controllers.spec import (
     InterpreterControllerSpec,
     MBNControllerSpec,
     PMInitial,
+    SwitchedControllerSpec,
 )
 from mbn.errors import MbnInputError
 from mbn.io import (
@@ -68,6 +69,8 @@ __all__ = [
     "mbn_from_body",
     "read_controller_spec",
     "save_controller",
+    "switched_body",
+    "switched_from_body",
 ]
 
 # --------------------------------------------------------------------------------------------
@@ -201,6 +204,23 @@ def mbn_body(spec: MBNControllerSpec) -> dict[str, Any]:
     return {
         **_interpreter_fields(spec.interpreter_spec),
         "program_module": pm,
+        "metadata": dict(spec.metadata),
+    }
+
+
+def switched_body(spec: SwitchedControllerSpec) -> dict[str, Any]:
+    """The fields of a ``mbn.controller.switched`` file after the header."""
+    return {
+        "mode": spec.mode,
+        "networks": {rule: net.to_dict() for rule, net in spec.networks.items()},
+        "tile_rules": list(spec.tile_rules),
+        "initial": spec.initial,
+        "camera": _camera_to_dict(spec.camera),
+        "sensors": _sensors_to_dict(spec.sensors),
+        "motor": _motor_to_dict(spec.motor),
+        "dt": spec.dt,
+        "substeps": spec.substeps,
+        "method": spec.method,
         "metadata": dict(spec.metadata),
     }
 
@@ -428,6 +448,46 @@ def ctrnn_from_body(data: dict[str, Any], where: str) -> CTRNNControllerSpec:
             metadata=metadata,
             tile_rules=tiles,
             camera=camera,
+            **settings,
+        ),
+    )
+    return spec
+
+
+def switched_from_body(data: dict[str, Any], where: str) -> SwitchedControllerSpec:
+    """The spec of a ``mbn.controller.switched`` file (its header checked)."""
+    check_body(
+        data,
+        where,
+        ["mode", "networks", "tile_rules", "camera", *_COMMON],
+        [*_OPTIONAL, "initial"],
+    )
+    mode = data["mode"]
+    tiles = _rule_list(data["tile_rules"], f"{where}: tile_rules")
+    networks = expect_object(data["networks"], f"{where}: networks")
+    nets = {
+        rule: _network_from_dict(value, f"{where}: networks.{rule}")
+        for rule, value in networks.items()
+    }
+    initial = data.get("initial")
+    if initial is not None and not isinstance(initial, str):
+        raise MbnInputError(f"{where}: initial: expected a rule name or null, got {initial!r}")
+    camera = _camera_from_dict(data["camera"], f"{where}: camera")
+    sensors = _sensors_from_dict(data["sensors"], where)
+    motor = _motor_from_dict(data["motor"], where)
+    settings = _run_settings(data, where)
+    metadata = data.get("metadata", {})
+    spec: SwitchedControllerSpec = _build(
+        where,
+        lambda: SwitchedControllerSpec(
+            networks=nets,
+            mode=mode,
+            tile_rules=tiles,
+            initial=initial,
+            camera=camera,
+            sensors=sensors,
+            motor=motor,
+            metadata=metadata,
             **settings,
         ),
     )

@@ -3,9 +3,9 @@ and evolved, and the one registry of kinds (``docs/architecture.md``, "Adding a 
 kind").
 
 A kind is a :class:`ControllerKind` registered by :func:`register_controller_kind`. ``mbn``'s
-three kinds (``mbn.controller.ctrnn``, ``mbn.controller.interpreter``, ``mbn.controller.mbn``,
-:mod:`mbn.controllers.builtin`) are registered so too, and the codec and the loader know no
-other way to a kind than this registry:
+kinds (``mbn.controller.ctrnn``, ``mbn.controller.interpreter``, ``mbn.controller.mbn`` and the
+MBN's baselines ``mbn.controller.switched``, :mod:`mbn.controllers.builtin`) are registered so
+too, and the codec and the loader know no other way to a kind than this registry:
 
 * **saved and loaded**: :meth:`ControllerKind.to_dict` gives the fields of a spec's file after the
   header the codec writes (``kind``, ``format_version``, ``mbn_version``, ``provenance``);
@@ -226,7 +226,8 @@ def unregister_controller_kind(name: str) -> ControllerKind:
 
 
 def registered_kinds() -> Mapping[str, ControllerKind]:
-    """Every registered kind by name, in the order registered (``mbn``'s three first)."""
+    """Every registered kind by name, in the order registered (``mbn``'s own first: the paper's
+    three, then ``mbn.controller.switched``)."""
     return MappingProxyType(_KINDS)
 
 

@@ -1,8 +1,8 @@
 """Controllers ready to run: :func:`make_controller` turns a spec (:mod:`mbn.controllers.spec`, or
 a registered kind's, :mod:`mbn.controllers.kinds`) into a :class:`LoadedController` for
 :func:`mbn.experiments.trials.run_trials`, by its kind's runner (:func:`ctrnn_runner`,
-:func:`interpreter_runner`, :func:`mbn_runner` for ``mbn``'s three); :func:`load_controller` reads
-a file first (:mod:`mbn.controllers.codec`)."""
+:func:`interpreter_runner`, :func:`mbn_runner`, :func:`switched_runner` for ``mbn``'s kinds);
+:func:`load_controller` reads a file first (:mod:`mbn.controllers.codec`)."""
 
 from __future__ import annotations
 
@@ -24,16 +24,18 @@ from mbn.control.ctrnn import (
     with_tiles,
 )
 from mbn.control.mbn import MBNControllerState, make_mbn_controller
+from mbn.control.switched import NO_RULE, SwitchedState, switched_controller
 from mbn.controllers.codec import read_controller_spec
 from mbn.controllers.kinds import Runner, kind_of
 from mbn.controllers.spec import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
+    SwitchedControllerSpec,
 )
 from mbn.errors import MbnInputError
 from mbn.host import put
-from mbn.networks.ctrnn import Method, max_stable_dt
+from mbn.networks.ctrnn import CTRNN, Method, max_stable_dt
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import Shared
 from mbn.world.sensors import NoiseConfig, SensorConfig
@@ -52,6 +54,8 @@ __all__ = [
     "make_controller",
     "mbn_runner",
     "step_beyond_limit",
+    "switched_runner",
+    "switched_step_beyond_limit",
 ]
 
 #: A controller for one robot: ``(state, observation) -> (state, (v, w))``.
@@ -73,20 +77,22 @@ class LoadedController:
         sensors: the sonars to cast and their normalisation.
         dt: the robot step (s).
         needs_camera: whether the controller reads the camera (the whole MBN, a CTRNN with
-            tile rules).
+            tile rules, a switched controller).
         camera: the camera settings it reads (None when it reads none).
         programs: the file's named programs (empty for a plain CTRNN).
         program: the program in use (None for a plain CTRNN or the whole MBN).
         behavior: the behaviour a plain CTRNN file declares (else None).
-        initial_rule: for the whole MBN, the rule it follows before its first tile (its file's
-            ``initial``; None for a file without one: it starts at rest with no rule).
-        tile_rules: for the whole MBN and a CTRNN that reads the tiles, the rule a tile of 1,
-            2, ... colours puts in force (its file's; the paper's right, left); None for the
-            others.
+        initial_rule: for the whole MBN and a switched controller, the rule it follows before
+            its first tile (its file's ``initial``; None for a file without one: an MBN starts at
+            rest with no rule).
+        tile_rules: for the whole MBN, a CTRNN that reads the tiles and a switched controller,
+            the rule a tile of 1, 2, ... colours puts in force (its file's; the paper's right,
+            left); None for the others.
         spec: the parsed file.
         noise: the noise it runs under (all zero: none).
         network_steps: the network steps it takes each robot step (its ``substeps``, plus the
-            program module's for the whole MBN; :func:`check_trial_length`).
+            program module's for the whole MBN, times the networks of a switched controller;
+            :func:`check_trial_length`).
     """
 
     kind: str
@@ -188,6 +194,39 @@ def _mbn_parts(
     return control, initial
 
 
+def _switched_parts(
+    spec: SwitchedControllerSpec, noise: NoiseConfig | None
+) -> tuple[Controller, Callable[[int], Any]]:
+    control = switched_controller(
+        mode=spec.mode,
+        tile_networks=spec.tile_networks,
+        dt=spec.dt,
+        substeps=spec.substeps,
+        motor=spec.motor,
+        method=spec.method,
+        noise=noise,
+    )
+    nets = list(spec.networks.values())
+    stacked = CTRNN(
+        **{
+            name: put(np.stack([np.asarray(getattr(net, name)) for net in nets]))
+            for name in ("W", "WE", "tau", "bias", "gain")
+        }
+    )
+    n, dtype = spec.num_neurons, nets[0].dtype
+    shape = (n,) if spec.mode == "swap" else (len(nets), n)
+    rule = NO_RULE if spec.initial is None else spec.rules.index(spec.initial)
+
+    def initial(b: int) -> SwitchedState:
+        return SwitchedState(
+            Shared(stacked),
+            put(np.zeros((b, *shape), dtype)),
+            put(np.full((b,), rule, np.int32)),
+        )
+
+    return control, initial
+
+
 def _simulated(im_spec: InterpreterControllerSpec) -> Any:
     """The network a controller integrates: the dense interpreter or its blocks."""
     interp = im_spec.interpreter
@@ -233,6 +272,26 @@ def ctrnn_step_beyond_limit(spec: CTRNNControllerSpec, where: str = "controller"
         f"substeps) is above the stability limit {limit * 1000:.3g} ms of its integrator; "
         f"it needs substeps >= {need}"
     )
+
+
+def switched_step_beyond_limit(
+    spec: SwitchedControllerSpec, where: str = "controller"
+) -> str | None:
+    """:func:`ctrnn_step_beyond_limit` of each network of a switched controller (the first beyond
+    its limit, naming it), or None where every one is within."""
+    for rule, net in spec.networks.items():
+        follower = CTRNNControllerSpec(
+            net,
+            sensors=spec.sensors,
+            motor=spec.motor,
+            dt=spec.dt,
+            substeps=spec.substeps,
+            method=spec.method,
+        )
+        message = ctrnn_step_beyond_limit(follower, f"{where}: networks.{rule}")
+        if message is not None:
+            return message
+    return None
 
 
 def step_beyond_limit(spec: Any, where: str = "controller") -> str | None:
@@ -374,6 +433,29 @@ def mbn_runner(
         initial_rule=spec.initial.rule if spec.initial is not None else None,
         tile_rules=spec.tile_rules,
         network_steps=im_spec.substeps + spec.pm_substeps,
+    )
+
+
+def switched_runner(
+    spec: SwitchedControllerSpec, program: str | None, noise: NoiseConfig | None, where: str
+) -> Runner:
+    """A switched controller ready to run: its followers, switched by the tiles its camera
+    sees."""
+    if program is not None:
+        raise MbnInputError(
+            f"{where}: a switched controller has no programs (got program {program!r}); its "
+            f"networks are switched by the tiles ({', '.join(spec.rules)})"
+        )
+    control, initial = _switched_parts(spec, noise)
+    return Runner(
+        controller=control,
+        initial_state=initial,
+        sensors=spec.sensors,
+        dt=spec.dt,
+        camera=spec.camera,
+        initial_rule=spec.initial,
+        tile_rules=spec.tile_rules,
+        network_steps=spec.substeps * len(spec.networks),
     )
 
 

@@ -11,6 +11,15 @@ Three kinds (``docs/controllers.md``):
   interpreter spec plus the program module, a CTRNN whose two inputs encode the camera and whose
   ``program_neurons``' firing rates are the program.
 
+and the MBN's two baselines, one kind:
+
+* :class:`SwitchedControllerSpec` (``"mbn.controller.switched"``): one plain CTRNN follower per
+  rule, the rule in force latched from the tiles the camera sees as the MBN reads them; in
+  ``"swap"`` mode one state whose weights are swapped to the network of the rule in force (the
+  oracle: the MBN without the cost of its multipliers), in ``"gate"`` mode the followers run side
+  by side and the one of the rule in force drives. :func:`decoded_networks` gives the network each
+  program of an interpreter encodes, and :func:`switched_from_mbn` the baseline of an MBN.
+
 Each spec also carries the sensors (:class:`~mbn.world.sensors.SensorConfig`), the motor mapping
 (:class:`~mbn.control.ctrnn.MotorMap`), ``dt``, ``substeps``, ``method`` and free ``metadata``.
 The JSON form is :mod:`mbn.controllers.codec`; making a spec run is :mod:`mbn.controllers.load`.
@@ -22,11 +31,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import jax.numpy as jnp
 import numpy as np
 
 from mbn.control.ctrnn import NETWORK_SUBSTEPS, MotorMap
+from mbn.control.switched import MODES
 from mbn.errors import MbnInputError
-from mbn.networks.ctrnn import CTRNN
+from mbn.networks.ctrnn import CTRNN, make_ctrnn
 from mbn.networks.programmable import Connection, Interpreter
 from mbn.world.engine import CameraConfig
 from mbn.world.mazes.model import TILE_COLORS
@@ -39,6 +50,7 @@ __all__ = [
     "KIND_CTRNN",
     "KIND_INTERPRETER",
     "KIND_MBN",
+    "KIND_SWITCHED",
     "MAX_DT",
     "MAX_SUBSTEPS",
     "MIN_DT",
@@ -51,12 +63,19 @@ __all__ = [
     "InterpreterControllerSpec",
     "MBNControllerSpec",
     "PMInitial",
+    "SwitchedControllerSpec",
+    "decoded_networks",
+    "switched_from_mbn",
 ]
 
 KIND_CTRNN = "mbn.controller.ctrnn"
 KIND_INTERPRETER = "mbn.controller.interpreter"
 KIND_MBN = "mbn.controller.mbn"
-#: The controller kinds, in the order error messages list them.
+#: The kind of the MBN's baselines: followers switched by the tiles
+#: (:class:`SwitchedControllerSpec`).
+KIND_SWITCHED = "mbn.controller.switched"
+#: The paper's controller kinds, registered first and in this order (error messages list them
+#: so, then the others: :data:`KIND_SWITCHED`, and kinds registered outside ``mbn``).
 KINDS: tuple[str, ...] = (KIND_CTRNN, KIND_INTERPRETER, KIND_MBN)
 FORMAT_VERSION = 1
 #: Kind of a multiplier file (:mod:`mbn.networks.multiplier`), recognised to give a clear error.
@@ -524,4 +543,211 @@ class MBNControllerSpec:
         object.__setattr__(self, "metadata", dict(self.metadata))
 
 
-ControllerSpec = CTRNNControllerSpec | InterpreterControllerSpec | MBNControllerSpec
+@dataclass(frozen=True, eq=False)
+class SwitchedControllerSpec:
+    """Plain CTRNN followers, one per rule, switched by the tiles the camera sees: the MBN's
+    baselines (``docs/controllers.md``, :mod:`mbn.control.switched`).
+
+    Attributes:
+        networks: rule -> the follower of that rule (a plain CTRNN reading I1..I3; e.g. the
+            network each program of an MBN encodes, :func:`decoded_networks`); every tile rule
+            has one, and each one is a tile rule's. All have the same neurons (one state is
+            swapped between them) and dtype. Rule names are kept as :func:`parse_rule` names
+            them, in the order given.
+        mode: ``"swap"`` (the oracle: one state of potentials, the weights swapped to the network
+            of the rule in force; the potentials are kept across a swap) or ``"gate"`` (every
+            network runs on the same inputs with its own potentials, the one of the rule in force
+            drives).
+        tile_rules: the rule a tile of 1, 2, ... colours puts in force (the paper's: right,
+            left), read from the camera as the MBN's program module reads it.
+        initial: the rule in force before the first tile (one of ``tile_rules``), or None: no
+            rule is declared (the network of a one-colour tile drives until the first tile).
+        camera: the blob-finding camera it reads.
+        sensors, motor, dt, substeps, method, metadata: as in :class:`CTRNNControllerSpec`
+            (the motor neurons are every network's).
+        kind: the file kind (class constant).
+    """
+
+    kind: ClassVar[str] = KIND_SWITCHED
+    networks: Mapping[str, CTRNN]
+    mode: str = "swap"
+    tile_rules: tuple[str, ...] = ("right", "left")
+    initial: str | None = None
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    motor: MotorMap = field(default_factory=MotorMap)
+    dt: float = 0.1
+    substeps: int = NETWORK_SUBSTEPS
+    method: str = "euler"
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.mode, str) or self.mode not in MODES:
+            raise MbnInputError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        rules = _tile_rules(self.tile_rules, "tile_rules")
+        object.__setattr__(self, "tile_rules", rules)
+        if not isinstance(self.camera, CameraConfig):
+            raise MbnInputError(f"camera must be a CameraConfig, got {type(self.camera).__name__}")
+        nets = _rule_networks(self.networks)
+        object.__setattr__(self, "networks", nets)
+        missing = [r for r in dict.fromkeys(rules) if r not in nets]
+        if missing:
+            raise MbnInputError(
+                f"tile_rules: no network for rule {missing[0]} (networks: {', '.join(nets)})"
+            )
+        unused = [r for r in nets if r not in rules]
+        if unused:
+            raise MbnInputError(
+                f"networks.{unused[0]}: no tile puts {unused[0]} in force (tile_rules: "
+                f"{', '.join(rules)})"
+            )
+        if self.initial is not None:
+            try:
+                initial = parse_rule(self.initial).name
+            except MbnInputError as exc:
+                raise MbnInputError(f"initial: {exc}") from None
+            if initial not in rules:
+                raise MbnInputError(
+                    f"initial: {initial} is none of the tile rules ({', '.join(rules)})"
+                )
+            object.__setattr__(self, "initial", initial)
+        _check_sensors(self.sensors)
+        _check_motor(self.motor, self.num_neurons, "the networks")
+        _check_run_settings(self.dt, self.substeps, self.method)
+        _check_metadata(self.metadata)
+        object.__setattr__(self, "metadata", dict(self.metadata))
+
+    @property
+    def rules(self) -> tuple[str, ...]:
+        """The rules of :attr:`networks`, in order: a state's ``rule`` indexes them."""
+        return tuple(self.networks)
+
+    @property
+    def tile_networks(self) -> tuple[int, ...]:
+        """The index in :attr:`rules` of the network a tile of 1, 2, ... colours puts in force."""
+        return tuple(self.rules.index(r) for r in self.tile_rules)
+
+    @property
+    def num_neurons(self) -> int:
+        """The neurons of each network."""
+        return next(iter(self.networks.values())).num_neurons
+
+
+def _rule_networks(networks: Mapping[str, CTRNN]) -> dict[str, CTRNN]:
+    """``networks`` by rule name (:func:`parse_rule`), checked: plain CTRNNs reading I1..I3, all
+    of the same neurons and dtype."""
+    if not isinstance(networks, Mapping) or not networks:
+        raise MbnInputError("networks: expected an object of rule -> network, with one at least")
+    out: dict[str, CTRNN] = {}
+    given: dict[str, str] = {}
+    for key, net in networks.items():
+        try:
+            name = parse_rule(key).name
+        except MbnInputError as exc:
+            raise MbnInputError(f"networks: {exc}") from None
+        if name in out:
+            raise MbnInputError(
+                f"networks: {given[name]!r} and {key!r} are the same rule ({name}), given twice"
+            )
+        what = f"networks.{name}"
+        _check_single(net, what)
+        if net.num_inputs != NUM_INPUTS:
+            raise MbnInputError(
+                f"{what}: a controller reads the paper's {NUM_INPUTS} inputs I1..I3, but WE has "
+                f"{net.num_inputs} columns"
+            )
+        if out:
+            first, ref = next(iter(out.items()))
+            if net.num_neurons != ref.num_neurons:
+                raise MbnInputError(
+                    f"{what}: {net.num_neurons} neurons, but networks.{first} has "
+                    f"{ref.num_neurons}: the networks must all have the same shape (one state is "
+                    "switched between them)"
+                )
+            if net.dtype != ref.dtype:
+                raise MbnInputError(
+                    f"{what}: dtype {net.dtype}, but networks.{first} is {ref.dtype}: the "
+                    "networks must all have the same dtype"
+                )
+        out[name] = net
+        given[name] = key
+    return out
+
+
+def decoded_networks(spec: InterpreterControllerSpec | MBNControllerSpec) -> dict[str, CTRNN]:
+    """The network each named program of an interpreter (or of an MBN's interpreter) encodes:
+    the interpreter's original neurons, each programmable connection at its decoded weight
+    ``lower + p (upper - lower)`` (eq. 2) — the follower the interpreter emulates with that
+    program, without its multipliers."""
+    im_spec = spec.interpreter_spec if isinstance(spec, MBNControllerSpec) else spec
+    if not isinstance(im_spec, InterpreterControllerSpec):
+        raise MbnInputError(
+            f"decoded_networks: expected an interpreter or MBN spec, got {type(spec).__name__}"
+        )
+    interp = im_spec.interpreter
+    n, m = interp.num_original, interp.num_data_inputs
+    net = interp.net
+    W = np.asarray(net.W, np.float64)[:n, :n]
+    WE = np.asarray(net.WE, np.float64)[:n, :m]
+    out: dict[str, CTRNN] = {}
+    for name, program in im_spec.programs.items():
+        weights = np.asarray(interp.decode(jnp.asarray(program, net.dtype)), np.float64)
+        Wp, WEp = W.copy(), WE.copy()
+        for conn, value in zip(interp.connections, weights, strict=True):
+            (Wp if conn.kind == "W" else WEp)[conn.i, conn.j] = value
+        out[name] = make_ctrnn(
+            Wp,
+            WEp,
+            np.asarray(net.tau, np.float64)[:n],
+            bias=np.asarray(net.bias, np.float64)[:n],
+            gain=np.asarray(net.gain, np.float64)[:n],
+            dtype=net.dtype,
+            name=f"programs.{name}",
+        )
+    return out
+
+
+def switched_from_mbn(
+    spec: MBNControllerSpec,
+    mode: str = "swap",
+    *,
+    substeps: int | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> SwitchedControllerSpec:
+    """The baseline ``mode`` of an MBN: for each of its tile rules the network its stored program
+    of that rule encodes (:func:`decoded_networks`; the programs are named by rule, as ``"right"``
+    and ``"left"``), switched by the same camera and tile rules, from its ``initial`` rule, with
+    its interpreter's sensors, motor, ``dt``, ``method`` and ``substeps`` (or ``substeps``)."""
+    if not isinstance(spec, MBNControllerSpec):
+        raise MbnInputError(f"switched_from_mbn: expected an MBN spec, got {type(spec).__name__}")
+    by_rule: dict[str, CTRNN] = {}
+    for name, net in decoded_networks(spec).items():
+        try:
+            by_rule.setdefault(parse_rule(name).name, net)
+        except MbnInputError:
+            continue  # a program not named by a rule
+    missing = [r for r in dict.fromkeys(spec.tile_rules) if r not in by_rule]
+    if missing:
+        raise MbnInputError(
+            f"programs: the MBN has no program named {missing[0]} for its tile rule "
+            f"(programs: {', '.join(spec.interpreter_spec.programs) or 'none'})"
+        )
+    im = spec.interpreter_spec
+    return SwitchedControllerSpec(
+        networks={r: by_rule[r] for r in dict.fromkeys(spec.tile_rules)},
+        mode=mode,
+        tile_rules=spec.tile_rules,
+        initial=spec.initial.rule if spec.initial is not None else None,
+        camera=spec.camera,
+        sensors=im.sensors,
+        motor=im.motor,
+        dt=im.dt,
+        substeps=im.substeps if substeps is None else substeps,
+        method=im.method,
+        metadata=dict(metadata or {}),
+    )
+
+
+ControllerSpec = (
+    CTRNNControllerSpec | InterpreterControllerSpec | MBNControllerSpec | SwitchedControllerSpec
+)
