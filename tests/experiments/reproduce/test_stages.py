@@ -360,6 +360,26 @@ def test_good_enough_asks_every_target_met_and_every_figure_at_least_enough():
     assert not good_enough(missing, 0.0)
 
 
+def test_on_maze_episodes_a_figure_is_the_worse_of_the_pooled_rate_and_the_mazes_share():
+    """Seed 0 of the first generalization sweep: an LF whose validation had 99.4 % of its
+    trials but 94 of the 100 mazes at target (and the test split 88: the per-maze criterion is
+    the one that fails) was good enough by its pooled figure alone and ended its round."""
+    from mbn.experiments.stages.common import validation_figure
+    from mbn.experiments.stages.lf import candidate_rank, good_enough
+
+    crossroads = {"successes": 79, "trials": 80, "success_rate": 79 / 80}
+    assert validation_figure(crossroads) == 79 / 80  # no mazes: the pooled rate alone
+    maze = {"successes": 994, "trials": 1000, "success_rate": 0.994}
+    assert validation_figure({**maze, "mazes": 100, "mazes_at_target": 94}) == 0.94
+    assert validation_figure({**maze, "mazes": 100, "mazes_at_target": 100}) == 0.994
+    weak, strong = _candidate(40.0, 80, 80, 80, 80, 80), _candidate(30.0, 80, 80, 80, 80, 80)
+    for c, at in ((weak, 94), (strong, 100)):
+        for key in ("validation", "validation_im", "validation_im_rf"):
+            c[key] = {**maze, "mazes": 100, "mazes_at_target": at, "meets_target": True}
+    assert not good_enough(weak, 0.99) and good_enough(strong, 0.99)
+    assert candidate_rank(strong, 1) > candidate_rank(weak, 0)  # despite its fitness
+
+
 def test_rung_ends_of_successive_halving():
     from mbn.experiments.stages.lf_search import rung_ends
 

@@ -4,6 +4,7 @@ perturbations, evolving and scoring a follower, and reading the networks earlier
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any
 
 import jax
@@ -66,6 +67,7 @@ __all__ = [
     "training_fitness",
     "training_task",
     "validate",
+    "validation_figure",
     "validation_maze_names",
     "validation_mazes",
     "validation_record",
@@ -347,6 +349,18 @@ def evolve_follower(
         **scored,
         "network": net,
     }
+
+
+def validation_figure(record: Mapping[str, Any]) -> float:
+    """A validation record's figure, by which stages rank their candidates: its pooled success
+    rate, and on maze episodes (a record with ``mazes``) the worse of that and the share of the
+    validation mazes that reach the target each — the test split's two criteria, so that of two
+    candidates the one nearer failing either ranks lower (``docs/generalization.md``)."""
+    rate = float(record["success_rate"])
+    mazes = record.get("mazes")
+    if mazes:
+        rate = min(rate, float(record["mazes_at_target"]) / float(mazes))
+    return rate
 
 
 def restart_rank(run: dict[str, Any] | Record, index: int) -> tuple[Any, ...]:

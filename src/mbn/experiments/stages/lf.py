@@ -29,6 +29,7 @@ from mbn.experiments.stages.common import (
     save_follower,
     score,
     validate,
+    validation_figure,
     validation_record,
     validation_verdict,
     validation_verdicts,
@@ -86,8 +87,10 @@ def candidate_name(round_: int, index: int) -> str:
 
 
 def _rate(record: dict[str, Any]) -> float:
-    """A validation record's figure: its success rate, or an agreement record's ``rate``."""
-    return float(record["success_rate"] if "success_rate" in record else record["rate"])
+    """A validation record's figure (:func:`~mbn.experiments.stages.common.validation_figure`:
+    its success rate, on maze episodes the worse of that and its share of mazes at target), or
+    an agreement record's ``rate``."""
+    return validation_figure(record) if "success_rate" in record else float(record["rate"])
 
 
 def candidate_rank(candidate: dict[str, Any], index: int) -> tuple[Any, ...]:

@@ -37,7 +37,13 @@ from mbn.experiments.program_module import (
     latch_after_tile,
     tile_sequences,
 )
-from mbn.experiments.stages.common import MADE_BY, de_config, maze_episodes, validate
+from mbn.experiments.stages.common import (
+    MADE_BY,
+    de_config,
+    maze_episodes,
+    validate,
+    validation_figure,
+)
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
@@ -270,7 +276,7 @@ class MBN3Stage(Stage[MBN3Result]):
         chosen = max(
             range(len(tries)),
             key=lambda i: (
-                tries[i]["validation"]["success_rate"] if tries[i]["validation"] else 0.0,
+                validation_figure(tries[i]["validation"]) if tries[i]["validation"] else 0.0,
                 tries[i]["pm"].run.data["best_fitness"],
                 -i,
             ),

@@ -41,6 +41,7 @@ from mbn.experiments.stages.common import (
     read_network,
     stage_perturbations,
     validate,
+    validation_figure,
 )
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
@@ -309,7 +310,7 @@ class PMStage(Stage[PMResult]):
         chosen = max(
             range(len(attempts)),
             key=lambda i: (
-                attempts[i]["validation"]["success_rate"],
+                validation_figure(attempts[i]["validation"]),
                 attempts[i]["data"]["best_fitness"],
                 -i,
             ),

@@ -43,6 +43,7 @@ from mbn.experiments.stages.common import (
     stage_perturbations,
     training_fitness,
     validate,
+    validation_figure,
     validation_record,
     validation_verdicts,
 )
@@ -262,7 +263,9 @@ def _best_member(
         )
 
     def rank(c: dict[str, Any]) -> tuple[Any, ...]:
-        worst = min(c["validation_im"]["success_rate"], c["validation_network"]["success_rate"])
+        worst = min(
+            validation_figure(c["validation_im"]), validation_figure(c["validation_network"])
+        )
         return (worst, c["fitness"], -c["member"])
 
     kept = max(candidates, key=rank)
@@ -351,7 +354,8 @@ class ProgramsStage(Stage[ProgramsResult]):
             def rank(i: int, tries: list[dict[str, Any]] = tries) -> tuple[Any, ...]:
                 t = tries[i]
                 worst = min(
-                    t["validation_im"]["success_rate"], t["validation_network"]["success_rate"]
+                    validation_figure(t["validation_im"]),
+                    validation_figure(t["validation_network"]),
                 )
                 return (worst, t["fitness"], -i)
 
