@@ -229,7 +229,7 @@ def test_the_sweep_finds_every_test_it_tabulates(contest_run):
 
     _, data = contest_run
     mine = [t for t in CONTEST_SPEC.tests if "straight_right" in t]
-    assert len(mine) == 12 and all(t in data["tests"] for t in mine)
+    assert len(mine) == 18 and all(t in data["tests"] for t in mine)
 
 
 @pytest.mark.slow

@@ -99,6 +99,29 @@ def test_the_monolithic_file_reads_the_tiles_itself(contest3_run):
     assert loaded.needs_camera and loaded.tile_rules == spec.tile_rules
 
 
+@pytest.mark.slow
+def test_the_baselines_run_the_mbn_s_own_programs_switched(contest3_run):
+    from mbn.controllers import SwitchedControllerSpec
+    from mbn.experiments.stages.programs import program_network
+
+    rundir, _, data = contest3_run
+    mbn = read_controller_spec(rundir.controller_file(f"contest_{TASK}_programs"))
+    rf = read_controller_spec(rundir.controller_file("rf")).net
+    interp = mbn.interpreter_spec.interpreter
+    readout = np.asarray(mbn.readout)
+    for mode, who in (("swap", "oracle"), ("gate", "gate")):
+        spec = read_controller_spec(rundir.controller_file(f"contest_{TASK}_{who}"))
+        assert isinstance(spec, SwitchedControllerSpec) and spec.mode == mode
+        assert spec.tile_rules == mbn.tile_rules and spec.initial == "right"
+        for k, rule in enumerate(mbn.tile_rules):  # each tile's network: its program decoded
+            want = program_network(interp, rf, readout[:, k])
+            np.testing.assert_allclose(np.asarray(spec.networks[rule].W), np.asarray(want.W))
+        short = f"{who}_{TASK.replace('-', '_')}"
+        for suffix in ("", "_jitter", "_heldout"):
+            assert data["tests"][f"{short}{suffix}"]["trials"] > 0
+        assert isinstance(data["baselines"][who]["final_success"], bool)
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
@@ -107,6 +130,9 @@ def test_the_monolithic_file_reads_the_tiles_itself(contest3_run):
         ({"tile_rules": ("right", "left", "up")}, "unknown rule 'up'"),
         ({"contenders": ("programs", "mbn")}, "'mbn' is not one of programs, monolithic"),
         ({"neurons": 2}, "neurons"),
+        ({"baselines": ("oracle", "switch")}, "'switch' is not one of oracle, gate"),
+        ({"baselines": ("gate", "gate")}, "none listed twice"),
+        ({"contenders": ("monolithic",)}, "built from the programs contender's programs"),
     ],
 )
 def test_settings_refuse_what_the_task_cannot_run(changes, message):

@@ -272,3 +272,38 @@ def test_a_contest_sweep_folder_is_summarized_into_its_report(tmp_path):
     assert seeds_table.count("| done | – |") == 5
     for figure in ("sweep_rates.png", "sweep_de.png", "contest_solved.png"):
         assert (tmp_path / "figures" / figure).stat().st_size > 0
+
+
+def _versus(p, p_holm=None, a12=0.2, ratio=(0.2, 0.1, 0.5)):
+    u = {"p": p, "A12": a12}
+    if p_holm is not None:
+        u["p_holm"] = p_holm
+    return {"mann_whitney": u, "ratio": dict(zip(("ratio", "low", "high"), ratio, strict=True))}
+
+
+def test_the_verdict_reads_the_holm_adjusted_p_where_it_is_recorded():
+    from mbn.experiments.contest.over_runs import comparison_verdict
+
+    assert comparison_verdict(_versus(0.03)) == "faster"  # a record without p_holm
+    assert comparison_verdict(_versus(0.03, p_holm=0.03)) == "faster"
+    assert comparison_verdict(_versus(0.03, p_holm=0.06)) == "no clear difference"
+    assert comparison_verdict(_versus(0.01, 0.02, a12=0.8, ratio=(3, 2, 5))) == "slower"
+
+
+def test_program_search_over_k_connections_is_compared_but_not_part_of_the_2016_claim():
+    from mbn.experiments.contest.over_runs import MIN_RUNS, claim_over_runs
+
+    contenders = {w: {"runs": MIN_RUNS} for w in ("programs", "scratch", "programs_k")}
+    stats = {
+        "rules": {
+            "straight-right": {
+                "contenders": contenders,
+                # faster than the dynamics contender; no faster than programs over k
+                "versus": {"scratch": _versus(0.001, 0.002), "programs_k": _versus(0.5, 0.5)},
+            }
+        }
+    }
+    claim = claim_over_runs(stats)
+    assert claim["pass"] is True
+    assert "programs_k" not in claim["measured"] and "p (Holm) 0.002" in claim["measured"]
+    assert "Holm-adjusted" in claim["target"]

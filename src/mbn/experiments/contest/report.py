@@ -173,6 +173,37 @@ def write_report(rundir: RunDir) -> None:
             ),
             images=[(file, "Best fitness per check; filled: the best then passed the test")],
         ),
+        *_baselines_section(three, tally, contest.mazes.heldout),
         Section("Each contender's final best", images=pictures),
     ]
     write_document(rundir.root, "report", TITLE, secs)
+
+
+def _baselines_section(three: Any, tally: dict[str, Tally], heldout: str) -> list[Section]:
+    """The three-behaviour task's baselines (the oracle, the gate), beside the MBN: built from
+    the programs contender's programs, tested as the finals are."""
+    if three is None or not three.baselines:
+        return []
+    rows = []
+    for who in ("programs", *three.baselines):
+        short = f"{who}_{TASK.replace('-', '_')}"
+        if short not in tally:
+            continue
+        what = "the MBN (interpreter and program module)" if who == "programs" else who
+        cells = [what]
+        for suffix in ("", "_jitter", "_heldout"):
+            x = tally[f"{short}{suffix}"]
+            cells.append(f"{x.successes}/{x.trials}")
+        rows.append(cells)
+    text = "; ".join(f"**{k}**: {v['what']}" for k, v in three.baselines.items())
+    return [
+        Section(
+            "The MBN against its baselines (three behaviours)",
+            [
+                "The same three programs, run three ways: by the MBN, and by two baselines "
+                f"with no search of their own ({text}). Where the oracle passes and the MBN "
+                "does not, the multipliers or the program module cost it."
+            ],
+            table=(["controller", "marks", "jittered", f"held-out ({heldout})"], rows),
+        )
+    ]

@@ -27,8 +27,15 @@ def _contest_analysis(
 _CONTEST_STEMS = tuple(
     f"{prefix}{who}_{rule}"
     for rule in ("straight_right", "straight_left")
-    for prefix, who in (("", "programs"), ("im_", "programs"), ("", "scratch"), ("", "neighbour"))
-) + tuple(f"{who}_three_behaviours" for who in ("programs", "monolithic"))
+    for prefix, who in (
+        ("", "programs"),
+        ("im_", "programs"),
+        ("", "scratch"),
+        ("", "neighbour"),
+        ("", "programs_k"),
+        ("im_", "programs_k"),
+    )
+) + tuple(f"{who}_three_behaviours" for who in ("programs", "monolithic", "oracle", "gate"))
 
 CONTEST_SPEC = SweepSpec(
     name="programs-vs-dynamics",
@@ -38,9 +45,12 @@ CONTEST_SPEC = SweepSpec(
     tests=tuple(f"{stem}{suffix}" for stem in _CONTEST_STEMS for suffix in SUFFIXES),
     groups=by_trials("Start marks (each contender's final best)", _CONTEST_STEMS),
     targets_text="No test has a per-run target: the contenders are compared over runs "
-    "(below). `im_programs_*` is program search's final program through the interpreter itself; "
-    "the others are the networks; `*_three_behaviours`: the three-behaviour task's final "
-    "controllers, the MBN (`programs`) and the monolithic CTRNN, judged by the last tile's rule.",
+    "(below). `im_programs_*` is program search's final program through the interpreter itself "
+    "(`im_programs_k_*`: the interpreter with only k connections programmable); the others are "
+    "the networks; `*_three_behaviours`: the three-behaviour task's final "
+    "controllers, the MBN (`programs`) and the monolithic CTRNN, and the MBN's baselines built "
+    "from its programs (`oracle`: the weights swapped; `gate`: the decoded networks side by "
+    "side), judged by the last tile's rule.",
     de_stages={"rf": "RF (12 genes)"},
     curve=stage_history,
     load=loader("programs-vs-dynamics"),

@@ -57,6 +57,7 @@ from mbn.experiments.stages.common import (
     MADE_BY,
     de_config,
     read_network,
+    rf_lf_programs,
     stage_perturbations,
     task,
 )
@@ -88,6 +89,7 @@ from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
     "CONTENDERS",
+    "PROGRAM_CONTENDERS",
     "Contender",
     "ContestCheck",
     "ContestResult",
@@ -97,6 +99,7 @@ __all__ = [
     "check",
     "contend",
     "final_tests",
+    "k_interpreter",
     "neighbour_population",
     "program_controller",
 ]
@@ -106,7 +109,11 @@ CONTENDERS: dict[str, str] = {
     "programs": "program search on the fixed fully programmable interpreter",
     "scratch": "dynamics from scratch: a new 3-neuron CTRNN (12 genes)",
     "neighbour": "dynamics from a neighbour: RF re-evolved on its 12 genes",
+    "programs_k": "program search over only the k connections where LF differs from RF (the "
+    "paper's k = 3), each over the same range as the fully programmable interpreter's",
 }
+#: The contenders that search programs (the others learn dynamics).
+PROGRAM_CONTENDERS = ("programs", "programs_k")
 
 #: What the record of a rule's start-mark trials keeps of each contender's trajectory.
 TRAJECTORY_FIELDS = ("t", "pose", "stalled")
@@ -131,7 +138,7 @@ class ContestSettings(Settings):
     )
     contenders: tuple[str, ...] = setting(
         tuple(CONTENDERS),
-        doc="the contenders: programs, scratch, neighbour",
+        doc="the contenders: programs, scratch, neighbour, programs_k",
         source="docs/contest.md",
     )
     generations: int = setting(
@@ -239,7 +246,7 @@ def _contender(
             check_stability=False,
         )
 
-    if name == "programs":
+    if name in PROGRAM_CONTENDERS:
         decoded = lambda genes: program_network(  # noqa: E731
             interp, rf, np.clip(np.asarray(genes), 0.0, 1.0)
         )
@@ -272,6 +279,31 @@ def _contender(
     network = lambda genes: genome.network(jnp.asarray(genes))  # noqa: E731
     return Contender(
         de_config(ctx, genome.size, bound), fitness, population, network, as_network(network)
+    )
+
+
+def k_interpreter(
+    ctx: StageContext, full: InterpreterControllerSpec, rf: CTRNN, lf: CTRNN
+) -> InterpreterControllerSpec:
+    """The ``programs_k`` contender's interpreter: RF's, built as the fully programmable one
+    (``full``: its multiplier, time constants, step and simulation) with only the connections
+    where LF differs from RF programmable, each over ``[im_full] bound`` as there; RF's and
+    LF's programs."""
+    from mbn.experiments.stages.im_full import IMFullSettings
+    from mbn.networks.multiplier import load_multiplier
+    from mbn.networks.programmable import Programmable, build_interpreter, differing_connections
+
+    s = ctx.section(IMFullSettings)
+    mul = load_multiplier(ctx.rundir.controller_file("multiplier"))
+    conns = [p.connection for p in differing_connections(rf, lf, margin=0.0)]
+    interp = build_interpreter(
+        rf, [Programmable(c, -s.bound, s.bound) for c in conns], mul, tau_ratio=s.tau_ratio
+    )
+    return dataclasses.replace(
+        full,
+        interpreter=interp,
+        programs=rf_lf_programs(interp, rf, lf),
+        metadata={**full.metadata, "sha256": interp.digest()},
     )
 
 
@@ -470,7 +502,7 @@ class ContestResult(Record):
 class ContestStage(Stage[ContestResult]):
     name = "contest"
     key_id = KEYS["contest"]
-    needs = ("rf", "im_full")
+    needs = ("multiplier", "rf", "lf", "im_full")
     settings = ContestSettings
 
     result = ContestResult
@@ -484,6 +516,9 @@ class ContestStage(Stage[ContestResult]):
         digest = ctx.read(IMFullStage).sha256
         check_digest(interp, digest, "contest")
         rf = read_network(ctx, "rf")
+        specs_of = {"programs": spec}
+        if "programs_k" in s.contenders:
+            specs_of["programs_k"] = k_interpreter(ctx, spec, rf, read_network(ctx, "lf"))
         tests3 = ctx.section(Tests3Settings)
         maze, heldout = load_maze(tests3.maze), load_maze(tests3.heldout_maze)
         popsize = ctx.section(DESettings).popsize
@@ -500,7 +535,7 @@ class ContestStage(Stage[ContestResult]):
             for c_index, who in enumerate(CONTENDERS):
                 if who not in s.contenders:
                     continue
-                c = _contender(ctx, who, rule, spec, rf, s.variants)
+                c = _contender(ctx, who, rule, specs_of.get(who, spec), rf, s.variants)
                 name = f"contest_{rule}_{who}"
                 key = jax.random.fold_in(jax.random.fold_in(ctx.key, r), c_index)
                 checks, result = contend(
@@ -540,9 +575,9 @@ class ContestStage(Stage[ContestResult]):
                         and tests[f"{short}_jitter"]["success_rate"] >= s.jitter_target
                     ),
                 }
-                if who == "programs":
+                if who in PROGRAM_CONTENDERS:
                     program = np.clip(np.asarray(result.data["best_genome"], float), 0.0, 1.0)
-                    emulated = program_controller(spec, rule, program)
+                    emulated = program_controller(specs_of[who], rule, program)
                     for suffix in SUFFIXES:
                         m = heldout if suffix == "_heldout" else maze
                         got, _, _ = run_loaded_trials(m, specs[suffix], emulated)

@@ -41,6 +41,7 @@ from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
     MBNControllerSpec,
+    SwitchedControllerSpec,
     make_controller,
     read_controller_spec,
     save_controller,
@@ -48,7 +49,7 @@ from mbn.controllers import (
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.pipeline.results import Record
+from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.program_module import MemoryReward
 from mbn.experiments.stages.common import (
     MADE_BY,
@@ -85,7 +86,14 @@ from mbn.world.mazes.builtin import CROSSROAD_KINDS
 from mbn.world.mazes.load import load_maze
 from mbn.world.rules import parse_rule
 
-__all__ = ["CONTENDERS3", "TASK", "Contest3Result", "Contest3Settings", "Contest3Stage"]
+__all__ = [
+    "BASELINES3",
+    "CONTENDERS3",
+    "TASK",
+    "Contest3Result",
+    "Contest3Settings",
+    "Contest3Stage",
+]
 
 #: The name of the three-behaviour task among the contest's rules (results, files, reports).
 TASK = "three-behaviours"
@@ -96,6 +104,17 @@ CONTENDERS3: dict[str, str] = {
     "interpreter, RF's and LF's programs kept, a code program module evolved without the robot",
     "monolithic": "one CTRNN reading the sonars and the three tile kinds, evolved for the three "
     "rules at once",
+}
+
+
+#: The baselines of the three-behaviour task: no search of their own, built from what the
+#: programs contender found and tested as the contenders' finals are (``docs/contest.md``).
+BASELINES3: dict[str, str] = {
+    "oracle": "the switched-weights oracle: one 3-neuron CTRNN whose weights are swapped to the "
+    "network each tile's program decodes to (the architecture's upper bound: what the "
+    "multipliers and the program module cost)",
+    "gate": "a gate among stored followers: the three decoded networks run side by side, the "
+    "tile's one driving",
 }
 
 
@@ -125,6 +144,12 @@ class Contest3Settings(Settings):
         doc="the monolithic fitness also scores each crossroad after another tile kind was "
         "shown (a rule it must give up), not only from rest",
         source="docs/contest.md (as the program module's reward)",
+    )
+    baselines: tuple[str, ...] = setting(
+        tuple(BASELINES3),
+        doc="the baselines built from the programs contender's programs and tested as the "
+        "finals are: oracle, gate (needs the programs contender)",
+        source="docs/contest.md",
     )
     pm_generations: int = setting(
         1500,
@@ -175,6 +200,18 @@ class Contest3Settings(Settings):
                 raise MbnInputError(
                     f"contest3.contenders: {c!r} is not one of {', '.join(CONTENDERS3)}"
                 )
+        for b in self.baselines:
+            if b not in BASELINES3:
+                raise MbnInputError(
+                    f"contest3.baselines: {b!r} is not one of {', '.join(BASELINES3)}"
+                )
+        if len(set(self.baselines)) != len(self.baselines):
+            raise MbnInputError("contest3.baselines: none listed twice")
+        if self.baselines and "programs" not in self.contenders:
+            raise MbnInputError(
+                "contest3.baselines: built from the programs contender's programs, which is "
+                "not among the contenders"
+            )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -197,6 +234,7 @@ class Contest3Result(Record):
     mazes: TestMazes
     sha256: str
     contenders: dict[str, str]
+    baselines: dict[str, dict[str, Any]] | None = optional()
 
 
 class Contest3Stage(Stage[Contest3Result]):
@@ -342,6 +380,38 @@ class Contest3Stage(Stage[Contest3Result]):
                 record["pm_evaluations"] = popsize * (s.pm_generations + 1)
                 record["pm_fitness"] = float(pm.run.data["best_fitness"])
             runs[who] = record
+        baselines: dict[str, dict[str, Any]] = {}
+        if s.baselines and "programs" in runs:
+            found = runs["programs"]["program"]
+            nets = {
+                r: program_network(interp, rf, np.asarray(p, float))
+                for r, p in zip(rules, [*kept, found], strict=True)
+            }
+            for who in s.baselines:
+                baseline = SwitchedControllerSpec(
+                    networks=nets,
+                    mode="swap" if who == "oracle" else "gate",
+                    tile_rules=rules,
+                    initial=rules[0],
+                    camera=camera,
+                    metadata={**meta, "baseline": who, "sha256": digest},
+                )
+                name = f"contest_{TASK}_{who}"
+                save_controller(ctx.rundir.controller_file(name), baseline)
+                loaded = make_controller(baseline, None, where=name, check_stability=False)
+                short = f"{who}_{TASK.replace('-', '_')}"
+                verdicts, trajectories[who], details[short] = final_tests(
+                    loaded, maze, heldout, specs
+                )
+                for suffix, got in verdicts.items():
+                    tests[f"{short}{suffix}"] = summary(got)
+                baselines[who] = {
+                    "what": BASELINES3[who],
+                    "final_success": bool(
+                        tests[short]["successes"] == tests[short]["trials"]
+                        and tests[f"{short}_jitter"]["success_rate"] >= contest.jitter_target
+                    ),
+                }
         ctx.rundir.save_trajectories(f"contest_{TASK}", trajectories, TRAJECTORY_FIELDS)
         check_digest(interp, digest, "contest3 (after)")
         return Contest3Result.from_json(
@@ -359,6 +429,7 @@ class Contest3Stage(Stage[Contest3Result]):
                 "mazes": {"test": tests3.maze, "heldout": tests3.heldout_maze},
                 "sha256": digest,
                 "contenders": {k: CONTENDERS3[k] for k in CONTENDERS3 if k in s.contenders},
+                "baselines": baselines or None,
             }
         )
 
