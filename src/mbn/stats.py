@@ -23,6 +23,7 @@ __all__ = [
     "Z95",
     "censored_quantiles",
     "describe",
+    "forward_transfer",
     "holm",
     "iqm",
     "iqm_interval",
@@ -321,6 +322,51 @@ def _improvement(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
     gt = (xa[..., :, None] > ya[..., None, :]).mean(axis=(-2, -1))
     eq = (xa[..., :, None] == ya[..., None, :]).mean(axis=(-2, -1))
     return np.asarray(gt + eq / 2)
+
+
+def forward_transfer(
+    times: Sequence[float | None],
+    scratch: Sequence[float | None],
+    budget: float,
+    *,
+    seed: int = 0,
+    resamples: int = 2000,
+    level: float = 0.95,
+) -> dict[str, float]:
+    """Forward transfer as Continual World normalises it (Wołczyk et al., NeurIPS 2021):
+    ``(AUC - AUC_b) / (1 - AUC_b)``, with ``AUC`` the area under the solved-fraction curve of
+    ``times`` (evaluations to success of each run; None: unsolved within ``budget``) over
+    ``[0, budget]``, normalised to 1, and ``AUC_b`` that of the reference learned from
+    ``scratch``. A run solved after ``t`` evaluations adds ``1 - t / budget`` to the area, an
+    unsolved one 0, so ``AUC`` is their mean. 0: no transfer; 1: solved at once in every run;
+    negative: slower than scratch. With a percentile bootstrap interval that resamples each
+    side's runs apart (SciPy's ``bootstrap``); ``ft`` is NaN where the reference's AUC is 1
+    (nothing left to transfer)."""
+    a = np.asarray([0.0 if t is None else max(0.0, 1.0 - float(t) / budget) for t in times])
+    b = np.asarray([0.0 if t is None else max(0.0, 1.0 - float(t) / budget) for t in scratch])
+    nan = {"ft": math.nan, "low": math.nan, "high": math.nan, "auc": math.nan, "auc_b": math.nan}
+    if a.size == 0 or b.size == 0:
+        return nan
+    point = float(_transfer(a, b, -1))
+    if math.isnan(point):
+        return {**nan, "auc": float(a.mean()), "auc_b": float(b.mean())}
+    out = {
+        "ft": point,
+        "low": point,
+        "high": point,
+        "auc": float(a.mean()),
+        "auc_b": float(b.mean()),
+    }
+    if a.size >= 2 and b.size >= 2 and not np.all(np.concatenate([a, b]) == a[0]):
+        out["low"], out["high"] = _bootstrap_ends((a, b), _transfer, seed, resamples, level)
+    return out
+
+
+def _transfer(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+    """``(mean a - mean b) / (1 - mean b)`` along ``axis`` (NaN where ``mean b`` is 1)."""
+    ma, mb = np.mean(a, axis=axis), np.mean(b, axis=axis)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(np.where(mb < 1.0, (ma - mb) / (1.0 - mb), np.nan))
 
 
 def holm(pvalues: Sequence[float | None]) -> list[float | None]:

@@ -143,3 +143,22 @@ def test_holm_adjusts_the_smallest_p_by_the_number_of_comparisons_step_down():
     assert holm([0.03, 0.01, 0.04, 0.02]) == pytest.approx([0.06, 0.04, 0.06, 0.06])
     assert holm([0.5, None, 0.9]) == pytest.approx([1.0, None, 1.0], nan_ok=True)
     assert holm([0.001]) == [0.001] and holm([]) == []
+
+
+def test_forward_transfer_is_continual_world_s_normalised_area_gain():
+    from mbn.stats import forward_transfer
+
+    budget = 1000
+    # AUC: the mean over runs of 1 - t / budget (0 unsolved): programs 0.8, 0.6, 0 -> 0.4667;
+    # scratch 0.2, 0, 0 -> 0.0667; FT = (0.4667 - 0.0667) / (1 - 0.0667) = 0.4286
+    ft = forward_transfer([200, 400, None], [800, None, None], budget, resamples=500)
+    assert ft["auc"] == pytest.approx(1.4 / 3) and ft["auc_b"] == pytest.approx(0.2 / 3)
+    assert ft["ft"] == pytest.approx((1.4 / 3 - 0.2 / 3) / (1 - 0.2 / 3))
+    assert ft["low"] <= ft["ft"] <= ft["high"]
+    # the same runs: no transfer; slower than scratch: negative; all solved at once: 1
+    assert forward_transfer([200, None], [200, None], budget)["ft"] == pytest.approx(0.0)
+    assert forward_transfer([900, None], [100, 300], budget)["ft"] < 0
+    assert forward_transfer([0, 0], [500, None], budget)["ft"] == pytest.approx(1.0)
+    # nothing left to transfer where scratch solves at once; no runs: NaN
+    assert math.isnan(forward_transfer([0, 10], [0, 0], budget)["ft"])
+    assert math.isnan(forward_transfer([], [1, 2], budget)["ft"])

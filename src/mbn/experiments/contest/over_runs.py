@@ -22,6 +22,7 @@ from typing import Any
 from mbn.experiments.pipeline.document import Section
 from mbn.stats import (
     censored_quantiles,
+    forward_transfer,
     holm,
     mann_whitney,
     median_ratio,
@@ -113,6 +114,13 @@ def claim_over_runs(stats: Mapping[str, Any]) -> dict[str, Any]:
         "target": CRITERION,
         "pass": (all(v == "faster" for v in verdicts)) if judged else None,
     }
+
+
+def _ft_text(ft: Mapping[str, Any] | None) -> str:
+    """Forward transfer with its interval (sweeps summarized before it: none)."""
+    if ft is None or math.isnan(ft["ft"]):
+        return "–"
+    return f"{ft['ft']:.2f} [{ft['low']:.2f}, {ft['high']:.2f}]"
 
 
 def _pct(x: float | None) -> str:
@@ -220,6 +228,9 @@ def statistics(runs: Mapping[int, Mapping[str, Any]]) -> dict[str, Any]:
                     "improvement": probability_of_improvement(
                         _scores(a), _scores(b), seed=BOOTSTRAP_SEED
                     ),
+                    # Continual World's forward transfer, the other contender as the reference
+                    # (the scratch network: transfer from what the interpreter already holds)
+                    "forward_transfer": forward_transfer(a, b, budget, seed=BOOTSTRAP_SEED),
                 }
             adjusted = holm([v["mann_whitney"]["p"] for v in versus.values()])
             for v, p_holm in zip(versus.values(), adjusted, strict=True):
@@ -330,6 +341,7 @@ def contest_over_runs(
                     "–"
                     if poi is None or math.isnan(poi["p"])
                     else f"{poi['p']:.2f} [{poi['low']:.2f}, {poi['high']:.2f}]",
+                    _ft_text(v.get("forward_transfer")),
                 ]
             )
         secs.append(
@@ -377,7 +389,11 @@ def contest_over_runs(
                         "difference; below 0.5, program search is faster), and the probability "
                         "of improvement as rliable reports it, P(program search needs fewer) "
                         "with ties counted half, with a bootstrap 95 % interval that resamples "
-                        "each contender's runs apart (2000 resamples).",
+                        "each contender's runs apart (2000 resamples). Forward transfer as "
+                        "Continual World normalises it: (AUC − AUC_b) / (1 − AUC_b), the areas "
+                        "under the solved-fraction curves over the budget, the other contender "
+                        "the reference (against scratch: what the fixed interpreter transfers "
+                        "to the new rule), with a bootstrap 95 % interval (2000 resamples).",
                     ],
                     table=(
                         [
@@ -388,6 +404,7 @@ def contest_over_runs(
                             "p Holm",
                             "A12",
                             "P(improvement) [95 %]",
+                            "forward transfer [95 %]",
                         ],
                         vs_rows,
                     ),
