@@ -139,7 +139,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         help="run under noise (default none): e.g. sonar_std=0.02,sonar_dropout=0.01,"
         "wheel_std=0.05,camera_miss=0.05, or a settings file's [noise] table; keys: "
         "sonar_std, sonar_dropout, camera_miss, camera_false, wheel_std, v_std, w_std, "
-        "neuron_std, program_std (docs/noise.md)",
+        "neuron_std, program_std, sonar_cone, and per episode corridor_scale, wheel_bias "
+        "(docs/noise.md)",
     )
     ev.add_argument(
         "--allow-unstable",

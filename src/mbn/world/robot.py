@@ -21,6 +21,7 @@ __all__ = [
     "MAX_LINEAR_SPEED",
     "SONAR_MAX_RANGE",
     "SONAR_POSES",
+    "WHEEL_BASE",
     "clip_command",
     "integrate_pose",
     "normalize_angle",
@@ -67,6 +68,11 @@ SONAR_POSES = np.array(
 
 #: Range of every sonar; a ray that hits nothing within it reads exactly this value.
 SONAR_MAX_RANGE = 5.0
+#: Distance between the two drive wheels' contact lines (m), the figure commonly given for the
+#: P3-DX (its overall width of about 0.38 m less one wheel's tread of about 0.05 m). Stage drives
+#: ``(v, w)`` directly and needs none; only the noise's wheel bias (``NoiseConfig.wheel_bias``,
+#: ``docs/noise.md``) reads it.
+WHEEL_BASE = 0.33
 #: Speed limits of Stage's P3DX in velocity-control mode (m/s, rad/s); no acceleration limits.
 MAX_LINEAR_SPEED = 0.5
 MAX_ANGULAR_SPEED = math.radians(90.0)

@@ -11,8 +11,9 @@ One robot step (default 100 ms, as Stage's ``interval_sim``), written once in
    (:attr:`RolloutConfig.extra_sensors`, read into :attr:`Observation.extra`);
 2. the controller maps ``(controller_state, observation)`` to ``(controller_state, (v, w))``; it
    integrates its own network with as many sub-steps as it needs;
-3. the command gets optional Gaussian noise and is clipped to the P3DX limits; the pose moves by
-   forward Euler with the heading at the start of the step;
+3. the command gets optional Gaussian noise (and the episode's wheel bias) and is clipped to the
+   P3DX limits; the pose moves by forward Euler with the heading at the start of the step (in
+   the episode's scaled maze, if the noise scales it: :func:`mbn.world.step.draw_episode`);
 4. a move that would make the body overlap a wall is undone and counted as a stall (Stage's rule);
 5. junctions: entering and leaving a decision cell of a grid maze records a junction pass, the exit
    taken and the exits the right- and left-hand rules take there.
@@ -63,7 +64,18 @@ from mbn.world.stats import (
     start_junctions,
     start_tally,
 )
-from mbn.world.step import Place, Sensed, applied_speeds, locate, move, sense, undo_stalled
+from mbn.world.step import (
+    NO_EPISODE,
+    Episode,
+    Place,
+    Sensed,
+    applied_speeds,
+    draw_episode,
+    locate,
+    move,
+    sense,
+    undo_stalled,
+)
 
 __all__ = [
     "EXIT_NAMES",
@@ -393,7 +405,9 @@ class Scene:
     """What every step of one rollout shares: the world (in the poses' precision), each robot's
     maze ``maze_index (B,)`` and its constants ``mc`` (and as the junction log reads them,
     ``junction_mc``: :func:`mbn.world.stats.junction_constants`), the junction tables, the
-    settings, the controller (vmapped over the batch) and the noise key (None without noise)."""
+    settings, the controller (vmapped over the batch), the noise key (None without noise) and
+    what each robot's episode drew once at its start (:func:`mbn.world.step.draw_episode`: the
+    maze's scale, the wheels' bias; none without those channels)."""
 
     world: World
     mc: MazeConstants
@@ -403,6 +417,7 @@ class Scene:
     config: RolloutConfig
     controller: Controller
     key: Array | None
+    episode: Episode = NO_EPISODE
 
 
 def junction_cells(scene: Scene, place: Place) -> tuple[Array, Array]:
@@ -411,11 +426,16 @@ def junction_cells(scene: Scene, place: Place) -> tuple[Array, Array]:
     return junction_cell(scene.world, scene.maze_index, place.pose, place.ci, place.cj)
 
 
+def step_key_of(key: Array | None, noise: NoiseConfig, step: ArrayLike) -> Array | None:
+    """The noise key of step ``step``: ``key`` folded with it, None without noise."""
+    if key is None or not noise.enabled:
+        return None
+    return jax.random.fold_in(key, step)
+
+
 def step_key(scene: Scene, step: Array) -> Array | None:
     """The noise key of step ``step`` (the rollout's key folded with it), None without noise."""
-    if scene.key is None or not scene.config.noise.enabled:
-        return None
-    return jax.random.fold_in(scene.key, step)
+    return step_key_of(scene.key, scene.config.noise, step)
 
 
 def sense_at(scene: Scene, place: Place, step: Array) -> Sensed:
@@ -486,7 +506,15 @@ def one_step(scene: Scene, carry: Carry, step: Array) -> tuple[Carry, tuple[Any,
     ctrl, (v_cmd, w_cmd) = scene.controller(carry.ctrl, obs)
     pose = here.place.pose
     moved = move(
-        scene.world, scene.mc, pose, v_cmd, w_cmd, cfg.dt, cfg.noise, step_key(scene, step)
+        scene.world,
+        scene.mc,
+        pose,
+        v_cmd,
+        w_cmd,
+        cfg.dt,
+        cfg.noise,
+        step_key(scene, step),
+        scene.episode,
     )
     cand = sense_at(scene, moved.place, step)
     junctions = log_junctions(
@@ -528,7 +556,7 @@ def one_step(scene: Scene, carry: Carry, step: Array) -> tuple[Carry, tuple[Any,
 def start_carry(scene: Scene, poses: Array, controller_state: Any) -> Carry:
     """The carry before step 0: robots at ``poses (B, 3)``, no move pending."""
     b, dtype = poses.shape[0], poses.dtype
-    start = sense_at(scene, locate(scene.world, scene.mc, poses), jnp.asarray(-1))
+    start = sense_at(scene, locate(scene.world, scene.mc, poses, scene.episode), jnp.asarray(-1))
     return Carry(
         prev=start,
         cand=start,
@@ -647,6 +675,8 @@ def rollout(
     if junctions is None:
         junctions = jnp.full((world.n_junction_rows, 4, 2), -1, jnp.int8)
     mc = maze_constants(world, maze_index)
+    # drawn once per episode: the start's key (step -1) folded with 7 and 8
+    episode = draw_episode(config.noise, step_key_of(key, config.noise, jnp.asarray(-1)), b, dtype)
     scene = Scene(
         world=world,
         mc=mc,
@@ -656,6 +686,7 @@ def rollout(
         config=config,
         controller=map_controller(controller, controller_state),
         key=key,
+        episode=episode,
     )
     carry, trajectory = run_steps(scene, start_carry(scene, poses, controller_state))
     return RolloutResult(

@@ -14,8 +14,9 @@ A sensor is a small object registered by name (:func:`register_sensor`): its ``n
 channels at a place. The built-in ones are registered the same way, and read first, always:
 
 * ``"sonars"`` (:class:`Sonars`): channel ``ranges (B, k)``, the sonars asked for (metres, in
-  the order asked for), exact lattice rays with optional Gaussian noise (clipped to [0, 5] m)
-  and dropouts; width k;
+  the order asked for), exact lattice rays (optionally drawn within a cone about each axis, and
+  scaled with the episode's maze) with optional Gaussian noise (clipped to [0, 5] m) and
+  dropouts; width k;
 * ``"camera"`` (:class:`Camera`): channels ``camera (B,)``, the colours (0 none, 1, 2, 3) of the
   nearest tile in view, and ``blobs (B,)``, the blobs in view (both 0 with the camera off),
   with optional missed and false blobs; width 2;
@@ -26,13 +27,16 @@ A new sensor is one module that defines it and registers it (``docs/architecture
 a sensor"); a rollout reads it when its config names it
 (:attr:`~mbn.world.rollout.RolloutConfig.extra_sensors`), and its channels reach the controller in
 :attr:`~mbn.world.rollout.Observation.extra`. Noise keys: :func:`mbn.world.step.sense` hands
-every sensor the step's key (None without noise); the sonars fold it with 0 (ranges) and 2
-(dropouts), the camera with 3 (1 and 4 are the command's, 5 the controller's), so a sensor of
-one's own that draws noise folds a number of its own, 100 or more.
+every sensor the step's key (None without noise); the sonars fold it with 0 (ranges), 2
+(dropouts) and 6 (the cone's rays), the camera with 3 (1 and 4 are the command's, 5 the
+controller's, 7 and 8 the episode's draws, :func:`mbn.world.step.draw_episode`), so a sensor of
+one's own that draws noise folds a number of its own, 100 or more. A sensor of one's own that
+measures lengths reads them ``Place.scale`` times (the episode's maze scale), as the sonars do.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -80,8 +84,12 @@ __all__ = [
 BUILT_IN_SENSORS: tuple[str, ...] = ("sonars", "camera", "tile")
 #: Their channels, in the order read.
 BUILT_IN_CHANNELS: tuple[str, ...] = ("ranges", "camera", "blobs", "under")
-#: The noise channels the built-in sensors draw (:class:`~mbn.world.sensors.NoiseConfig`).
-_SENSING = ("sonar_std", "sonar_dropout", "camera_miss", "camera_false")
+#: The noise channels the built-in sensors draw from the step's key
+#: (:class:`~mbn.world.sensors.NoiseConfig`).
+_SENSING = ("sonar_std", "sonar_dropout", "camera_miss", "camera_false", "sonar_cone")
+#: The noise channels :attr:`Senses.noise` keeps: those, and the maze's scale per episode (drawn
+#: once, :func:`mbn.world.step.draw_episode`, and carried by :attr:`Place.scale`).
+_KEPT = (*_SENSING, "corridor_scale")
 _NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
@@ -89,12 +97,19 @@ class Place(NamedTuple):
     """Where robots are: ``pose (B, 3)`` = (x, y, theta) and the lattice cell holding (x, y) with
     its packed window of the cells around it (:func:`mbn.world.engine.window_words`):
     ``words (B, n_words)`` uint32, cell indices ``ci``, ``cj (B,)`` int32. On the engine's segment
-    path the cell is a culling cell and ``words (B, 1)`` its table row (int32)."""
+    path the cell is a culling cell and ``words (B, 1)`` its table row (int32).
+
+    ``scale (B,)``: the factor by which each robot's world is its compiled maze scaled this
+    episode (the noise's ``corridor_scale``, :func:`mbn.world.step.draw_episode`), None for 1.
+    The pose and the cells stay in the compiled maze's coordinates; a sensor that measures
+    lengths reads them ``scale`` times (the sonars do).
+    """
 
     pose: Array
     words: Array
     ci: Array
     cj: Array
+    scale: Array | None = None
 
 
 @dataclass(frozen=True)
@@ -109,8 +124,10 @@ class Senses:
             sonars' whole range.
         noise: the sensing channels of :class:`~mbn.world.sensors.NoiseConfig` (the others are
             not read here; :meth:`build` keeps these alone): ``sonar_std`` (Gaussian, metres,
-            clipped to [0, 5] m), ``sonar_dropout`` (a reading returns 5 m), ``camera_miss`` and
-            ``camera_false`` (the nearest tile reads one colour less or one more, at most 3).
+            clipped to [0, 5] m), ``sonar_dropout`` (a reading returns 5 m), ``sonar_cone``
+            (each ray drawn within the cone about its axis), ``camera_miss`` and
+            ``camera_false`` (the nearest tile reads one colour less or one more, at most 3),
+            and ``corridor_scale`` (the range of :attr:`Place.scale`, which the sonars read).
         extra: the registered sensors (:func:`register_sensor`) read after the built-in ones,
             in this order.
     """
@@ -158,7 +175,7 @@ class Senses:
         (None: off), the sensing channels of ``noise`` (None: none), the sonar ``reach`` and
         the ``extra`` registered sensors."""
         noise = NoiseConfig() if noise is None else noise
-        sensing = NoiseConfig(**{name: getattr(noise, name) for name in _SENSING})
+        sensing = NoiseConfig(**{name: getattr(noise, name) for name in _KEPT})
         return cls(sensors.sonars, camera, reach, sensing, tuple(extra))
 
     @property
@@ -173,7 +190,8 @@ class Senses:
 
     @property
     def noisy(self) -> bool:
-        """Whether a sensing channel of :attr:`noise` is on (a step then needs a key)."""
+        """Whether a sensing channel drawn per step of :attr:`noise` is on (a step then needs a
+        key; the maze's scale is drawn per episode and comes with the :class:`Place`)."""
         return any(getattr(self.noise, name) > 0 for name in _SENSING)
 
     @property
@@ -331,8 +349,13 @@ class Reading(Mapping[str, Array]):
 @dataclass(frozen=True)
 class Sonars:
     """The sonars of :attr:`Senses.sonars`: channel ``ranges (B, k)`` in the pose's precision,
-    exact lattice rays cast :attr:`Senses.reach` far, then the noise's ``sonar_std`` (the key
-    folded with 0; clipped to [0, 5] m) and ``sonar_dropout`` (folded with 2)."""
+    exact lattice rays cast :attr:`Senses.reach` far; with the noise's ``sonar_cone`` each ray's
+    heading is the transducer's plus an angle uniform in ``[-cone/2, cone/2]`` (the key folded
+    with 6, one per reading); in a scaled maze (:attr:`Place.scale` ``s``) a wall read at ``d``
+    in the compiled maze reads ``s d`` (a miss, or ``s d`` beyond 5 m, reads the 5 m miss; the
+    rays are cast ``reach / (1 - corridor_scale)`` far so that a wall within ``reach`` of the
+    scaled world reads exactly); then ``sonar_std`` (the key folded with 0; clipped to
+    [0, 5] m) and ``sonar_dropout`` (folded with 2)."""
 
     name: str = "sonars"
 
@@ -348,7 +371,25 @@ class Sonars:
         senses: Senses,
         key: Array | None,
     ) -> Mapping[str, Array]:
+        noise = senses.noise
+        scaled = noise.corridor_scale > 0
+        if scaled != (place.scale is not None):
+            raise MbnInputError(
+                "corridor_scale is on: locate the robots with their episode's scale "
+                "(mbn.world.step.draw_episode)"
+                if scaled
+                else "the place has a maze scale but the senses' corridor_scale is 0"
+            )
         origins, angles = sonar_rays(place.pose, SONAR_POSES[list(senses.sonars)])
+        if noise.sonar_cone > 0:
+            u = jax.random.uniform(
+                jax.random.fold_in(typed(Array, key), 6), angles.shape, angles.dtype, -0.5, 0.5
+            )
+            angles = angles + math.radians(noise.sonar_cone) * u
+        reach = senses.reach
+        if scaled and reach is not None:
+            wide = reach / (1.0 - noise.corridor_scale)  # the compiled maze's metres
+            reach = wide if wide < SONAR_MAX_RANGE else None
         ranges = cast(
             world,
             mc,
@@ -358,9 +399,12 @@ class Sonars:
             origins[..., 0],
             origins[..., 1],
             angles,
-            reach=senses.reach,
+            reach=reach,
         )
-        noise = senses.noise
+        if scaled:
+            miss = jnp.asarray(SONAR_MAX_RANGE, ranges.dtype)
+            s = typed(Array, place.scale).astype(ranges.dtype)[:, None]
+            ranges = jnp.where(ranges >= miss, miss, jnp.minimum(ranges * s, miss))
         if noise.sonar_std > 0:
             nk = jax.random.fold_in(typed(Array, key), 0)
             ranges = jnp.clip(

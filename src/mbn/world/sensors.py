@@ -109,7 +109,19 @@ class NoiseConfig(Settings):
     - ``camera_false``: probability per step of a false blob: the nearest tile reads one colour
       more (nothing in view reads as a one-colour tile), at most three;
     - ``wheel_std``: relative Gaussian on the commanded speeds, ``v (1 + e_v)``, ``w (1 + e_w)``;
-    - ``v_std``, ``w_std``: absolute Gaussian on the commanded speeds (m/s, rad/s).
+    - ``v_std``, ``w_std``: absolute Gaussian on the commanded speeds (m/s, rad/s);
+    - ``sonar_cone`` (degrees): each sonar reading is cast along a ray offset from the
+      transducer's axis by an angle drawn uniformly in ``[-cone/2, cone/2]``, per reading and step.
+
+    World channels drawn once per episode (per robot, at the start; "Jakobi's envelope": the
+    details of the world a controller must not rely on):
+
+    - ``corridor_scale``: the maze is scaled by ``s``, uniform in ``[1 - x, 1 + x]``: the sonars
+      read ``s`` times the compiled maze's ranges and a metre driven covers ``1 / s`` of its metres
+      (the robot's size, for collisions and the camera, scales with it: ``docs/noise.md``);
+    - ``wheel_bias``: the left wheel turns ``1 + b`` times its speed, the right ``1 - b`` times,
+      ``b ~ N(0, wheel_bias)`` clipped to [-1, 1]: ``v - b w L / 2``, ``w - 2 b v / L`` for the
+      command ``(v, w)`` and the wheel base ``L`` (:data:`mbn.world.robot.WHEEL_BASE`).
 
     Controller channels (drawn by the controller from ``Observation.key``):
 
@@ -147,6 +159,28 @@ class NoiseConfig(Settings):
         high=10.0,
         source=_DOC,
     )
+    sonar_cone: float = setting(
+        0.0,
+        doc="width of the cone a sonar's ray is drawn in, per reading (uniform about the axis)",
+        unit="deg",
+        low=0.0,
+        high=60.0,
+        source=_DOC,
+    )
+    corridor_scale: float = setting(
+        0.0,
+        doc="per episode, the maze scaled by s uniform in [1 - x, 1 + x] (0.1: corridors +-10 %)",
+        low=0.0,
+        high=0.5,
+        source=_DOC,
+    )
+    wheel_bias: float = setting(
+        0.0,
+        doc="per episode, std of the wheels' bias b: left speed x (1 + b), right x (1 - b)",
+        low=0.0,
+        high=0.5,
+        source=_DOC,
+    )
     neuron_std: float = setting(
         0.0,
         doc="Gaussian on every neuron's potential per robot step",
@@ -164,8 +198,13 @@ class NoiseConfig(Settings):
 
     @property
     def world_enabled(self) -> bool:
-        """Whether a world channel (sonars, camera, wheels) is on."""
+        """Whether a world channel (sonars, camera, wheels, the maze's scale) is on."""
         return any(getattr(self, name) > 0 for name in _WORLD)
+
+    @property
+    def episode_enabled(self) -> bool:
+        """Whether a channel drawn once per episode (corridor scale, wheel bias) is on."""
+        return any(getattr(self, name) > 0 for name in _EPISODE)
 
     @property
     def controller_enabled(self) -> bool:
@@ -188,7 +227,12 @@ _WORLD = (
     "wheel_std",
     "v_std",
     "w_std",
+    "sonar_cone",
+    "corridor_scale",
+    "wheel_bias",
 )
+#: The world channels drawn once per episode (:func:`mbn.world.step.draw_episode`).
+_EPISODE = ("corridor_scale", "wheel_bias")
 
 
 def normalize(ranges: ArrayLike, config: SensorConfig) -> Array:

@@ -9,17 +9,21 @@ Both the batched rollout (:mod:`mbn.world.rollout`) and the Gymnasium environmen
   :class:`~mbn.world.senses.Reading`: the sonars (exact lattice rays, optional Gaussian noise
   clipped to [0, 5] m), the blob-finding camera (when configured), the tile under the body, then
   any registered sensor the senses name (:mod:`mbn.world.senses`);
-* :func:`move`: the command gets optional Gaussian noise and is clipped to the P3DX's limits
-  (:func:`command`); the pose moves by forward Euler with the heading at the start of the step
-  (:func:`mbn.world.robot.integrate_pose`); the body at the new pose is tested against the walls.
-  A move whose body would overlap a wall is marked ``stalled``; :func:`undo_stalled` then keeps
-  the robot where it was (Stage's rule) and :func:`applied_speeds` reads 0 for its speeds.
+* :func:`move`: the command gets optional Gaussian noise and the episode's wheel bias and is
+  clipped to the P3DX's limits (:func:`command`); the pose moves by forward Euler with the heading
+  at the start of the step (:func:`mbn.world.robot.integrate_pose`; in a maze scaled by ``s`` a
+  metre driven is ``1 / s`` of the compiled maze's); the body at the new pose is tested against
+  the walls. A move whose body would overlap a wall is marked ``stalled``; :func:`undo_stalled`
+  then keeps the robot where it was (Stage's rule) and :func:`applied_speeds` reads 0 for its
+  speeds.
 
 Everything is a pure JAX function of explicit arguments over a flat batch ``(B, ...)`` of robots,
 each in the maze ``maze_index`` of a compiled :class:`~mbn.world.engine.World` (its constants
 ``mc`` from :func:`~mbn.world.engine.maze_constants`). Lengths in metres, angles in radians,
 speeds in m/s and rad/s, ``dt`` in seconds. Noise keys are one key per step: :func:`sense` hands
-it to every sensor (the sonars fold in 0 and 2, the camera 3), :func:`command` folds in 4 and 1.
+it to every sensor (the sonars fold in 0, 2 and 6, the camera 3), :func:`command` folds in 4 and 1.
+What an episode draws once (:func:`draw_episode`: the maze's scale, the wheels' bias; folds 7 and
+8 of the episode's key) is an :class:`Episode`, given to :func:`locate` and :func:`move`.
 """
 
 from __future__ import annotations
@@ -30,17 +34,19 @@ from typing import cast as typed
 import jax
 import jax.numpy as jnp
 from jax import Array
-from jax.typing import ArrayLike
+from jax.typing import ArrayLike, DTypeLike
 
 from mbn.errors import MbnInputError
 from mbn.world.engine import MazeConstants, World, collides_cells, window_words
-from mbn.world.robot import clip_command, integrate_pose
+from mbn.world.robot import WHEEL_BASE, clip_command, integrate_pose
 from mbn.world.senses import Place, Reading, Senses, camera_noise
 from mbn.world.sensors import NoiseConfig
 
 __all__ = [
     "ALL_SENSES",
+    "NO_EPISODE",
     "NO_NOISE",
+    "Episode",
     "Move",
     "Place",
     "Reading",
@@ -49,6 +55,7 @@ __all__ = [
     "applied_speeds",
     "camera_noise",
     "command",
+    "draw_episode",
     "locate",
     "move",
     "overlaps",
@@ -71,6 +78,19 @@ class Sensed(NamedTuple):
     reading: Reading
 
 
+class Episode(NamedTuple):
+    """What each robot's episode draws once (:func:`draw_episode`), ``(B,)`` or None where the
+    channel is off: ``scale``, the factor its maze is scaled by (the noise's ``corridor_scale``;
+    None: 1); ``bias``, its wheels' bias ``b`` (``wheel_bias``; None: 0)."""
+
+    scale: Array | None = None
+    bias: Array | None = None
+
+
+#: No episode draws (the default of :func:`locate` and :func:`move`).
+NO_EPISODE = Episode()
+
+
 class Move(NamedTuple):
     """A move: ``place`` the pose it leads to (the candidate, whether or not it collides);
     ``stalled (B,)`` whether the body there overlaps a wall, so that the move is undone;
@@ -82,10 +102,31 @@ class Move(NamedTuple):
     w: Array
 
 
-def locate(world: World, mc: MazeConstants, pose: Array) -> Place:
-    """The :class:`Place` of robots at ``pose (B, 3)``."""
+def draw_episode(noise: NoiseConfig, key: Array | None, b: int, dtype: DTypeLike) -> Episode:
+    """The draws of ``b`` robots' episodes, once at their start, from the episode's ``key`` (a
+    rollout's: its key folded with the start's step, -1): the maze's scale ``s`` uniform in
+    ``[1 - corridor_scale, 1 + corridor_scale]`` (the key folded with 7), and the wheels' bias
+    ``b ~ N(0, wheel_bias)`` clipped to [-1, 1] (a wheel at most stops; folded with 8). A
+    channel that is off draws nothing and reads None."""
+    if not noise.episode_enabled:
+        return NO_EPISODE
+    if key is None:
+        raise MbnInputError("corridor_scale or wheel_bias is on: pass a PRNG key")
+    scale = bias = None
+    if noise.corridor_scale > 0:
+        u = jax.random.uniform(jax.random.fold_in(key, 7), (b,), dtype, -1.0, 1.0)
+        scale = 1.0 + noise.corridor_scale * u
+    if noise.wheel_bias > 0:
+        e = jax.random.normal(jax.random.fold_in(key, 8), (b,), dtype)
+        bias = jnp.clip(noise.wheel_bias * e, -1.0, 1.0)
+    return Episode(scale, bias)
+
+
+def locate(world: World, mc: MazeConstants, pose: Array, episode: Episode = NO_EPISODE) -> Place:
+    """The :class:`Place` of robots at ``pose (B, 3)`` (in the episode's scaled maze, if any:
+    :attr:`Place.scale`)."""
     words, ci, cj = window_words(world, mc, pose[:, 0], pose[:, 1])
-    return Place(pose, words, ci, cj)
+    return Place(pose, words, ci, cj, episode.scale)
 
 
 def overlaps(world: World, mc: MazeConstants, place: Place) -> Array:
@@ -152,14 +193,25 @@ def command(
     w_cmd: ArrayLike,
     noise: NoiseConfig = NO_NOISE,
     key: Array | None = None,
+    bias: Array | None = None,
 ) -> tuple[Array, Array]:
     """The speeds ``(v, w)`` ``(B,)`` applied for commands ``v_cmd``, ``w_cmd (B,)``: optional
     relative Gaussian noise (``noise.wheel_std``: ``v (1 + e_v)``, ``w (1 + e_w)``; ``key``,
     this step's key, folded with 4), then absolute (``noise.v_std`` m/s, ``noise.w_std`` rad/s;
-    folded with 1), then clipped to the P3DX's limits (:func:`mbn.world.robot.clip_command`)."""
+    folded with 1), then the episode's wheel bias (``noise.wheel_bias``; ``bias (B,)`` from
+    :func:`draw_episode`: the left wheel's speed ``v - w L / 2`` times ``1 + b``, the right's
+    ``v + w L / 2`` times ``1 - b``, so ``v - b w L / 2`` and ``w - 2 b v / L`` with ``L`` the
+    wheel base, :data:`mbn.world.robot.WHEEL_BASE`), then clipped to the P3DX's limits
+    (:func:`mbn.world.robot.clip_command`)."""
     v_cmd, w_cmd = jnp.asarray(v_cmd), jnp.asarray(w_cmd)
     if (noise.v_std > 0 or noise.w_std > 0 or noise.wheel_std > 0) and key is None:
         raise MbnInputError("command noise is on: pass a PRNG key")
+    if (noise.wheel_bias > 0) != (bias is not None):
+        raise MbnInputError(
+            "wheel_bias is on: pass the episode's bias (mbn.world.step.draw_episode)"
+            if noise.wheel_bias > 0
+            else "a wheel bias was given but the noise's wheel_bias is 0"
+        )
     key = typed(Array, key)  # set wherever a channel below is on
     if noise.wheel_std > 0:
         e = jax.random.normal(jax.random.fold_in(key, 4), (v_cmd.shape[0], 2), v_cmd.dtype)
@@ -170,6 +222,9 @@ def command(
         n = jax.random.normal(nk, (v_cmd.shape[0], 2), v_cmd.dtype)
         v_cmd = v_cmd + noise.v_std * n[:, 0]
         w_cmd = w_cmd + noise.w_std * n[:, 1]
+    if bias is not None:
+        b = bias.astype(v_cmd.dtype)
+        v_cmd, w_cmd = v_cmd - b * w_cmd * (WHEEL_BASE / 2), w_cmd - b * v_cmd * (2 / WHEEL_BASE)
     return clip_command(v_cmd, w_cmd)
 
 
@@ -182,17 +237,21 @@ def move(
     dt: float | Array,
     noise: NoiseConfig = NO_NOISE,
     key: Array | None = None,
+    episode: Episode = NO_EPISODE,
 ) -> Move:
     """Robots at ``pose (B, 3)`` commanded ``(v_cmd, w_cmd) (B,)`` for ``dt`` seconds.
 
-    The commands (cast to the pose's precision) go through :func:`command`; the pose moves by
-    forward Euler with the heading at the start of the step; the body at the new pose is tested
-    against the walls. The returned :class:`Move` holds the new pose even where it collides: keep
-    the robot where it was with :func:`undo_stalled`.
+    The commands (cast to the pose's precision) go through :func:`command` (with the
+    ``episode``'s wheel bias); the pose moves by forward Euler with the heading at the start of
+    the step, in a maze scaled by the episode's ``s`` at ``v / s`` of the compiled maze's metres
+    per second (the turn is the same in any scale); the body at the new pose is tested against
+    the walls. The returned :class:`Move` holds the new pose even where it collides (keep the
+    robot where it was with :func:`undo_stalled`) and the speeds in the robot's own metres.
     """
     dtype = pose.dtype
-    v, w = command(jnp.asarray(v_cmd, dtype), jnp.asarray(w_cmd, dtype), noise, key)
-    place = locate(world, mc, integrate_pose(pose, v, w, dt))
+    v, w = command(jnp.asarray(v_cmd, dtype), jnp.asarray(w_cmd, dtype), noise, key, episode.bias)
+    ahead = v if episode.scale is None else v / episode.scale.astype(dtype)
+    place = locate(world, mc, integrate_pose(pose, ahead, w, dt), episode)
     return Move(place, overlaps(world, mc, place), v, w)
 
 

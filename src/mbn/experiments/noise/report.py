@@ -22,7 +22,14 @@ __all__ = ["TITLE", "claims", "levels_text", "write_report"]
 TITLE = "mbn: what survives noise"
 
 #: The units of the channels' levels, for the figures.
-UNITS = {"sonar_std": "m", "wheel_std": "relative", "neuron_std": "potential"}
+UNITS = {
+    "sonar_std": "m",
+    "wheel_std": "relative",
+    "neuron_std": "potential",
+    "corridor_scale": "relative",
+    "sonar_cone": "degrees",
+    "wheel_bias": "relative",
+}
 
 
 def levels_text(levels: Mapping[str, float]) -> str:

@@ -45,6 +45,9 @@ CHANNELS = (
     "wheel_std",
     "neuron_std",
     "program_std",
+    "corridor_scale",
+    "sonar_cone",
+    "wheel_bias",
 )
 
 #: The controllers tested, in batches that share a controller function: name -> (file, program).
@@ -96,6 +99,16 @@ class NoiseLevelsSettings(Settings):
     neuron_std: tuple[float, ...] = _levels((0.0, 0.1, 0.3, 1.0, 3.0, 10.0), "levels of neuron_std")
     program_std: tuple[float, ...] = _levels(
         (0.0, 0.01, 0.05, 0.1, 0.2, 0.5), "levels of program_std"
+    )
+    corridor_scale: tuple[float, ...] = _levels(
+        (0.0, 0.02, 0.05, 0.1, 0.2, 0.3),
+        "levels of corridor_scale (Jakobi: the corridors' width, 0.1 = ±10 %)",
+    )
+    sonar_cone: tuple[float, ...] = _levels(
+        (0.0, 5.0, 10.0, 15.0, 30.0, 60.0), "levels of sonar_cone (Jakobi: the beam)", "degrees"
+    )
+    wheel_bias: tuple[float, ...] = _levels(
+        (0.0, 0.01, 0.02, 0.05, 0.1, 0.2), "levels of wheel_bias (Jakobi: the wheels' bias)"
     )
     jitter_per_mark: int = setting(
         20, doc="jittered trials per start mark of the test maze", low=1, high=1000, source=_DOC
