@@ -116,3 +116,27 @@ def test_tasks_must_match_the_tile_kinds():
         monolithic_fitness(g, [CrossroadTask(tile=1)], CAMERA)
     with pytest.raises(MbnInputError, match="task 1 has tile 1, expected 2"):
         monolithic_fitness(g, [CrossroadTask(tile=1), CrossroadTask(tile=1)], CAMERA)
+
+
+def test_rf_embedded_in_the_genome_is_the_follower_shaped_network():
+    import jax
+
+    from mbn.experiments.stages.monolithic import add_tile_kind, around, embed_rf
+
+    g, genes, follower = _follower_like(neurons=6, kinds=2)
+    rf = Genome().network(jnp.asarray(follower))
+    np.testing.assert_allclose(embed_rf(g, rf), genes, atol=1e-6)
+    pop = around(genes, jax.random.key(0), 5, 2.0, 10.0)
+    np.testing.assert_array_equal(pop[0], np.clip(genes, -10, 10))  # the first member itself
+    assert np.all(np.abs(pop) <= 10.0) and np.std(pop[1:] - genes) > 0.5
+    grown = add_tile_kind(pop, g, jax.random.key(1), 2.0, 10.0)
+    three = MonolithicGenome(neurons=6, kinds=3)
+    assert grown.shape == (5, three.size)
+    before, after = g.batch(jnp.asarray(pop)), three.batch(jnp.asarray(grown))
+    # every weight kept; the new tile input's weights are the only new genes
+    np.testing.assert_array_equal(np.asarray(after.W), np.asarray(before.W))
+    np.testing.assert_array_equal(np.asarray(after.WE)[..., :5], np.asarray(before.WE))
+    np.testing.assert_array_equal(np.asarray(after.bias), np.asarray(before.bias))
+    assert np.all(np.asarray(after.WE)[..., 5] != 0)
+    with pytest.raises(MbnInputError, match="a genome of"):
+        add_tile_kind(pop[:, :-1], g, jax.random.key(1), 2.0, 10.0)

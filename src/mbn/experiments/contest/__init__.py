@@ -62,7 +62,7 @@ QUICK: dict[str, dict[str, Any]] = {
     **REPRODUCE_QUICK,
     "im_full": {"curve": False},
     "contest": {"generations": 4, "check_every": 2, "variants": 1},
-    "contest3": {"neurons": 4, "pm_generations": 20},
+    "contest3": {"neurons": 4, "pm_generations": 20, "grown_neurons": (4,)},
 }
 
 

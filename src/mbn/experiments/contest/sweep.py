@@ -35,7 +35,10 @@ _CONTEST_STEMS = tuple(
         ("", "programs_k"),
         ("im_", "programs_k"),
     )
-) + tuple(f"{who}_three_behaviours" for who in ("programs", "monolithic", "oracle", "gate"))
+) + tuple(
+    f"{who}_three_behaviours"
+    for who in ("programs", "monolithic", "grown5", "grown10", "oracle", "gate")
+)
 
 CONTEST_SPEC = SweepSpec(
     name="programs-vs-dynamics",
@@ -48,7 +51,8 @@ CONTEST_SPEC = SweepSpec(
     "(below). `im_programs_*` is program search's final program through the interpreter itself "
     "(`im_programs_k_*`: the interpreter with only k connections programmable); the others are "
     "the networks; `*_three_behaviours`: the three-behaviour task's final "
-    "controllers, the MBN (`programs`) and the monolithic CTRNN, and the MBN's baselines built "
+    "controllers, the MBN (`programs`), the monolithic CTRNN evolved at once and grown rule by "
+    "rule (`grown5`, `grown10`: its sizes), and the MBN's baselines built "
     "from its programs (`oracle`: the weights swapped; `gate`: the decoded networks side by "
     "side), judged by the last tile's rule.",
     de_stages={"rf": "RF (12 genes)"},

@@ -46,6 +46,7 @@ from mbn.controllers import (
     read_controller_spec,
     save_controller,
 )
+from mbn.controllers.spec import NUM_INPUTS
 from mbn.errors import MbnInputError
 from mbn.experiments.evolve import robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
@@ -69,7 +70,13 @@ from mbn.experiments.stages.contest import (
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.mbn3 import code_mbn, evolve_code_pm
-from mbn.experiments.stages.monolithic import MonolithicGenome, monolithic_fitness
+from mbn.experiments.stages.monolithic import (
+    MonolithicGenome,
+    add_tile_kind,
+    around,
+    embed_rf,
+    monolithic_fitness,
+)
 from mbn.experiments.stages.programs import (
     check_digest,
     program_de_config,
@@ -104,8 +111,15 @@ CONTENDERS3: dict[str, str] = {
     "interpreter, RF's and LF's programs kept, a code program module evolved without the robot",
     "monolithic": "one CTRNN reading the sonars and the three tile kinds, evolved for the three "
     "rules at once",
+    "grown": "one CTRNN reading the sonars and the tile kinds, grown rule by rule as the MBN is "
+    "(RF's network embedded, evolved for right and left with two tile inputs, then a third "
+    "input and the three rules), at each size of [contest3] grown_neurons",
 }
 
+
+#: Folded into the stage's key for the MBN's program module (the number of contenders when
+#: there were two: runs made since keep their program modules).
+PM_KEY = 2
 
 #: The baselines of the three-behaviour task: no search of their own, built from what the
 #: programs contender found and tested as the contenders' finals are (``docs/contest.md``).
@@ -130,7 +144,9 @@ class Contest3Settings(Settings):
         source="docs/contest.md (the three-behaviour MBN of mbn run new-behaviours)",
     )
     contenders: tuple[str, ...] = setting(
-        tuple(CONTENDERS3), doc="the contenders: programs, monolithic", source="docs/contest.md"
+        tuple(CONTENDERS3),
+        doc="the contenders: programs, monolithic, grown",
+        source="docs/contest.md",
     )
     neurons: int = setting(
         5,
@@ -138,6 +154,11 @@ class Contest3Settings(Settings):
         low=3,
         high=20,
         source="docs/contest.md",
+    )
+    grown_neurons: tuple[int, ...] = setting(
+        (5, 10),
+        doc="the sizes of the grown contender (a run each: grown5, grown10, ...)",
+        source="docs/contest.md (a monolithic network of one size could be too small)",
     )
     switches: bool = setting(
         True,
@@ -205,6 +226,13 @@ class Contest3Settings(Settings):
                 raise MbnInputError(
                     f"contest3.baselines: {b!r} is not one of {', '.join(BASELINES3)}"
                 )
+        if any(not NUM_INPUTS <= n <= 20 for n in self.grown_neurons) or len(
+            set(self.grown_neurons)
+        ) != len(self.grown_neurons):
+            raise MbnInputError(
+                f"contest3.grown_neurons: distinct sizes of {NUM_INPUTS} to 20 neurons, got "
+                f"{list(self.grown_neurons)}"
+            )
         if len(set(self.baselines)) != len(self.baselines):
             raise MbnInputError("contest3.baselines: none listed twice")
         if self.baselines and "programs" not in self.contenders:
@@ -277,7 +305,7 @@ class Contest3Stage(Stage[Contest3Result]):
                 s.pm_generations,
                 s.pm_bound,
                 s.switch_seconds,
-                jax.random.fold_in(ctx.key, len(CONTENDERS3)),
+                jax.random.fold_in(ctx.key, PM_KEY),
             )
         kept = [spec.programs[r] for r in rules[:2]]
 
@@ -288,9 +316,7 @@ class Contest3Stage(Stage[Contest3Result]):
                 spec, pm.network, rules, [*kept, program], camera, {**meta, "sha256": digest}
             )
 
-        genome = MonolithicGenome(neurons=s.neurons, kinds=len(rules))
-
-        def monolithic_of(genes: Any) -> CTRNNControllerSpec:
+        def monolithic_of(genome: MonolithicGenome, genes: Any) -> CTRNNControllerSpec:
             return CTRNNControllerSpec(
                 net=genome.network(jnp.asarray(genes)),
                 tile_rules=rules,
@@ -298,15 +324,63 @@ class Contest3Stage(Stage[Contest3Result]):
                 metadata=meta,
             )
 
+        bound = ctx.section(FollowerSettings).weight_bound
+        marks = len(CROSSROAD_KINDS)
+
+        def monolithic(genome: MonolithicGenome, population: np.ndarray | None) -> Contender:
+            """DE of a monolithic network for the tile kinds of ``genome`` (the first rules)."""
+            kinds = rules[: genome.kinds]
+            tasks = [
+                dataclasses.replace(task(ctx, r, contest.variants), tile=k + 1)
+                for k, r in enumerate(kinds)
+            ]
+            return Contender(
+                de_config(ctx, genome.size, bound),
+                robust_fitness(
+                    monolithic_fitness(
+                        genome,
+                        tasks,
+                        camera,
+                        see=MemoryReward().see,
+                        hold=MemoryReward().hold,
+                        switches=s.switches,
+                        rest=task(ctx, rules[0], contest.variants),
+                    ),
+                    stage_perturbations(ctx, genome.size),
+                ),
+                population,
+                lambda genes: genome.network(jnp.asarray(genes)),
+                lambda genes: make_controller(
+                    monolithic_of(genome, genes), None, where="contest3", check_stability=False
+                ),
+            )
+
+        def episodes_of(kinds: int) -> int:
+            per_rule = marks * contest.variants + (marks * (kinds - 1) * s.switches)
+            return (kinds * per_rule + marks * contest.variants) * copies
+
+        # each contender's runs: (name, key, the genome its genes are of)
+        plan: list[tuple[str, str, jax.Array, MonolithicGenome | None]] = []
+        for c_index, who in enumerate(CONTENDERS3):
+            if who not in s.contenders:
+                continue
+            key = jax.random.fold_in(ctx.key, c_index)
+            if who == "grown":
+                for n in s.grown_neurons:
+                    genome = MonolithicGenome(neurons=n, kinds=len(rules))
+                    plan.append((who, f"grown{n}", jax.random.fold_in(key, n), genome))
+            else:
+                genome = MonolithicGenome(neurons=s.neurons, kinds=len(rules))
+                plan.append((who, who, key, None if who == "programs" else genome))
+
         runs: dict[str, Any] = {}
         tests: dict[str, Any] = {}
         details: dict[str, Any] = {}
         trajectories: dict[str, Any] = {}
         episodes: dict[str, int] = {}
-        for c_index, who in enumerate(CONTENDERS3):
-            if who not in s.contenders:
-                continue
-            if who == "programs":
+        for kind, who, key, genes_of in plan:
+            grown: dict[str, Any] | None = None
+            if kind == "programs":
                 c = Contender(
                     program_de_config(ctx, interp),
                     program_fitness(ctx, interp, rf, new_rule, contest.variants),
@@ -315,43 +389,21 @@ class Contest3Stage(Stage[Contest3Result]):
                     lambda genes: make_controller(mbn_of(genes), None, where="contest3 mbn"),
                 )
                 episodes[who] = len(CROSSROAD_KINDS) * contest.variants * copies
+            elif kind == "grown":
+                assert genes_of is not None
+                c, grown = self._grown(ctx, who, key, genes_of, rf, monolithic, bound)
+                episodes[who] = episodes_of(len(rules))
             else:
-                tasks = [
-                    dataclasses.replace(task(ctx, r, contest.variants), tile=k + 1)
-                    for k, r in enumerate(rules)
-                ]
-                bound = ctx.section(FollowerSettings).weight_bound
-                c = Contender(
-                    de_config(ctx, genome.size, bound),
-                    robust_fitness(
-                        monolithic_fitness(
-                            genome,
-                            tasks,
-                            camera,
-                            see=MemoryReward().see,
-                            hold=MemoryReward().hold,
-                            switches=s.switches,
-                            rest=task(ctx, rules[0], contest.variants),
-                        ),
-                        stage_perturbations(ctx, genome.size),
-                    ),
-                    None,
-                    lambda genes: genome.network(jnp.asarray(genes)),
-                    lambda genes: make_controller(
-                        monolithic_of(genes), None, where="contest3", check_stability=False
-                    ),
-                )
-                marks = len(CROSSROAD_KINDS)
-                per_rule = marks * contest.variants + (marks * (len(rules) - 1) * s.switches)
-                episodes[who] = (len(rules) * per_rule + marks * contest.variants) * copies
+                assert genes_of is not None
+                c = monolithic(genes_of, None)
+                episodes[who] = episodes_of(len(rules))
             name = f"contest_{TASK}_{who}"
-            key = jax.random.fold_in(ctx.key, c_index)
             checks, result = contend(
                 ctx, name, f"{TASK}: {who}", c, key, functools.partial(check, ctx, maze, specs)
             )
             hit = next((x for x in checks if x["success"]), None)
             best = np.asarray(result.data["best_genome"])
-            final = mbn_of(best) if who == "programs" else monolithic_of(best)
+            final = mbn_of(best) if genes_of is None else monolithic_of(genes_of, best)
             save_controller(ctx.rundir.controller_file(name), final)
             loaded = make_controller(final, None, where=name, check_stability=False)
             short = f"{who}_{TASK.replace('-', '_')}"
@@ -374,6 +426,8 @@ class Contest3Stage(Stage[Contest3Result]):
                     and tests[f"{short}_jitter"]["success_rate"] >= contest.jitter_target
                 ),
             }
+            if grown is not None:
+                record.update(grown)
             if who == "programs":
                 assert pm is not None
                 record["program"] = np.clip(best.astype(float), 0.0, 1.0).tolist()
@@ -432,6 +486,51 @@ class Contest3Stage(Stage[Contest3Result]):
                 "baselines": baselines or None,
             }
         )
+
+    def _grown(
+        self,
+        ctx: StageContext,
+        who: str,
+        key: jax.Array,
+        genome: MonolithicGenome,
+        rf: Any,
+        monolithic: Any,
+        bound: float,
+    ) -> tuple[Contender, dict[str, Any]]:
+        """The grown contender of ``genome``'s size, grown as the MBN is: RF's network embedded
+        (:func:`~mbn.experiments.stages.monolithic.embed_rf`, a first population around it as
+        the neighbour's), evolved for the first two rules with two tile inputs (the contest's
+        budget; checkpoint ``contest_three-behaviours_WHO_two``), then a third tile input
+        added to every member (:func:`~mbn.experiments.stages.monolithic.add_tile_kind`): the
+        contender whose DE the checks follow, as every other's. Returns it and what the run
+        records of its first phase."""
+        contest = ctx.section(ContestSettings)
+        two = MonolithicGenome(neurons=genome.neurons, kinds=2)
+        popsize = ctx.section(DESettings).popsize
+        first = around(
+            embed_rf(two, rf), jax.random.fold_in(key, 1), popsize, contest.neighbour_sigma, bound
+        )
+        name = f"contest_{TASK}_{who}_two"
+        phase = ctx.evolve(
+            name,
+            de_config(ctx, two.size, bound),
+            monolithic(two, None).fitness,
+            jax.random.fold_in(key, 2),
+            contest.generations,
+            f"{TASK}: {who}, right and left",
+            first,
+        )
+        population = np.asarray(ctx.rundir.load_checkpoint(name).state.population, float)
+        third = add_tile_kind(
+            population, two, jax.random.fold_in(key, 3), contest.neighbour_sigma, bound
+        )
+        record = {
+            "grown_from": "rf",
+            "two_rule_evaluations": popsize * (contest.generations + 1),
+            "two_rule_fitness": float(phase.data["best_fitness"]),
+            "neurons": genome.neurons,
+        }
+        return monolithic(genome, third), record
 
     def summary(self, result: Contest3Result) -> str:
         data = result.to_json()

@@ -42,7 +42,14 @@ from mbn.paper import DEFAULT_TAU
 from mbn.world.engine import CameraConfig
 from mbn.world.rollout import rollout
 
-__all__ = ["MonolithicGenome", "monolithic_fitness", "priming_inputs"]
+__all__ = [
+    "MonolithicGenome",
+    "add_tile_kind",
+    "around",
+    "embed_rf",
+    "monolithic_fitness",
+    "priming_inputs",
+]
 
 
 @dataclass(frozen=True)
@@ -107,6 +114,48 @@ class MonolithicGenome:
         return make_ctrnn(
             np.asarray(W), np.asarray(WE), self.tau, bias=np.asarray(bias), name="monolithic"
         )
+
+
+def embed_rf(genome: MonolithicGenome, rf: CTRNN) -> np.ndarray:
+    """The genes of ``genome`` whose network is RF's on its first three neurons (RF's
+    recurrent weights and sonar diagonal; RF's motor neurons are the followers' and so the
+    genome's) and reads nothing else: every other weight and bias 0. A network whose tiles have
+    no weight yet drives exactly as RF (its other neurons rest at 0 and feed nothing)."""
+    n, m = genome.neurons, genome.kinds
+    W = np.zeros((n, n))
+    W[:NUM_INPUTS, :NUM_INPUTS] = np.asarray(rf.W, float)
+    if np.any(np.asarray(rf.bias)) or np.any(np.asarray(rf.gain) != 1):
+        raise MbnInputError("embed_rf: RF with biases or gains is not a follower genome's")
+    sonar = np.diagonal(np.asarray(rf.WE, float))[:NUM_INPUTS]
+    return np.concatenate([W.ravel(), sonar, np.zeros(n * m), np.zeros(n)])
+
+
+def around(genes: np.ndarray, key: Array, popsize: int, sigma: float, bound: float) -> np.ndarray:
+    """A first population around ``genes``: the genes themselves, then copies with Gaussian
+    noise of ``sigma`` on every gene, clipped to ``[-bound, bound]`` (as the contest's
+    neighbour's around RF)."""
+    noise = np.array(jax.random.normal(key, (popsize, genes.size)), dtype=float)
+    noise[0] = 0.0
+    return np.clip(genes[None] + sigma * noise, -bound, bound)
+
+
+def add_tile_kind(
+    population: np.ndarray, genome: MonolithicGenome, key: Array, sigma: float, bound: float
+) -> np.ndarray:
+    """A population of ``genome`` grown by one tile kind: every member's genes kept, a weight
+    from the new tile input to every neuron inserted (Gaussian of ``sigma``, clipped to the
+    bounds), as a program module grows by one input."""
+    n, m = genome.neurons, genome.kinds
+    if population.shape[1] != genome.size:
+        raise MbnInputError(
+            f"add_tile_kind: a genome of {genome.size} genes, got {population.shape[1]}"
+        )
+    p = population.shape[0]
+    at = n * n + NUM_INPUTS
+    tiles = population[:, at : at + n * m].reshape(p, n, m)
+    new = np.clip(sigma * np.array(jax.random.normal(key, (p, n, 1)), dtype=float), -bound, bound)
+    grown = np.concatenate([tiles, new], axis=2).reshape(p, n * (m + 1))
+    return np.concatenate([population[:, :at], grown, population[:, at + n * m :]], axis=1)
 
 
 def priming_inputs(kinds: int, shown: int, see: float, hold: float, dt: float = 0.1) -> np.ndarray:
