@@ -359,6 +359,19 @@ class InterpolationStage(Stage[InterpolationResult]):
             pairs=out,
         )
 
+    def metrics(self, data: dict[str, Any]) -> dict[str, Any]:
+        """``results.json`` keeps the sweep's shape, not every point (the stage's file has them,
+        and the results' ``pairs`` each pair's curves)."""
+        return {
+            "sha256": data["sha256"],
+            "mazes": data["mazes"],
+            "trials_per_program": data["trials_per_program"],
+            "pairs": {
+                name: {k: pair[k] for k in ("first", "second", "alpha_half", "width")}
+                for name, pair in data["pairs"].items()
+            },
+        }
+
     def summary(self, data: InterpolationResult) -> str:
         parts = []
         for name, pair in data.pairs.items():
