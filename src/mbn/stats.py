@@ -29,6 +29,7 @@ __all__ = [
     "iqm_interval",
     "mann_whitney",
     "median_ratio",
+    "paired_difference",
     "performance_profile",
     "probability_of_improvement",
     "solved_curve",
@@ -360,6 +361,40 @@ def forward_transfer(
     if a.size >= 2 and b.size >= 2 and not np.all(np.concatenate([a, b]) == a[0]):
         out["low"], out["high"] = _bootstrap_ends((a, b), _transfer, seed, resamples, level)
     return out
+
+
+def paired_difference(
+    a: Sequence[float],
+    b: Sequence[float],
+    *,
+    seed: int = 0,
+    resamples: int = 2000,
+    level: float = 0.95,
+) -> dict[str, float]:
+    """The mean of ``a - b`` over paired units (e.g. the same mazes judged twice), with a
+    percentile bootstrap interval that resamples the pairs (SciPy's ``bootstrap``,
+    ``paired=True``; ``seed``: its NumPy generator): ``{"mean", "low", "high"}``."""
+    from scipy.stats import bootstrap
+
+    x, y = np.asarray(a, float), np.asarray(b, float)
+    if x.shape != y.shape:
+        raise ValueError(f"paired_difference: {x.shape} against {y.shape} units")
+    if x.size == 0:
+        return {"mean": math.nan, "low": math.nan, "high": math.nan}
+    point = float(np.mean(x - y))
+    if x.size < 2 or np.all(x - y == (x - y)[0]):
+        return {"mean": point, "low": point, "high": point}
+    res = bootstrap(
+        (x, y),
+        lambda u, v, axis=-1: np.mean(u - v, axis=axis),
+        paired=True,
+        n_resamples=resamples,
+        confidence_level=level,
+        method="percentile",
+        rng=np.random.default_rng(seed),
+    )
+    ci = res.confidence_interval
+    return {"mean": point, "low": float(ci.low), "high": float(ci.high)}
 
 
 def _transfer(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:

@@ -621,7 +621,7 @@ TILES_CASES = [
     (_set("tile_rules", ["right", "up", "left"]), r"tile_rules: unknown rule 'up'"),
     (_set("tile_rules", "right"), r"tile_rules: expected a list of rule names"),
     (_set("tile_rules", ["right", "left"]), r"3 inputs I1..I3 and 2 camera inputs .* 6 columns"),
-    (_set("tile_rules", ["right"] * 4), r"one rule per tile kind \(1 to 3\), got 4"),
+    (_set("tile_rules", ["right"] * 7), r"one rule per tile kind \(1 to 6\), got 7"),
     (_set("camera", "range", -1.0), r"camera: camera range must be in \(0, 5.0\] m, got -1.0"),
 ]
 

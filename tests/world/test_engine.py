@@ -227,8 +227,8 @@ def test_a_three_colour_tile_shows_three_blobs_left_middle_and_right():
     assert b0 * b2 < 0 and abs(b1) < min(abs(b0), abs(b2))
     under = E.tile_under(w, jnp.zeros(1, jnp.int32), jnp.asarray([[4.25, 2.2, math.pi / 2]]))
     assert np.asarray(under).tolist() == [3]
-    with pytest.raises(MbnInputError, match="tile colors must be 1, 2 or 3"):
-        Tile(1.0, 1.0, 4)
+    with pytest.raises(MbnInputError, match="tile colors must be an integer from 1 to 6, got 7"):
+        Tile(1.0, 1.0, 7)
 
 
 def test_camera_config_is_validated():

@@ -276,6 +276,14 @@ register(
     sweep="mbn.experiments.switch.sweep:SWITCH_SPEC",
 )
 register(
+    "scaling",
+    "mbn.experiments.scaling:SCALING",
+    help="MBNs of 2 to 6 behaviours on one fixed interpreter, each grown from the one before: "
+    "success on each family's test split, forgetting, the program module's code error, the "
+    "cost of each behaviour (docs/scaling.md)",
+    sweep="mbn.experiments.scaling.sweep:SCALING_SPEC",
+)
+register(
     "noise",
     "mbn.experiments.noise:NOISE",
     help="the reproduction's controllers under each channel of the noise model, level by level "

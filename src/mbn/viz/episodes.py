@@ -31,8 +31,7 @@ from numpy.typing import ArrayLike
 from mbn.errors import MbnInputError
 from mbn.viz.maze import (
     TILE1_COLOR,
-    TILE2_COLORS,
-    TILE3_COLORS,
+    TILE_PALETTES,
     draw_maze,
     legend_below,
     maze_figsize,
@@ -67,7 +66,11 @@ PATH_COLORS = (
     "#7f7f7f",
     "#222222",
 )
-_CAMERA_FOV_COLORS = {0: "#9aa0a6", 1: TILE1_COLOR, 2: TILE2_COLORS[1], 3: TILE3_COLORS[1]}
+_CAMERA_FOV_COLORS = {
+    0: "#9aa0a6",
+    1: TILE1_COLOR,
+    **{n: colors[1] for n, colors in TILE_PALETTES.items() if n > 1},
+}
 _TILE_WORDS = {0: "none", 1: "1-colour", 2: "2-colour"}
 
 

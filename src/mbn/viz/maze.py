@@ -9,8 +9,10 @@ Figures are made and saved by :mod:`mbn.viz.style`. Coordinates are the world's:
 y north, equal aspect. Colours: walls dark grey, free space white, decision cells of grid mazes
 pale blue, one-colour tiles orange, two-colour tiles blue (blob 0, the half to the right of the
 tile's heading) and magenta (blob 1), three-colour tiles green, yellow and teal (blobs 0, 1, 2),
-start poses green arrows numbered 1, 2, ... in the order of ``maze.starts`` (as ``mbn evaluate``
-and the episode panels' titles count them).
+tiles of four, five and six colours in palettes of their own (:data:`TILE_PALETTES`) hatched
+in white, one diagonal, the other diagonal and crossed (:data:`TILE_HATCHES`), start poses
+green arrows numbered 1, 2, ... in the order of ``maze.starts`` (as ``mbn evaluate`` and the
+episode panels' titles count them).
 """
 
 from __future__ import annotations
@@ -34,6 +36,11 @@ __all__ = [
     "TILE1_COLOR",
     "TILE2_COLORS",
     "TILE3_COLORS",
+    "TILE4_COLORS",
+    "TILE5_COLORS",
+    "TILE6_COLORS",
+    "TILE_HATCHES",
+    "TILE_PALETTES",
     "WALL_COLOR",
     "draw_maze",
     "legend_below",
@@ -48,6 +55,21 @@ DECISION_COLOR = "#dfe8f5"
 TILE1_COLOR = "#f28e2b"
 TILE2_COLORS = ("#2f6db5", "#c936c0")
 TILE3_COLORS = ("#2ca02c", "#e6b800", "#17becf")
+TILE4_COLORS = ("#8c564b", "#e377c2", "#9467bd", "#bcbd22")
+TILE5_COLORS = ("#d62728", "#1f77b4", "#ff9896", "#98df8a", "#c5b0d5")
+TILE6_COLORS = ("#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#5254a3")
+#: The colours of each tile kind's parts (blob 0 first), by the kind's colours.
+TILE_PALETTES: dict[int, tuple[str, ...]] = {
+    1: (TILE1_COLOR,),
+    2: TILE2_COLORS,
+    3: TILE3_COLORS,
+    4: TILE4_COLORS,
+    5: TILE5_COLORS,
+    6: TILE6_COLORS,
+}
+#: White hatching over the tiles of four, five and six colours (the others: none).
+TILE_HATCHES: dict[int, str] = {4: "//", 5: "\\\\", 6: "xx"}
+_KIND_WORDS = {1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six"}
 START_COLOR = "#1e8a3c"
 
 
@@ -89,23 +111,15 @@ def maze_legend_handles(maze: Maze, *, junctions: bool, starts: bool, tiles: boo
     handles: list[Any] = [Patch(facecolor=WALL_COLOR, label="wall")]
     if junctions and maze.grid is not None:
         handles.append(Patch(facecolor=DECISION_COLOR, edgecolor="#b9c6d8", label="decision cell"))
-    if tiles and any(t.colors == 1 for t in maze.tiles):
+    kinds = {t.colors for t in maze.tiles} if tiles else set()
+    if 1 in kinds:
         handles.append(Patch(facecolor=TILE1_COLOR, label="one-colour tile"))
-    if tiles and any(t.colors == 2 for t in maze.tiles):
-        handles.append(
-            (
-                Patch(facecolor=TILE2_COLORS[0], label="two-colour tile"),
-                Patch(facecolor=TILE2_COLORS[1]),
-            )
-        )
-    if tiles and any(t.colors == 3 for t in maze.tiles):
-        handles.append(
-            (
-                Patch(facecolor=TILE3_COLORS[0], label="three-colour tile"),
-                Patch(facecolor=TILE3_COLORS[1]),
-                Patch(facecolor=TILE3_COLORS[2]),
-            )
-        )
+    for n in sorted(kinds - {1}):  # adjacent swatches, one per part
+        label = f"{_KIND_WORDS.get(n, str(n))}-colour tile"
+        styles = [_tile_style(n, color) for color in TILE_PALETTES[n]]
+        if n not in TILE_HATCHES:
+            styles = [{"facecolor": style["facecolor"]} for style in styles]
+        handles.append((Patch(**styles[0], label=label), *(Patch(**style) for style in styles[1:])))
     if starts and len(maze.starts):
         handles.append(
             Line2D([], [], color=START_COLOR, marker=">", ls="-", lw=1.5, ms=6, label="start")
@@ -213,6 +227,15 @@ def _tile_parts(tiles: list[Any], n: int) -> np.ndarray:
     return np.stack([lo[:, :-1], hi[:, :-1], hi[:, 1:], lo[:, 1:]], 2)
 
 
+def _tile_style(n: int, color: str) -> dict[str, Any]:
+    """The patch style of a part of a tile of ``n`` colours: its colour, and for four to six
+    colours white hatching (the hatch takes the edge colour; no outline is drawn)."""
+    hatch = TILE_HATCHES.get(n)
+    if hatch is None:
+        return {"facecolor": color, "edgecolor": "none"}
+    return {"facecolor": color, "edgecolor": "white", "linewidth": 0.0, "hatch": hatch}
+
+
 def _add_rectangles(ax: Axes, maze: Maze, rects: np.ndarray, *, gid: str, **style: Any) -> None:
     """Rectangles ``(K, 4)`` as ``(xmin, xmax, ymin, ymax)``: a patch each, or one raster image
     (its gid ``gid``, :func:`_add_raster`) when there are more than :data:`MAX_PATCHES`."""
@@ -243,7 +266,9 @@ def draw_maze(
     a maze whose outside is solid also gets a dark frame round its bounds (gid ``"frame"``). Tiles
     are drawn from :meth:`Tile.corners`: one-colour tiles orange (gid ``"tile1"``), two-colour
     tiles as two halves across the corridor (gid ``"tile2"``: blue is blob 0, magenta blob 1),
-    three-colour tiles as three thirds (gid ``"tile3"``: green, yellow, teal).
+    three-colour tiles as three thirds (gid ``"tile3"``: green, yellow, teal), tiles of ``n`` =
+    4, 5, 6 colours as ``n`` parts (gid ``"tile{n}"``, :data:`TILE_PALETTES`, hatched
+    :data:`TILE_HATCHES`).
     Decision cells of grid mazes (:func:`mbn.world.junctions.decision_cells`) are shaded pale blue
     (gid ``"decision"``); start poses are green arrows (gid ``"start"``) labelled 1, 2, ... in
     the order of ``maze.starts``. Above :data:`MAX_PATCHES` of a kind, tiles are drawn as raster
@@ -286,7 +311,7 @@ def draw_maze(
             gid="decision",
         )
     if tiles:
-        for n, colors in ((1, (TILE1_COLOR,)), (2, TILE2_COLORS), (3, TILE3_COLORS)):
+        for n, colors in TILE_PALETTES.items():
             parts = _tile_parts([t for t in maze.tiles if t.colors == n], n)
             for i, color in enumerate(colors):  # equal parts across the corridor, blob 0 first
                 if len(parts) > MAX_PATCHES:
@@ -294,17 +319,9 @@ def draw_maze(
                     boxes = np.stack([x.min(1), x.max(1), y.min(1), y.max(1)], -1)
                     _add_raster(ax, maze, boxes, gid=f"tile{n}", facecolor=color, zorder=1)
                     continue
+                style = _tile_style(n, color)
                 for part in parts[:, i]:
-                    ax.add_patch(
-                        Polygon(
-                            part,
-                            closed=True,
-                            facecolor=color,
-                            edgecolor="none",
-                            zorder=1,
-                            gid=f"tile{n}",
-                        )
-                    )
+                    ax.add_patch(Polygon(part, closed=True, zorder=1, gid=f"tile{n}", **style))
     _add_rectangles(
         ax,
         maze,

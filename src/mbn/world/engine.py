@@ -40,6 +40,7 @@ from mbn.world.mazes.model import Maze
 from mbn.world.robot import BODY, SONAR_MAX_RANGE, SONAR_POSES
 
 __all__ = [
+    "BASE_BLOBS",
     "CAMERA_POSITION",
     "LATTICE_MAX_BYTES",
     "LATTICE_MAX_WORDS",
@@ -83,6 +84,9 @@ _BODY_RADIUS = float(np.hypot(*BODY.T).max())
 CAMERA_POSITION = (float(BODY[:, 0].mean()), 0.0)
 #: Samples across a tile's width at which the camera tests visibility (fractions of the width).
 _TILE_SAMPLES = np.array([-0.4, -0.15, 0.15, 0.4])
+#: The blob slots of a tile in the camera's reading of mazes whose tiles have at most this many
+#: colours (:attr:`World.n_blobs`).
+BASE_BLOBS = 3
 
 
 @dataclass(frozen=True)
@@ -140,6 +144,7 @@ class CameraConfig:
         "n_rect",
         "min_cell",
         "n_grid_rows",
+        "n_blobs",
     ],
 )
 @dataclass(frozen=True)
@@ -173,6 +178,12 @@ class World:
     other mazes); ``grid_offset[m]`` the junction-table row of its first cell, after the
     ``n_rows`` rows above; ``n_grid_rows`` (static) the cells of all such grids. Without such a
     maze the three arrays are None and ``n_grid_rows`` is 0.
+
+    ``n_blobs`` (static): the blobs a tile can show in these mazes, :data:`BASE_BLOBS` (3) or,
+    when some tile has more colours, the most colours of any tile: the last axis of the camera's
+    :attr:`CameraReading.visible` and ``bearing``, and the cap of a false blob
+    (:func:`mbn.world.senses.camera_noise`). Mazes whose tiles have at most 3 colours compile
+    the camera they always did (:func:`see_tiles`).
     """
 
     origin: Array
@@ -204,6 +215,7 @@ class World:
     grid_shape: Array | None = None
     grid_offset: Array | None = None
     n_grid_rows: int = 0
+    n_blobs: int = BASE_BLOBS
 
     @property
     def n_rows(self) -> int:
@@ -389,6 +401,7 @@ def compile_mazes(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         n_march=n_march,
         n_body=n_body,
         min_cell=float(min(g for g, _ in lattices)),
+        n_blobs=_blob_slots(mazes),
         **_edge_grids(mazes, offset, dtype),
     )
 
@@ -418,6 +431,11 @@ def _edge_grids(mazes: list[Maze] | tuple[Maze, ...], n_rows: int, dtype: Any) -
         "grid_offset": put(offset, np.int32),
         "n_grid_rows": row - n_rows,
     }
+
+
+def _blob_slots(mazes: list[Maze] | tuple[Maze, ...]) -> int:
+    """:attr:`World.n_blobs`: 3, or the most colours of any tile when more."""
+    return max([BASE_BLOBS, *(t.colors for m in mazes for t in m.tiles)])
 
 
 def _tile_arrays(mazes: list[Maze] | tuple[Maze, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -573,6 +591,7 @@ def _compile_segments(mazes: list[Maze] | tuple[Maze, ...]) -> World:
         mode="segments",
         n_seg=n_seg,
         n_rect=n_rect,
+        n_blobs=_blob_slots(mazes),
         **_edge_grids(mazes, row0, dtype),
     )
 
@@ -864,16 +883,38 @@ class CameraReading(NamedTuple):
     """What the blob finder reports at one step.
 
     ``blobs``: the number of distinct colour blobs in view (each visible tile shows one blob per
-    colour). ``nearest``: the number of colours (0 none, 1, 2, 3) of the nearest tile in view —
-    the camera input of the program module. ``visible``: ``(..., T, 3)`` which blobs of which
-    tile are in view; ``bearing``: ``(..., T, 3)`` each blob's bearing in the camera frame
-    (radians, positive left; meaningful where visible).
+    colour). ``nearest``: the number of colours (0 none, 1 to 6) of the nearest tile in view —
+    the camera input of the program module. ``visible``: ``(..., T, N)`` which blobs of which
+    tile are in view (``N`` = :attr:`World.n_blobs`: 3, or the most colours of any tile when
+    more); ``bearing``: ``(..., T, N)`` each blob's bearing in the camera frame (radians,
+    positive left; meaningful where visible).
     """
 
     blobs: Array
     nearest: Array
     visible: Array
     bearing: Array
+
+
+def _blob_tables(n_blobs: int) -> tuple[np.ndarray, np.ndarray]:
+    """The samples of a world with tiles of up to ``n_blobs`` (> 3) colours, by a tile's colours
+    ``c`` (row ``c``, 0 padding): ``centre (n + 1, n)``, the fraction of the width of its extra
+    samples, the centres of its ``c`` parts (tiles of 4 or more colours; 0 elsewhere), and
+    ``part (n + 1, 4 + n)``, the blob each sample of :data:`_TILE_SAMPLES` and then each extra
+    sample belongs to (-1: none). A tile of 1 to 3 colours has no extra samples and its four
+    samples' parts are those of :func:`see_tiles`'s three-blob reading."""
+    n, k = n_blobs, len(_TILE_SAMPLES)
+    u = _TILE_SAMPLES
+    centre = np.zeros((n + 1, n))
+    part = np.full((n + 1, k + n), -1, np.int32)
+    part[1, :k] = 0
+    part[2, :k] = np.where(u < 0, 0, 1)
+    part[3, :k] = np.where(u < -1 / 6, 0, np.where(u > 1 / 6, 2, 1))
+    for c in range(BASE_BLOBS + 1, n + 1):
+        part[c, :k] = np.minimum(np.floor((u + 0.5) * c), c - 1)
+        centre[c, :c] = -0.5 + (np.arange(c) + 0.5) / c
+        part[c, k : k + c] = np.arange(c)
+    return centre, part
 
 
 def see_tiles(
@@ -888,8 +929,15 @@ def see_tiles(
 ) -> CameraReading:
     """The blob finder at ``pose (B, 3)``: a tile's blob is in view when one of its sample points
     (across the tile's width) is within the field of view and range and no wall lies between the
-    camera and it. A two-colour tile's halves are separate blobs, and a three-colour tile's
-    thirds."""
+    camera and it. A tile of ``c`` colours is ``c`` equal parts side by side across its width,
+    one blob each: a two-colour tile's halves, a three-colour tile's thirds.
+
+    Samples: four across every tile's width (:data:`_TILE_SAMPLES`); in worlds with tiles of 4
+    or more colours (:attr:`World.n_blobs` > 3, a static field), a tile of ``c >= 4`` colours
+    also has one at the centre of each of its ``c`` parts (four samples leave some parts of five
+    or six without one). A blob is in view when a sample of its part is; its bearing is the
+    mean of those samples'. A world whose tiles have at most 3 colours compiles the three-blob
+    reading alone, and a tile of 1 to 3 colours reads the same in either."""
     tiles = world.tiles[maze_index]  # (B, T, 6)
     colors = world.tile_colors[maze_index]  # (B, T)
     th = pose[..., 2]
@@ -900,6 +948,12 @@ def see_tiles(
     # sample points across the width: centre + u * width * (-sin h, cos h)
     px = tiles[..., 0:1] - u * tiles[..., 4:5] * tiles[..., 3:4]  # (B, T, k)
     py = tiles[..., 1:2] + u * tiles[..., 4:5] * tiles[..., 2:3]
+    many = world.n_blobs > BASE_BLOBS
+    if many:  # the centres of the parts of tiles of 4 or more colours, after the four samples
+        centre_table, part_table = _blob_tables(world.n_blobs)
+        uc = jnp.asarray(centre_table, pose.dtype)[colors]  # (B, T, n)
+        px = jnp.concatenate([px, tiles[..., 0:1] - uc * tiles[..., 4:5] * tiles[..., 3:4]], -1)
+        py = jnp.concatenate([py, tiles[..., 1:2] + uc * tiles[..., 4:5] * tiles[..., 2:3]], -1)
     vx, vy = px - camx[:, None, None], py - camy[:, None, None]
     dist = jnp.hypot(vx, vy)
     # unit direction to each sample and the cosine of its angle off the camera's axis: the
@@ -931,6 +985,31 @@ def see_tiles(
     ).reshape(b, t, k)
     seen = in_view & (free >= dist - 1e-4)
     rel = jnp.arctan2(uy * c[:, None, None] - ux * s[:, None, None], cos_off)
+    if many:
+        visible, bearing = _many_blobs(seen, rel, jnp.asarray(part_table)[colors], world.n_blobs)
+        blobs = jnp.sum(visible, axis=(-1, -2))
+        any_vis = jnp.any(visible, -1)
+    else:
+        visible, bearing, (vis0, vis1, vis2) = _three_blobs(seen, rel, colors, u)
+        blobs = jnp.sum(visible, axis=(-1, -2))
+        any_vis = vis0 | vis1 | vis2
+    nearest_t = jnp.argmin(jnp.where(any_vis, centre_dist, jnp.inf), axis=-1)
+    nearest = jnp.where(
+        jnp.any(any_vis, -1), jnp.take_along_axis(colors, nearest_t[:, None], -1)[:, 0], 0
+    )
+    return CameraReading(blobs=blobs, nearest=nearest, visible=visible, bearing=bearing)
+
+
+def _mean_bearing(mask: Array, rel: Array) -> Array:
+    n = jnp.maximum(jnp.sum(mask, -1), 1)
+    return jnp.sum(jnp.where(mask, rel, 0.0), -1) / n
+
+
+def _three_blobs(
+    seen: Array, rel: Array, colors: Array, u: Array
+) -> tuple[Array, Array, tuple[Array, Array, Array]]:
+    """Visibility and bearing ``(B, T, 3)`` of the blobs of tiles of at most 3 colours from
+    their four samples ``seen``, ``rel`` ``(B, T, 4)``, and the three visibilities apart."""
     # blob b of a tile of c colours: the samples in the b-th of c equal parts of its width
     # (first: the u < 0 side); one colour: all of them
     two = (colors == 2)[..., None]
@@ -943,23 +1022,32 @@ def see_tiles(
     blob2 = jnp.where(three, seen & last_third, False)
     vis0, vis1, vis2 = jnp.any(blob0, -1), jnp.any(blob1, -1), jnp.any(blob2, -1)
     visible = jnp.stack([vis0, vis1, vis2], -1)  # (B, T, 3)
-
-    def mean_bearing(mask: Array) -> Array:
-        n = jnp.maximum(jnp.sum(mask, -1), 1)
-        return jnp.sum(jnp.where(mask, rel, 0.0), -1) / n
-
-    bearing = jnp.stack([mean_bearing(blob0), mean_bearing(blob1), mean_bearing(blob2)], -1)
-    blobs = jnp.sum(visible, axis=(-1, -2))
-    any_vis = vis0 | vis1 | vis2
-    nearest_t = jnp.argmin(jnp.where(any_vis, centre_dist, jnp.inf), axis=-1)
-    nearest = jnp.where(
-        jnp.any(any_vis, -1), jnp.take_along_axis(colors, nearest_t[:, None], -1)[:, 0], 0
+    bearing = jnp.stack(
+        [_mean_bearing(blob0, rel), _mean_bearing(blob1, rel), _mean_bearing(blob2, rel)], -1
     )
-    return CameraReading(blobs=blobs, nearest=nearest, visible=visible, bearing=bearing)
+    return visible, bearing, (vis0, vis1, vis2)
+
+
+def _many_blobs(seen: Array, rel: Array, part: Array, n_blobs: int) -> tuple[Array, Array]:
+    """Visibility and bearing ``(B, T, n_blobs)`` from the samples ``seen``, ``rel``
+    ``(B, T, 4 + n_blobs)``, each in the blob ``part`` (-1 none; :func:`_blob_tables`). The four
+    samples and the extra ones are summed apart, so that a tile of 1 to 3 colours (no extra
+    sample) reads the bearings :func:`_three_blobs` gives."""
+    k = len(_TILE_SAMPLES)
+    visible, bearing = [], []
+    for blob in range(n_blobs):
+        mask = seen & (part == blob)
+        n = jnp.maximum(jnp.sum(mask[..., :k], -1) + jnp.sum(mask[..., k:], -1), 1)
+        total = jnp.sum(jnp.where(mask[..., :k], rel[..., :k], 0.0), -1) + jnp.sum(
+            jnp.where(mask[..., k:], rel[..., k:], 0.0), -1
+        )
+        visible.append(jnp.any(mask, -1))
+        bearing.append(total / n)
+    return jnp.stack(visible, -1), jnp.stack(bearing, -1)
 
 
 def tile_under(world: World, maze_index: Array, pose: Array) -> Array:
-    """The number of colours (0 none, 1, 2, 3) of the tile under the middle of the body."""
+    """The number of colours (0 none, 1 to 6) of the tile under the middle of the body."""
     tiles = world.tiles[maze_index]
     colors = world.tile_colors[maze_index]
     th = pose[..., 2:3]

@@ -234,7 +234,7 @@ class Observation(NamedTuple):
 
     ``ranges``: the configured sonars (metres); ``S``: their normalised values; ``inputs``: the
     paper's I1..I3 (eq. 3; zeros when the paper's 10 sonars are not all cast); ``camera``: colours
-    of the nearest tile in view (0 none, 1, 2); ``blobs``: blobs in view; ``tile``: colours of the
+    of the nearest tile in view (0 none, 1 to 6); ``blobs``: blobs in view; ``tile``: colours of the
     last tile driven over (0 none yet); ``stalled``: whether the previous move was undone;
     ``t``: time (s); ``key``: this robot's PRNG key for the step, for a controller's own noise
     (neurons, program lines: :class:`~mbn.world.sensors.NoiseConfig`), None when the rollout's

@@ -17,8 +17,8 @@ channels at a place. The built-in ones are registered the same way, and read fir
   the order asked for), exact lattice rays (optionally drawn within a cone about each axis, and
   scaled with the episode's maze) with optional Gaussian noise (clipped to [0, 5] m) and
   dropouts; width k;
-* ``"camera"`` (:class:`Camera`): channels ``camera (B,)``, the colours (0 none, 1, 2, 3) of the
-  nearest tile in view, and ``blobs (B,)``, the blobs in view (both 0 with the camera off),
+* ``"camera"`` (:class:`Camera`): channels ``camera (B,)``, the colours (0 none, 1 to 6) of
+  the nearest tile in view, and ``blobs (B,)``, the blobs in view (both 0 with the camera off),
   with optional missed and false blobs; width 2;
 * ``"tile"`` (:class:`TileUnder`): channel ``under (B,)``, the colours of the tile under the
   middle of the body (0 none); width 1.
@@ -51,6 +51,7 @@ from jax.typing import DTypeLike
 
 from mbn.errors import MbnInputError
 from mbn.world.engine import (
+    BASE_BLOBS,
     CameraConfig,
     MazeConstants,
     World,
@@ -59,7 +60,6 @@ from mbn.world.engine import (
     tile_under,
 )
 from mbn.world.geometry import sonar_rays
-from mbn.world.mazes.model import TILE_COLORS
 from mbn.world.robot import SONAR_MAX_RANGE, SONAR_POSES
 from mbn.world.sensors import ALL_SONARS, NoiseConfig, SensorConfig
 
@@ -126,7 +126,8 @@ class Senses:
             not read here; :meth:`build` keeps these alone): ``sonar_std`` (Gaussian, metres,
             clipped to [0, 5] m), ``sonar_dropout`` (a reading returns 5 m), ``sonar_cone``
             (each ray drawn within the cone about its axis), ``camera_miss`` and
-            ``camera_false`` (the nearest tile reads one colour less or one more, at most 3),
+            ``camera_false`` (the nearest tile reads one colour less or one more, at most 3 or
+            the world's most colours),
             and ``corridor_scale`` (the range of :attr:`Place.scale`, which the sonars read).
         extra: the registered sensors (:func:`register_sensor`) read after the built-in ones,
             in this order.
@@ -283,7 +284,7 @@ class Reading(Mapping[str, Array]):
     mapping, and a JAX pytree whose leaves are the channels in that order).
 
     The built-in channels are also attributes: ``ranges (B, k)`` the sonars asked for (metres,
-    in the order asked for); ``camera (B,)`` the colours (0 none, 1, 2, 3) of the nearest tile in
+    in the order asked for); ``camera (B,)`` the colours (0 none, 1 to 6) of the nearest tile in
     view and ``blobs (B,)`` the blobs in view (both 0 with the camera off); ``under (B,)`` the
     colours of the tile under the middle of the body (0 none). A sensor of one's own is read by
     its channels' names: ``reading["compass"]``.
@@ -449,7 +450,11 @@ class Camera:
             nearest, blobs = seen.nearest, seen.blobs
             if noise.camera_miss > 0 or noise.camera_false > 0:
                 nearest, blobs = camera_noise(
-                    nearest, blobs, noise, jax.random.fold_in(typed(Array, key), 3)
+                    nearest,
+                    blobs,
+                    noise,
+                    jax.random.fold_in(typed(Array, key), 3),
+                    most=world.n_blobs,
                 )
         else:
             nearest = blobs = jnp.zeros(pose.shape[:1], jnp.int32)
@@ -479,16 +484,18 @@ class TileUnder:
 
 
 def camera_noise(
-    nearest: Array, blobs: Array, noise: NoiseConfig, key: Array
+    nearest: Array, blobs: Array, noise: NoiseConfig, key: Array, *, most: int = BASE_BLOBS
 ) -> tuple[Array, Array]:
     """The blob finder's reading ``(nearest, blobs) (B,)`` with a missed blob (probability
     ``noise.camera_miss``: one colour less, where a tile is in view) or a false one
-    (``noise.camera_false``: one colour more, at most 3), drawn independently per robot; a
-    miss and a false blob in the same step cancel."""
+    (``noise.camera_false``: one colour more, where the nearest tile reads fewer than ``most``
+    colours), drawn independently per robot; a miss and a false blob in the same step cancel.
+    ``most`` (static): :attr:`mbn.world.engine.World.n_blobs`, which :class:`Camera` passes: 3,
+    or the most colours of any tile of a world whose tiles have more."""
     km, kf = jax.random.split(key)
     shape = nearest.shape
     miss = jax.random.bernoulli(km, noise.camera_miss, shape) & (nearest > 0)
-    false = jax.random.bernoulli(kf, noise.camera_false, shape) & (nearest < max(TILE_COLORS))
+    false = jax.random.bernoulli(kf, noise.camera_false, shape) & (nearest < most)
     change = false.astype(nearest.dtype) - miss.astype(nearest.dtype)
     return nearest + change, jnp.maximum(blobs + change, 0)
 

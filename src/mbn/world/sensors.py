@@ -107,7 +107,8 @@ class NoiseConfig(Settings):
     - ``camera_miss``: probability per step that the camera misses one blob of the nearest tile
       in view (a one-colour tile is then not seen, a two-colour one reads as one colour);
     - ``camera_false``: probability per step of a false blob: the nearest tile reads one colour
-      more (nothing in view reads as a one-colour tile), at most three;
+      more (nothing in view reads as a one-colour tile), at most three (in a world with tiles of
+      more colours, at most its most);
     - ``wheel_std``: relative Gaussian on the commanded speeds, ``v (1 + e_v)``, ``w (1 + e_w)``;
     - ``v_std``, ``w_std``: absolute Gaussian on the commanded speeds (m/s, rad/s);
     - ``sonar_cone`` (degrees): each sonar reading is cast along a ray offset from the

@@ -165,7 +165,7 @@ def test_crossroad_options():
     for bad, message in [
         (dict(kind="X"), "unknown crossroad kind 'X'"),
         (dict(kind="RL"), "unknown crossroad kind 'RL'"),
-        (dict(kind="L", tile=4), r"tile must be one of 1, 2, 3 or None, got 4"),
+        (dict(kind="L", tile=7), r"tile must be one of 1, 2, 3, 4, 5, 6 or None, got 7"),
         (dict(kind="L", arm_cells=0), "arm_cells must be an integer >= 1"),
         (dict(kind="L", arm_cells=1, tile=1), "a tile needs arm_cells >= 2"),
         (dict(kind="L", cell=-1.0), "cell must be a finite number > 0"),

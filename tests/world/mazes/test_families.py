@@ -62,7 +62,7 @@ def test_every_maze_has_the_familys_structure_and_judgeable_starts(name):
             assert nb[r, c, h]
 
 
-@pytest.mark.parametrize("name", ["tiles2", "tiles3"])
+@pytest.mark.parametrize("name", ["tiles2", "tiles3", "tiles4", "tiles5", "tiles6"])
 def test_tiles_lie_at_every_distance_before_a_junction_and_mid_corridor(name):
     fam = fm.family(name)
     for seed in SAMPLE:
@@ -140,7 +140,10 @@ def test_names_load_a_generated_maze_or_a_split():
 @pytest.mark.parametrize(
     ("spec", "message"),
     [
-        ("nope:3", r"unknown maze family 'nope' \(known: grid, tiles2, tiles3\)"),
+        (
+            "nope:3",
+            r"unknown maze family 'nope' \(known: grid, tiles2, tiles3, tiles4, tiles5, tiles6\)",
+        ),
         ("grid:3000000", "maze seed 3000000 is in no split"),
         ("grid/test:0-100", r"split 'test': members 0-100 out of range \(0-99\)"),
         ("grid/train", r"the train split is open-ended: name a range \(train:0-99\)"),

@@ -104,7 +104,7 @@ def test_tile_heading_follows_the_corridor():
     [
         (
             "#.#\n#x#\n",
-            "m.maze:2: unknown character 'x' in column 2 (expected one of # . 1 2 3 > < ^ v)",
+            "m.maze:2: unknown character 'x' in column 2 (expected one of # . 1 2 3 4 5 6 > < ^ v)",
         ),
         ("; c\ncell = abc\n.\n", "m.maze:2: cell must be a number of metres, got 'abc'"),
         ("cell = -1\n.\n", "m.maze:1: cell must be a finite number > 0"),

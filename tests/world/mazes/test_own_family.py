@@ -151,7 +151,14 @@ def test_the_built_in_families_are_registered_as_an_own_one_is():
         assert register_family(fam, zero_shot=fm.ZERO_SHOT[name], salt=fm._FAMILY_SALT[name])
         assert fam.layout is None and fam.splits is None  # the lattice, the shared splits
         assert fm.family_splits(name) is fm.SPLITS
-    assert fm._FAMILY_SALT == {"grid": 1, "tiles2": 2, "tiles3": 3}
+    assert fm._FAMILY_SALT == {
+        "grid": 1,
+        "tiles2": 2,
+        "tiles3": 3,
+        "tiles4": 4,
+        "tiles5": 5,
+        "tiles6": 6,
+    }
     assert "layout" not in fm.family("grid").to_dict()  # their record is as it was
 
 

@@ -142,8 +142,8 @@ def test_toml_syntax_errors_name_the_line():
             "xmin: expected a finite number, got nan",
         ),
         (
-            rects_toml("wall", [(0, 1, 0, 1)]) + "[[tile]]\nx = 2\ny = 2\ncolors = 4\n",
-            "b.toml:6: [[tile]] #1: colors must be 1, 2 or 3, got 4",
+            rects_toml("wall", [(0, 1, 0, 1)]) + "[[tile]]\nx = 2\ny = 2\ncolors = 7\n",
+            "b.toml:6: [[tile]] #1: colors must be an integer from 1 to 6, got 7",
         ),
         (
             rects_toml("wall", [(0, 1, 0, 1)]) + "[[tile]]\nx = 2\ny = 2\ncolors = 1\nwidth = 0\n",

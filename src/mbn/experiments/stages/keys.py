@@ -26,6 +26,12 @@ KEYS: dict[str, int] = {
     "generalization": 16,
     "generalization3": 17,
     "interpolation": 18,
+    "mbn_k2": 19,
+    "mbn_k3": 20,
+    "mbn_k4": 21,
+    "mbn_k5": 22,
+    "mbn_k6": 23,
+    "generalization_scaling": 24,
 }
 
 #: The first number the stages of experiments outside the library may take.

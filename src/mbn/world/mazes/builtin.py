@@ -185,8 +185,8 @@ def crossroad(
             exits, left (west), straight (north), right (east).
         arm_cells: length of each arm in cells.
         cell: the cell side (metres).
-        tile: 1, 2 or 3 puts a one-, two- or three-colour tile in the south arm one cell north of
-            the start.
+        tile: 1 to 6 (:data:`~mbn.world.mazes.model.TILE_COLORS`) puts a tile of that many
+            colours in the south arm one cell north of the start.
         approach: ``"south"`` (the paper's: the start is in the south arm, facing the junction),
             ``"west"`` or ``"east"``: the south arm's end cell opens onto a corridor of ``a``
             cells along the south edge, and the start is at that corridor's far end facing the

@@ -9,7 +9,11 @@ the same way, from outside ``mbn``, and is then named, selected and split as the
 * ``grid`` — no tiles: the wall followers and the rules beyond them (every start judgeable under
   right, left, straight-right and straight-left);
 * ``tiles2`` — the paper's two tile kinds (one colour: right, two colours: left);
-* ``tiles3`` — three tile kinds (one, two, three colours: right, left, straight-right).
+* ``tiles3`` — three tile kinds (one, two, three colours: right, left, straight-right);
+* ``tiles4``, ``tiles5``, ``tiles6`` — four, five, six tile kinds (those of ``tiles3``, then
+  four colours straight-left, five right-left, six left-right: :data:`MANY_TILE_RULES`), in
+  larger mazes (17-25, 19-27, 21-29 cells a side), their start marks chosen to judge every
+  program (:func:`place_starts`).
 
 **The generator** (:func:`lattice_grid`) lays corridors one cell wide along a lattice of lines
 ``gap`` cells apart (the gaps drawn, so corridors between junctions run 1 to ``gap - 1`` cells),
@@ -78,14 +82,17 @@ from mbn.world.junctions import (
     free_neighbours,
     mask_neighbours,
     program_swaps_caught,
+    route_passes,
     rule_route,
 )
 from mbn.world.mazes.grid_text import parse_maze_text
-from mbn.world.mazes.model import DEFAULT_CELL, Maze
-from mbn.world.rules import parse_rules
+from mbn.world.mazes.model import DEFAULT_CELL, TILE_COLORS, Maze
+from mbn.world.rules import parse_rule, parse_rules
 
 __all__ = [
+    "CHOSEN_MARKS_ABOVE",
     "FAMILIES",
+    "MANY_TILE_RULES",
     "MID_CORRIDOR",
     "SPLITS",
     "START_MARKS",
@@ -117,6 +124,9 @@ __all__ = [
 MID_CORRIDOR = 2
 #: How many attempts :func:`generate` makes before it refuses the parameters.
 ATTEMPTS = 200
+#: A family of more tile kinds than this chooses its start marks to judge every program
+#: (:func:`place_starts`).
+CHOSEN_MARKS_ABOVE = 3
 #: The number of mazes in each family's test split.
 TEST_SIZE = 100
 #: The generator seeds of each split, the same for every family (disjoint ranges). ``train`` is
@@ -153,7 +163,7 @@ class Family:
         remove: the fraction of lattice segments knocked out (each kept where removing it
             would cut the maze in two).
         dead_ends: the chance that a removal that leaves a dead end is made (0: no dead ends).
-        tile_kinds: the tile kinds placed (colours: 1, 2, 3); empty: no tiles.
+        tile_kinds: the tile kinds placed (colours: 1 to 6); empty: no tiles.
         reach: tiles lie 0 .. ``reach`` cells before a T or plus crossing.
         near_tiles: tiles of each kind before junctions, their distances taking 0 .. ``reach``
             in turn (so ``reach + 1`` of them give every distance once).
@@ -226,12 +236,12 @@ class Family:
                 raise MbnInputError(f"{where}: {key} must be an integer >= {low}, got {value!r}")
         if not (isinstance(self.junctions, int) and 1 <= self.junctions <= 32):
             raise MbnInputError(f"{where}: junctions must be an integer in 1..32")
-        if any(k not in (1, 2, 3) for k in self.tile_kinds) or len(set(self.tile_kinds)) != len(
+        if any(k not in TILE_COLORS for k in self.tile_kinds) or len(set(self.tile_kinds)) != len(
             self.tile_kinds
         ):
             raise MbnInputError(
-                f"{where}: tile_kinds must be distinct colours among 1, 2, 3, got "
-                f"{self.tile_kinds!r}"
+                f"{where}: tile_kinds must be distinct colours among "
+                f"{', '.join(map(str, TILE_COLORS))}, got {self.tile_kinds!r}"
             )
         for key in ("rules", "first_rules", "tile_rules"):
             value = getattr(self, key)
@@ -724,7 +734,11 @@ def place_starts(
     """``fam.starts`` start marks ``(row, col, heading index N E S W)`` for the grid ``chars``
     (``#`` wall, ``.`` free, digits tiles): straight corridor cells without a tile, facing along
     the corridor, drawn in a random order (``rng``) and each kept when it is judgeable under
-    every rule of ``fam`` (at most one mark a cell). Too few judgeable cells: a retry."""
+    every rule of ``fam`` (at most one mark a cell). Too few judgeable cells: a retry.
+
+    A family of more than :data:`CHOSEN_MARKS_ABOVE` tile kinds chooses its marks instead
+    (:func:`_chosen_marks`): those that judge the most programs not yet judged, then the rest
+    in the drawn order (the families of up to three kinds keep the first judgeable ones)."""
     free = chars != "#"
     straight = straight_cells(free)
     nb = mask_neighbours(free)
@@ -737,6 +751,8 @@ def place_starts(
     ]
     order = rng.permutation(len(candidates))
     base = parse_maze_text(_grid_text(fam, None, chars, ()), where)
+    if len(fam.tile_kinds) > CHOSEN_MARKS_ABOVE:
+        return _chosen_marks(fam, base, free.shape[0], [candidates[int(k)] for k in order])
     marks: list[tuple[int, int, int]] = []
     used: set[tuple[int, int]] = set()
     for k in order:
@@ -750,6 +766,68 @@ def place_starts(
             if len(marks) == fam.starts:
                 return marks
     raise _RetryError(f"only {len(marks)} of {fam.starts} start marks judgeable under every rule")
+
+
+def _chosen_marks(
+    fam: Family, maze: Maze, rows: int, drawn: list[tuple[int, int, int]]
+) -> list[tuple[int, int, int]]:
+    """:func:`place_starts`'s marks for a family of many tile kinds: of the judgeable
+    candidates ``drawn`` (in the drawn order), one at a time the mark that catches the most
+    program swaps (:func:`mbn.world.junctions.program_swaps_caught`: a tile kind's rule swapped
+    for another's, from each first rule) no mark chosen catches yet, the first drawn among
+    equals, until every swap is caught or no mark catches one more; then the first judgeable
+    ones drawn. With six kinds there are 30 swaps from each first rule, and 10 marks drawn at
+    random catch them all in few mazes."""
+    tile_rules = tuple(fam.tile_rules[: max(fam.tile_kinds)])
+    rules = {name: parse_rule(name) for name in tile_rules}
+    swaps = [
+        (k, rules[w])
+        for k, r in enumerate(tile_rules, 1)
+        if k in fam.tile_kinds
+        for w in rules
+        if rules[w] != rules[r]
+    ]
+    judged: list[tuple[tuple[int, int, int], set[tuple[int, int]]]] = []
+    for r, c, h in drawn:
+        pose = ((c + 0.5) * fam.cell, (rows - 1 - r + 0.5) * fam.cell, _heading(h))
+        if not _judgeable(fam, maze, pose):
+            continue
+        caught: set[tuple[int, int]] = set()
+        for f, first in enumerate(fam.first_rules):
+            passes = route_passes(
+                maze, pose, first, fam.junctions, follow_tiles=True, tile_rules=tile_rules
+            )
+            for s, (k, w) in enumerate(swaps):
+                if any(
+                    p.source == k and w.exit(p.open_exits) != rules[p.rule].exit(p.open_exits)
+                    for p in passes or ()
+                ):
+                    caught.add((f, s))
+        judged.append(((r, c, h), caught))
+    marks: list[tuple[int, int, int]] = []
+    used: set[tuple[int, int]] = set()
+    missing = set().union(*(caught for _, caught in judged))
+    while missing and len(marks) < fam.starts:
+        best, gain = None, 0
+        for mark, caught in judged:  # in the drawn order: the first among equals
+            if mark[:2] not in used and len(caught & missing) > gain:
+                best, gain = (mark, caught), len(caught & missing)
+        if best is None:
+            break
+        marks.append(best[0])
+        used.add(best[0][:2])
+        missing -= best[1]
+    for mark, _ in judged:
+        if len(marks) == fam.starts:
+            break
+        if mark[:2] not in used:
+            marks.append(mark)
+            used.add(mark[:2])
+    if len(marks) < fam.starts:
+        raise _RetryError(
+            f"only {len(marks)} of {fam.starts} start marks judgeable under every rule"
+        )
+    return marks
 
 
 def _heading(h: int) -> float:
@@ -961,11 +1039,12 @@ def generate_text(fam: Family | str, seed: int) -> str:
 
 def describe(maze: Maze) -> dict[str, Any]:
     """What a grid maze holds (for tables and records): cells, decision cells by kind, dead
-    ends, loops, tiles by kind, start marks."""
+    ends, loops, tiles by kind (1, 2 and 3 colours, and more where it has them), start marks."""
     free = np.asarray(maze.grid) != "#"
     nb = free_neighbours(maze)
     count = nb.sum(-1)
     decision = decision_cells(maze)
+    kinds = sorted({1, 2, 3} | {t.colors for t in maze.tiles})  # 1 to 3 always, as they were
     return {
         "name": maze.name,
         "shape": list(free.shape),
@@ -975,7 +1054,7 @@ def describe(maze: Maze) -> dict[str, Any]:
         "plus_crossings": int((free & (count == 4)).sum()),
         "dead_ends": int((free & (count == 1)).sum()),
         "loops": _loops(free),
-        "tiles": {str(k): sum(t.colors == k for t in maze.tiles) for k in (1, 2, 3)},
+        "tiles": {str(k): sum(t.colors == k for t in maze.tiles) for k in kinds},
         "starts": len(maze.starts),
     }
 
@@ -1015,3 +1094,23 @@ register_family(
     zero_shot=("tiles3_heldout", "zs_far_tiles3"),
     salt=3,
 )
+#: The rules of the tile kinds of ``tiles4``, ``tiles5`` and ``tiles6``: kind ``k`` (``k``
+#: colours) puts the ``k``-th in force.
+MANY_TILE_RULES = ("right", "left", "straight-right", "straight-left", "right-left", "left-right")
+for _kinds, _doc in (
+    (4, "four tile kinds: one colour right, two left, three straight-right, four straight-left"),
+    (5, "five tile kinds: those of tiles4, and five colours right-left"),
+    (6, "six tile kinds: those of tiles5, and six colours left-right"),
+):
+    register_family(
+        Family(
+            f"tiles{_kinds}",
+            _doc,
+            size=(2 * _kinds + 9, 2 * _kinds + 17),
+            tile_kinds=tuple(range(1, _kinds + 1)),
+            rules=MANY_TILE_RULES[: max(4, _kinds)],
+            first_rules=("right", "left"),
+            tile_rules=MANY_TILE_RULES[:_kinds],
+        ),
+        salt=_kinds,
+    )

@@ -10,8 +10,9 @@
     ###1###
     ###^###
 
-* ``#`` wall, ``.`` free, ``1``/``2``/``3`` free with a one-/two-/three-colour tile, ``>``
-  ``<`` ``^`` ``v`` free with a start pose at the cell centre facing east, west, north, south.
+* ``#`` wall, ``.`` free, ``1`` to ``6`` free with a tile of that many colours (``1`` one
+  colour, ``2`` two, ... :data:`~mbn.world.mazes.model.TILE_COLORS`), ``>`` ``<`` ``^`` ``v``
+  free with a start pose at the cell centre facing east, west, north, south.
 * The first grid line is north. The grid's south-west corner is (0, 0): with ``R`` grid lines,
   the cell on line ``r`` (0 = top) and column ``c`` covers ``x`` in ``[c cell, (c + 1) cell]`` and
   ``y`` in ``[(R - 1 - r) cell, (R - r) cell]``. Outside the grid is wall.
@@ -40,7 +41,14 @@ from pathlib import Path
 import numpy as np
 
 from mbn.errors import MbnInputError
-from mbn.world.mazes.model import DEFAULT_CELL, DEFAULT_TILE_LENGTH, Maze, Tile, merge_cells
+from mbn.world.mazes.model import (
+    DEFAULT_CELL,
+    DEFAULT_TILE_LENGTH,
+    TILE_COLORS,
+    Maze,
+    Tile,
+    merge_cells,
+)
 from mbn.world.mazes.validate import read_text, validate_maze
 
 __all__ = [
@@ -53,7 +61,7 @@ __all__ = [
 ]
 
 #: The characters of a ``.maze`` grid, in the order error messages list them.
-GRID_CHARS = ("#", ".", "1", "2", "3", ">", "<", "^", "v")
+GRID_CHARS = ("#", ".", *(str(c) for c in TILE_COLORS), ">", "<", "^", "v")
 #: Heading (radians) of the start pose each start mark stands for.
 START_HEADINGS = {">": 0.0, "<": math.pi, "^": math.pi / 2, "v": -math.pi / 2}
 

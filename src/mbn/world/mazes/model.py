@@ -35,7 +35,7 @@ DEFAULT_CELL = 1.2
 #: Default extent of a tile along the corridor (metres).
 DEFAULT_TILE_LENGTH = 0.3
 #: The tile kinds: how many colours (blobs side by side across the corridor) a tile shows.
-TILE_COLORS = (1, 2, 3)
+TILE_COLORS = (1, 2, 3, 4, 5, 6)
 
 
 @dataclass(frozen=True)
@@ -44,8 +44,9 @@ class Tile:
 
     ``(x, y)`` is its centre; ``heading`` the direction along the corridor (radians); ``width`` its
     extent across the corridor and ``length`` along it. ``colors`` is 1 (one-colour tile), 2 (a
-    two-colour tile: two halves side by side across the corridor, so that a camera sees two blobs)
-    or 3 (a three-colour tile: three thirds, three blobs).
+    two-colour tile: two halves side by side across the corridor, so that a camera sees two blobs),
+    3 (three thirds, three blobs) and so on up to 6: a tile of ``c`` colours is ``c`` equal parts
+    side by side across the corridor (:data:`TILE_COLORS`).
     """
 
     x: float
@@ -57,7 +58,10 @@ class Tile:
 
     def __post_init__(self) -> None:
         if self.colors not in TILE_COLORS:
-            raise MbnInputError(f"tile colors must be 1, 2 or 3, got {self.colors!r}")
+            raise MbnInputError(
+                f"tile colors must be an integer from {TILE_COLORS[0]} to {TILE_COLORS[-1]}, "
+                f"got {self.colors!r}"
+            )
         for name in ("x", "y", "width", "length", "heading"):
             value = getattr(self, name)
             if not math.isfinite(value):

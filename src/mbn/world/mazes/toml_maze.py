@@ -15,7 +15,7 @@
     [[tile]]
     x = 4.0
     y = 0.6
-    colors = 2                    # optional: width (1.2), length (0.3), heading (degrees, 90)
+    colors = 2                    # 1 to 6; optional: width (1.2), length (0.3), heading (90)
     [[start]]
     x = 0.6
     y = 0.6
@@ -43,7 +43,14 @@ import numpy as np
 from mbn.config import toml_error
 from mbn.errors import MbnInputError
 from mbn.io import expect_number
-from mbn.world.mazes.model import DEFAULT_CELL, DEFAULT_TILE_LENGTH, Maze, Tile, merge_grid
+from mbn.world.mazes.model import (
+    DEFAULT_CELL,
+    DEFAULT_TILE_LENGTH,
+    TILE_COLORS,
+    Maze,
+    Tile,
+    merge_grid,
+)
 from mbn.world.mazes.validate import read_text, validate_maze
 
 __all__ = ["parse_toml_maze", "read_toml_maze"]
@@ -133,8 +140,11 @@ def parse_toml_maze(
     tiles: list[Tile] = []
     for label, v in tables["tile"]:
         colors = v["colors"]
-        if colors not in (1.0, 2.0, 3.0):
-            raise MbnInputError(f"{label}: colors must be 1, 2 or 3, got {colors:g}")
+        if colors not in TILE_COLORS:
+            raise MbnInputError(
+                f"{label}: colors must be an integer from {TILE_COLORS[0]} to "
+                f"{TILE_COLORS[-1]}, got {colors:g}"
+            )
         width = v.get("width", DEFAULT_CELL)
         length = v.get("length", DEFAULT_TILE_LENGTH)
         if width <= 0 or length <= 0:
