@@ -168,6 +168,32 @@ def test_tile_distances_count_the_free_cells_back_to_the_nearest_tile():
         "0": {"passes": 1, "correct": 1},
         "none": {"passes": 1, "correct": 0},
     }
+    # with the stretches before each pass recorded: their steps and stalled moves too
+    verdict["stretch_steps"] = np.array([[120, 80, -1]])
+    verdict["stretch_stalls"] = np.array([[6, 0, -1]])
+    assert tile_distances([maze], {maze.name: verdict}) == {
+        "0": {"passes": 1, "correct": 1, "steps": 120, "stalled": 6},
+        "none": {"passes": 1, "correct": 0, "steps": 80, "stalled": 0},
+    }
+
+
+def test_a_tile_on_the_corner_a_corridor_begins_at_is_a_switch_in_the_turn():
+    from mbn.experiments.generalization import tile_distance
+    from mbn.world.mazes.grid_text import parse_maze_text
+
+    corner = """#########
+#....1###
+#.###.###
+#.###....
+#^###.###
+#########
+"""
+    # the T junction at row 3, column 5, entered from the north (heading south, 2)
+    assert tile_distance(parse_maze_text(corner, "corner"), (3, 5), 2) == "turn"
+    straight = corner.replace("#....1###", "#.....###").replace(
+        "#.###.###\n#.###....", "#.###1###\n#.###...."
+    )
+    assert tile_distance(parse_maze_text(straight, "straight"), (3, 5), 2) == 0
 
 
 def test_the_worst_test_maze_is_run_again_with_its_steps_recorded(quick_run, tmp_path):

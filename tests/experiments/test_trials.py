@@ -384,3 +384,34 @@ def test_trials_of_equal_controllers_compile_once():
     assert _compiled_rollout._cache_size() == before
     run(b, seconds=2.0)
     assert _compiled_rollout._cache_size() == before + 1
+
+
+def test_each_pass_records_the_stretch_before_it_steps_and_stalled_moves():
+    """``stretch_steps`` and ``stretch_stalls``: from the previous pass's exit (or the start)
+    to this pass's, differences of the rollout's cumulative ``junction_exit_step`` and
+    ``junction_stalls``; -1 where there was no pass."""
+    from types import SimpleNamespace
+
+    from mbn.experiments.trials import TrialSpec, judge
+
+    kept = 8
+    exit_step = np.full((1, kept), -1)
+    stalls = np.full((1, kept), -1)
+    exit_step[0, :3] = [100, 180, 300]
+    stalls[0, :3] = [2, 2, 12]
+    stats = SimpleNamespace(
+        n_junctions=np.array([3]),
+        junction_exit=np.array([[1, 1, 1] + [-1] * 5]),
+        junction_open=np.array([[0b1110] * 3 + [-1] * 5]),
+        junction_tile=np.zeros((1, kept), int),
+        junction_exit_step=exit_step,
+        junction_stalls=stalls,
+        junction_cell=np.zeros((1, kept, 2), int),
+        junction_heading=np.zeros((1, kept), int),
+        stall_fraction=np.array([0.04]),
+    )
+    v = judge(stats, TrialSpec(behavior="right", junctions=3))
+    np.testing.assert_array_equal(v["stretch_steps"], [[100, 80, 120]])
+    np.testing.assert_array_equal(v["stretch_stalls"], [[2, 0, 10]])
+    v2 = judge(stats, TrialSpec(behavior="right", junctions=4))  # a fourth pass never made
+    np.testing.assert_array_equal(v2["stretch_steps"][0, 3], -1)

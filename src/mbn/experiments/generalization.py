@@ -98,10 +98,21 @@ class Failures(Record):
 
 @dataclass(frozen=True, kw_only=True)
 class Passes(Record):
-    """Judged junction passes and how many took the rule's exit."""
+    """Judged junction passes and how many took the rule's exit; by the tile's distance, also
+    the robot-steps of the stretches that led to them and how many of those were stalled moves
+    (None where not recorded: junction kinds, and runs made before)."""
 
     passes: int
     correct: int
+    steps: int | None = optional()
+    stalled: int | None = optional()
+
+    @property
+    def stall_fraction(self) -> float | None:
+        """The stalled share of the stretches' steps (None where not recorded)."""
+        if self.steps is None or self.stalled is None or not self.steps:
+            return None
+        return self.stalled / self.steps
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -373,11 +384,12 @@ def generalization_claims(data: Any) -> list[GeneralizationClaim]:
 _FAR = 4
 
 
-def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | None:
+def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | str | None:
     """How many free cells lie between a junction pass's cell and the nearest tile in the
     corridor the robot came along (entering ``cell`` by ``heading``: 0..3 = N, E, S, W): 0 for
-    a tile in the cell just before it; None where no tile lies in that corridor before its
-    previous junction or corner."""
+    a tile in the cell just before it; ``"turn"`` where the nearest tile lies on the corner
+    that corridor begins at (the program switched in the middle of the turn); None where no
+    tile lies in that corridor before its previous junction or corner."""
     from mbn.world.junctions import STEPS, cell_of
 
     grid = np.asarray(maze.grid) != "#"
@@ -391,11 +403,12 @@ def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | None:
     r, c = cell[0] - dr, cell[1] - dc  # the cell it came from
     k = 0
     while free(r, c):
-        if (r, c) in tiles:
-            return k
-        # on along the corridor only through a straight cell (two free neighbours, in line)
         neighbours = sum(free(r + a, c + b) for a, b in STEPS)
-        if neighbours != 2 or not (free(r + dr, c + dc) and free(r - dr, c - dc)):
+        straight = neighbours == 2 and free(r + dr, c + dc) and free(r - dr, c - dc)
+        if (r, c) in tiles:
+            return k if straight or neighbours != 2 else "turn"
+        # on along the corridor only through a straight cell (two free neighbours, in line)
+        if not straight:
             return None
         r, c = r - dr, c - dc
         k += 1
@@ -404,24 +417,32 @@ def tile_distance(maze: Any, cell: tuple[int, int], heading: int) -> int | None:
 
 def tile_distances(mazes: list[Any], verdicts: dict[str, dict[str, np.ndarray]]) -> dict[str, Any]:
     """Every judged junction pass of an MBN's trials by how far before it the nearest tile lay
-    in the corridor it came along (:func:`tile_distance`: ``"0"`` .. ``"3"``, ``"4+"``, or
-    ``"none"``): ``{distance: {"passes", "correct"}}``. ``verdicts``: each maze's verdict (with
-    ``cells`` and ``headings``), by maze name."""
+    in the corridor it came along (:func:`tile_distance`: ``"0"`` .. ``"3"``, ``"4+"``,
+    ``"turn"`` or ``"none"``): ``{distance: {"passes", "correct"}}``, and where the verdicts
+    record the stretches before each pass (``stretch_steps``, ``stretch_stalls``), their
+    ``steps`` and ``stalled`` moves. ``verdicts``: each maze's verdict (with ``cells`` and
+    ``headings``), by maze name."""
     out: dict[str, dict[str, int]] = {}
-    keys = [str(k) for k in range(_FAR)] + [f"{_FAR}+", "none"]
+    keys = [str(k) for k in range(_FAR)] + [f"{_FAR}+", "turn", "none"]
     for maze in mazes:
         v = verdicts[maze.name]
         cells, headings = np.asarray(v["cells"]), np.asarray(v["headings"])
         right = np.asarray(v["exits"]) == np.asarray(v["expected"])
-        memo: dict[tuple[int, int, int], int | None] = {}
+        memo: dict[tuple[int, int, int], int | str | None] = {}
         for idx in zip(*np.nonzero(headings >= 0), strict=True):
             r, c = (int(x) for x in cells[idx])
             h = int(headings[idx])
             if (r, c, h) not in memo:
                 memo[(r, c, h)] = tile_distance(maze, (r, c), h)
             d = memo[(r, c, h)]
-            key = "none" if d is None else (str(d) if d < _FAR else f"{_FAR}+")
+            if d is None or isinstance(d, str):
+                key = "none" if d is None else d
+            else:
+                key = str(d) if d < _FAR else f"{_FAR}+"
             row = out.setdefault(key, {"passes": 0, "correct": 0})
             row["passes"] += 1
             row["correct"] += int(right[idx])
+            if "stretch_steps" in v:
+                row["steps"] = row.get("steps", 0) + int(np.asarray(v["stretch_steps"])[idx])
+                row["stalled"] = row.get("stalled", 0) + int(np.asarray(v["stretch_stalls"])[idx])
     return {k: out[k] for k in keys if k in out}

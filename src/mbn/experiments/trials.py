@@ -216,7 +216,9 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
     :data:`~mbn.world.rules.OPEN_BITS` mask; -1 where there was none) and ``expected``
     ``(n, J)``: the exit the rule in force takes there, ``cells`` ``(n, J, 2)`` its grid cell
     (row, column) and ``headings`` ``(n, J)`` the compass direction the robot entered it by
-    (0..3 = N, E, S, W) (-1 where there was none)."""
+    (0..3 = N, E, S, W) (-1 where there was none), ``stretch_steps`` and ``stretch_stalls``
+    ``(n, J)``: the steps and the stalled moves from the previous pass's exit (or the start) to
+    this pass's (-1 where there was none)."""
     J = spec.junctions
     kept = np.asarray(stats.junction_exit).shape[1]
     n = np.minimum(np.asarray(stats.n_junctions), kept)
@@ -229,6 +231,13 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         name: np.asarray(getattr(stats, f"junction_{name}"))
         for name in ("exit", "open", "tile", "exit_step", "stalls", "cell", "heading")
     }
+    # each pass's stretch: the steps and stalled moves since the previous pass's exit (or the
+    # start), taken before the passes are reordered below
+    made = np.arange(kept)[None, :] < n[:, None]
+    before = np.concatenate([np.zeros((len(n), 1), np.int64), fields["exit_step"][:, :-1]], 1)
+    stalls_before = np.concatenate([np.zeros((len(n), 1), np.int64), fields["stalls"][:, :-1]], 1)
+    fields["stretch_steps"] = np.where(made, fields["exit_step"] - before, -1)
+    fields["stretch_stalls"] = np.where(made, fields["stalls"] - stalls_before, -1)
     if spec.behavior == "tiles" and spec.initial == "none":
         # drop the passes made before the first tile: move the others to the front, in order
         valid = (fields["tile"] > 0) & (np.arange(kept)[None, :] < n[:, None])
@@ -269,6 +278,8 @@ def judge(stats: EpisodeStats, spec: TrialSpec) -> dict[str, np.ndarray]:
         "expected": np.where(passed, rule, -1),
         "cells": np.where(passed[..., None], fields["cell"][:, :J], -1),
         "headings": np.where(passed, fields["heading"][:, :J], -1),
+        "stretch_steps": np.where(passed, fields["stretch_steps"][:, :J], -1),
+        "stretch_stalls": np.where(passed, fields["stretch_stalls"][:, :J], -1),
     }
 
 

@@ -423,7 +423,10 @@ def generalization_sections(rundir: Any, data: GeneralizationResult | dict[str, 
     for name, rec in controllers.items():
         test = rec.splits.get("test")
         for d, k in ((test and test.tile_distances) or {}).items():
-            distances.setdefault(d, {})[name] = f"{k.correct}/{k.passes}"
+            stalled = k.stall_fraction
+            distances.setdefault(d, {})[name] = f"{k.correct}/{k.passes}" + (
+                "" if stalled is None else f" ({stalled:.1%} stalled)"
+            )
     if distances:
         tiled = [n for n in names if any(n in v for v in distances.values())]
         sections.append(
@@ -432,7 +435,9 @@ def generalization_sections(rundir: Any, data: GeneralizationResult | dict[str, 
                 [
                     "An MBN's judged junction passes on the test split taken by the rule in "
                     "force, by how many free cells lay between the nearest tile in the corridor "
-                    "it came along and the junction (none: no tile in that corridor)."
+                    "it came along and the junction (turn: the tile lay on the corner that "
+                    "corridor began at; none: no tile in that corridor), and the share of the "
+                    "robot's moves from the pass before to this one that stalled."
                 ],
                 table=(
                     ["tile cells before", *tiled],
