@@ -29,6 +29,7 @@ from typing import Any
 
 from mbn.experiments.behaviours.report import claims, write_report
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.stages.compose import PROGRAMS_QUICK
 from mbn.experiments.stages.generalization3 import BehavioursGeneralization
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.lf import LFStage
@@ -72,8 +73,7 @@ STAGES = Registry(
 #: The quick preset: the reproduction's, and a short agreement curve.
 QUICK: dict[str, dict[str, Any]] = {
     **REPRODUCE_QUICK,
-    "im_full": {"curve": False},
-    "programs": {"generations": 10, "variants": 1},
+    **PROGRAMS_QUICK,
     "mbn3": {"generations": 30},
 }
 

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from mbn.experiments.behaviours import QUICK as BEHAVIOURS_QUICK
-from mbn.experiments.behaviours import STAGES as BEHAVIOURS_STAGES
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.stages.compose import PROGRAMS_QUICK, program_stages
 from mbn.experiments.stages.interpolation import InterpolationStage
+from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
 from mbn.experiments.stages.settings import (
     DESettings,
     EpisodeSettings,
@@ -37,17 +37,15 @@ RUN_KIND = "mbn.switch"
 #: The new-behaviours experiment's stages up to the programs, then the sweep.
 STAGES = Registry(
     [
-        *(
-            BEHAVIOURS_STAGES[name]
-            for name in ("multiplier", "rf", "lf_search", "lf", "im_full", "programs")
-        ),
+        *program_stages(),
         InterpolationStage(),
     ]
 )
 
 #: The quick preset: the new behaviours' quick run, three alphas in one maze.
 QUICK: dict[str, dict[str, Any]] = {
-    **BEHAVIOURS_QUICK,
+    **REPRODUCE_QUICK,
+    **PROGRAMS_QUICK,
     "interpolation": {"steps": 3, "mazes": 1, "pairs": ("right:left",)},
 }
 
