@@ -31,7 +31,7 @@ def main() -> int:
             draw_maze(families.generate(name, seed), ax, title=f"{name}:{seed} (train)")
     fig.tight_layout()
     fig.savefig(args.out / "families.png", dpi=60)
-    suite = [n for name in names for n in families.ZERO_SHOT[name] if n.startswith("zs_")]
+    suite = [n for name in names for n in families.ZERO_SHOT.get(name, ()) if n.startswith("zs_")]
     fig, axes = plt.subplots(3, 3, figsize=(15, 13))
     for ax, name in zip(axes.ravel(), suite, strict=True):
         draw_maze(builtin_maze(name), ax, title=name)

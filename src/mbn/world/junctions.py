@@ -339,7 +339,11 @@ def rule_route(
     centre of the ``junctions``-th decision cell entered
     (the start cell is not a pass, as in :func:`junction_sequence`). ``follow_tiles``: entering a
     cell with a tile makes its rule the one in force (``tile_rules[colours - 1]``; the paper's:
-    one colour right, two colours left).
+    one colour right, two colours left); a tile on a decision cell (a corner, say) only as the
+    walk leaves that cell: the cell's pass is judged by the rule in force on entry, as a rollout
+    records it (the tile in force when the robot's pose moves into the cell,
+    :func:`mbn.world.stats.log_junctions`: the middle of its body, where the tile under it is
+    read, is not on the tile yet).
     ``count_from_tile``: only decision cells entered after the first tile count.
 
     Returns None when the walk never gets there (it comes back to a cell with the same heading,
@@ -474,12 +478,16 @@ def _walk(
             if current not in parsed:
                 parsed[current] = parse_rule(current)
             exit_name = parsed[current].exit(_open_exits(open_dirs, h))
+        if length > 0 and follow_tiles and decision[r, c] and (r, c) in tile_rule:
+            # a tile on a decision cell: in force as the walk leaves the cell
+            current, source = tile_rule[(r, c)]
+            seen_tile = True
         h = (h + _TURN[exit_name]) % 4
         if not open_dirs[h]:  # a closed cell
             return None
         was = float(along[h % 2][r, c])
         r, c = r + STEPS[h][0], c + STEPS[h][1]
         length += (was + float(along[h % 2][r, c])) / 2  # centre to centre
-        if follow_tiles and (r, c) in tile_rule:
+        if follow_tiles and (r, c) in tile_rule and not decision[r, c]:
             current, source = tile_rule[(r, c)]
             seen_tile = True

@@ -142,7 +142,8 @@ def test_names_load_a_generated_maze_or_a_split():
     [
         (
             "nope:3",
-            r"unknown maze family 'nope' \(known: grid, tiles2, tiles3, tiles4, tiles5, tiles6\)",
+            r"unknown maze family 'nope' \(known: grid, tiles2, tiles3, tiles4, tiles5, tiles6, "
+            r"turns2, turns3, turns4, turns5, turns6\)",
         ),
         ("grid:3000000", "maze seed 3000000 is in no split"),
         ("grid/test:0-100", r"split 'test': members 0-100 out of range \(0-99\)"),

@@ -158,6 +158,11 @@ def test_the_built_in_families_are_registered_as_an_own_one_is():
         "tiles4": 4,
         "tiles5": 5,
         "tiles6": 6,
+        "turns2": 7,
+        "turns3": 8,
+        "turns4": 9,
+        "turns5": 10,
+        "turns6": 11,
     }
     assert "layout" not in fm.family("grid").to_dict()  # their record is as it was
 

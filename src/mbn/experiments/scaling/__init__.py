@@ -15,16 +15,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from mbn.experiments.behaviours import QUICK as BEHAVIOURS_QUICK
-from mbn.experiments.behaviours import STAGES as BEHAVIOURS_STAGES
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.scaling.report import claims, scaling_summary, write_report
+from mbn.experiments.stages.compose import PROGRAMS_QUICK, program_stages
 from mbn.experiments.stages.scaling import (
     SCALING_RULES,
     ScalingGeneralization,
     ScalingSettings,
     scaling_stages,
 )
+from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
 from mbn.experiments.stages.settings import (
     DESettings,
     EpisodeSettings,
@@ -41,10 +41,7 @@ RUN_KIND = "mbn.scaling"
 
 STAGES = Registry(
     [
-        *(
-            BEHAVIOURS_STAGES[name]
-            for name in ("multiplier", "rf", "lf_search", "lf", "im_full", "programs")
-        ),
+        *program_stages(),
         *scaling_stages(),
         ScalingGeneralization(),
     ]
@@ -59,10 +56,11 @@ DEFAULTS: dict[str, dict[str, Any]] = {
 
 #: The quick preset: the new behaviours' quick run, short program modules, few test mazes.
 QUICK: dict[str, dict[str, Any]] = {
-    **BEHAVIOURS_QUICK,
+    **REPRODUCE_QUICK,
+    **PROGRAMS_QUICK,
     "scaling": {"generations": 30},
     "generalization": {
-        **BEHAVIOURS_QUICK["generalization"],
+        **REPRODUCE_QUICK["generalization"],
         "test_mazes": 2,
         "gap_mazes": 0,
         "splits": ("test",),

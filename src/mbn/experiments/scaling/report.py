@@ -52,6 +52,31 @@ def forgetting(judged: GeneralizationResult, k: int) -> dict[str, Any] | None:
     }
 
 
+#: The distances of the switch's table, in order (``generalization.tile_distances``).
+DISTANCES = ("0", "1", "2", "3", "4+", "turn", "none")
+
+
+def _switch_row(split: SplitRecord) -> dict[str, Any]:
+    """An MBN on the switch's family: its pooled success and, by the tile's distance before
+    the junction, the passes taking the rule's exit and the stalled share of the moves before
+    them."""
+    by = split.tile_distances or {}
+    return {
+        "success_rate": split.pooled.success_rate,
+        "mazes_at_95": split.mazes_at_95,
+        "mazes": len(split.mazes),
+        "distances": {
+            d: {
+                "passes": by[d].passes,
+                "correct": by[d].correct,
+                "stall_fraction": by[d].stall_fraction,
+            }
+            for d in DISTANCES
+            if d in by
+        },
+    }
+
+
 def scaling_summary(stages: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per K (as text keys, for ``results.json``): the test split (pooled rate, mazes at 95 %,
     targets met), the zero-shot suite where there is one, forgetting (K > 2), the program
@@ -92,6 +117,8 @@ def scaling_summary(stages: dict[str, dict[str, Any]]) -> dict[str, dict[str, An
             "grown": mbn.grown,
             "sha256_checked": mbn.sha256_checked,
         }
+        turns = _test(judged, f"{name}_turns")
+        row["turns"] = None if turns is None else _switch_row(turns)
         new_rule = mbn.tile_rules[-1]
         if k > 2 and new_rule in programs:
             row["program_attempts"] = len(programs[new_rule].get("attempts", [])) or 1
@@ -139,6 +166,43 @@ def claims(stages: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def _switch_section(summary: dict[str, dict[str, Any]]) -> list[Section]:
+    """The switch per K: the passes taking the rule's exit by the tile's distance before the
+    junction, with the stalled share of the moves before them."""
+    rows = []
+    for k, row in summary.items():
+        t = row.get("turns")
+        if t is None:
+            continue
+        cells = [k, f"{t['success_rate']:.1%} ({t['mazes_at_95']}/{t['mazes']})"]
+        for d in DISTANCES:
+            x = t["distances"].get(d)
+            if x is None:
+                cells.append("-")
+                continue
+            stall = x["stall_fraction"]
+            cells.append(
+                f"{x['correct']}/{x['passes']}" + ("" if stall is None else f" ({stall:.1%})")
+            )
+        rows.append(cells)
+    if not rows:
+        return []
+    return [
+        Section(
+            "The switch: the tile's distance before the junction",
+            [
+                "Each MBN on the test split of its switch family (turnsK: tiles 0 to 3 "
+                "cells before junctions and on corners, the program changing in the middle of a "
+                "turn): the judged junction passes that took the rule in force's exit, by how "
+                "many free cells lay between the nearest tile and the junction (turn: the tile "
+                "lay on the corner the corridor began at), and in brackets the stalled share of "
+                "the robot's moves from the pass before."
+            ],
+            table=(["K", "pooled (mazes at 95 %)", *DISTANCES], rows),
+        )
+    ]
 
 
 def write_report(rundir: RunDir) -> None:
@@ -192,6 +256,7 @@ def write_report(rundir: RunDir) -> None:
             ),
             images=[(file, "success, forgetting and code error against K")],
         ),
+        *_switch_section(summary),
         *generalization_sections(rundir, stages["generalization"]),
     ]
     write_document(rundir.root, "report", TITLE, secs)

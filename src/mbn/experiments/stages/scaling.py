@@ -356,9 +356,10 @@ def scaling_stages() -> list[MBNKStage]:
 
 class ScalingGeneralization(GeneralizationStage):
     """The MBN of each K judged on the test split of its tile family (``tiles{K}``; and its
-    zero-shot suite where the family has one), and, for K > 2, on the test split of the family
-    of K - 1 behaviours too: the behaviours already there when the K-th was added (forgetting,
-    against the MBN of K - 1 on the same mazes and trials)."""
+    zero-shot suite where the family has one), on the test split of the switch's family
+    (``turns{K}``: tiles 0 to 3 cells before junctions and on corners), and, for K > 2, on the
+    test split of the family of K - 1 behaviours too: the behaviours already there when the
+    K-th was added (forgetting, against the MBN of K - 1 on the same mazes and trials)."""
 
     key_id = KEYS["generalization_scaling"]
     needs = tuple(f"mbn_k{k}" for k in KS)
@@ -367,6 +368,8 @@ class ScalingGeneralization(GeneralizationStage):
         out: list[Judged] = []
         for k in KS:
             out.append(Judged(f"mbn_k{k}", f"mbn_k{k}", "tiles"))
+            # the switch: tiles 0..3 cells before junctions and in the middle of turns
+            out.append(Judged(f"mbn_k{k}_turns", f"mbn_k{k}", "tiles", family=f"turns{k}"))
             if k > min(KS):
                 out.append(
                     Judged(

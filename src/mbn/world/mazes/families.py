@@ -13,7 +13,11 @@ the same way, from outside ``mbn``, and is then named, selected and split as the
 * ``tiles4``, ``tiles5``, ``tiles6`` — four, five, six tile kinds (those of ``tiles3``, then
   four colours straight-left, five right-left, six left-right: :data:`MANY_TILE_RULES`), in
   larger mazes (17-25, 19-27, 21-29 cells a side), their start marks chosen to judge every
-  program (:func:`place_starts`).
+  program (:func:`place_starts`);
+* ``turns2`` .. ``turns6`` — the switch: the tile kinds and rules of ``tiles2`` .. ``tiles6``,
+  every kind 0, 1, 2 and 3 cells before a junction, mid-corridor and on a corner before a
+  junction (:attr:`Family.turn_tiles`: the program changes in the middle of a turn), in mazes two
+  cells larger a side.
 
 **The generator** (:func:`lattice_grid`) lays corridors one cell wide along a lattice of lines
 ``gap`` cells apart (the gaps drawn, so corridors between junctions run 1 to ``gap - 1`` cells),
@@ -22,19 +26,21 @@ has plus crossings, T junctions, corners (with junctions right after some of the
 lines are 2 cells apart), straight corridors through former crossings (long corridors), dead
 ends and loops. Tiles (:func:`place_tiles`) lie across straight corridor cells ``0 .. reach``
 cells before a T or plus crossing (``d`` free cells between the tile's cell and the junction's),
-and in the middle of corridors (at least :data:`MID_CORRIDOR` cells from either end); start
-marks on straight corridor cells, facing either way along the corridor.
+and in the middle of corridors (at least :data:`MID_CORRIDOR` cells from either end); with
+``turn_tiles``, also on corners with a T or plus crossing along one of their arms, no tile
+between (:func:`turn_leads`); start marks on straight corridor cells, facing either way along
+the corridor.
 
 **Every maze returned is checked** (:func:`check`): connected; one-cell corridors; the junction
 kinds the family asks for present (corners, T junctions, plus crossings, and dead ends and loops
 where its parameters make them); every start mark judgeable under every rule in use (the
 followed route passes ``junctions`` decision cells; with tiles, for each first rule, a tile and
 then ``junctions`` decision cells, :func:`mbn.world.junctions.rule_route`); every tile kind
-present at every distance asked for; and, with tiles, each tile kind's program judged (a
-swapped program takes a wrong exit from some start, :func:`mbn.world.junctions.
-program_swaps_caught`). An attempt that fails a check is drawn again from the same generator,
-so the result still depends on the seed alone; parameters that cannot produce a valid maze are
-refused in one line naming the check that failed.
+present at every distance asked for, mid-corridor and on corners as asked; and, with tiles,
+each tile kind's program judged (a swapped program takes a wrong exit from some start,
+:func:`mbn.world.junctions.program_swaps_caught`). An attempt that fails a check is drawn again
+from the same generator, so the result still depends on the seed alone; parameters that cannot
+produce a valid maze are refused in one line naming the check that failed.
 
 **Splits** (:data:`SPLITS`): three disjoint ranges of generator seeds, the same for every
 built-in family: ``train`` (what evolution draws its episodes from), ``validation`` (the choice
@@ -68,7 +74,7 @@ import dataclasses
 import functools
 import hashlib
 import re
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Container, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -103,6 +109,7 @@ __all__ = [
     "RetryError",
     "check",
     "check_use",
+    "corner_cells",
     "describe",
     "family",
     "family_splits",
@@ -117,6 +124,7 @@ __all__ = [
     "split_seeds",
     "straight_cells",
     "tile_places",
+    "turn_leads",
 ]
 
 #: A mid-corridor tile lies at least this many cells from the decision cells (or dead ends) at
@@ -168,6 +176,10 @@ class Family:
         near_tiles: tiles of each kind before junctions, their distances taking 0 .. ``reach``
             in turn (so ``reach + 1`` of them give every distance once).
         mid_tiles: tiles of each kind in the middle of a corridor.
+        turn_tiles: tiles of each kind on corners (a cell with two free neighbours at a right
+            angle), each with a T or plus crossing at the end of one of its arms and no tile
+            between: the program changes in the middle of a turn, before that junction (0: none,
+            and the generator draws exactly what it drew before the option existed).
         starts: start marks (the paper's test: 10 positions).
         rules: every start is judgeable under each of these rules.
         first_rules: with tiles, every start is judgeable from each of these first rules,
@@ -193,6 +205,7 @@ class Family:
     reach: int = 3
     near_tiles: int = 4
     mid_tiles: int = 1
+    turn_tiles: int = 0
     starts: int = 10
     rules: tuple[str, ...] = ("right", "left", "straight-right", "straight-left")
     first_rules: tuple[str, ...] = ()
@@ -230,7 +243,13 @@ class Family:
             value = getattr(self, key)
             if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
                 raise MbnInputError(f"{where}: {key} must be in [0, 1], got {value!r}")
-        for key, low in (("reach", 0), ("near_tiles", 0), ("mid_tiles", 0), ("starts", 1)):
+        for key, low in (
+            ("reach", 0),
+            ("near_tiles", 0),
+            ("mid_tiles", 0),
+            ("turn_tiles", 0),
+            ("starts", 1),
+        ):
             value = getattr(self, key)
             if not (isinstance(value, int) and not isinstance(value, bool) and value >= low):
                 raise MbnInputError(f"{where}: {key} must be an integer >= {low}, got {value!r}")
@@ -257,8 +276,12 @@ class Family:
                 )
             if not self.first_rules:
                 raise MbnInputError(f"{where}: a family with tiles needs first_rules")
-            if self.near_tiles + self.mid_tiles < 1:
-                raise MbnInputError(f"{where}: a family with tiles needs near_tiles or mid_tiles")
+            if self.near_tiles + self.mid_tiles + self.turn_tiles < 1:
+                raise MbnInputError(
+                    f"{where}: a family with tiles needs near_tiles, mid_tiles or turn_tiles"
+                )
+        elif self.turn_tiles:
+            raise MbnInputError(f"{where}: turn_tiles needs tile_kinds (tiles to lay on corners)")
         if not (self.cell > 0 and np.isfinite(self.cell)):
             raise MbnInputError(f"{where}: cell must be a number of metres > 0")
 
@@ -280,6 +303,8 @@ class Family:
             value = getattr(self, f.name)
             if f.name in _OWN and value is None:
                 continue  # the built-in generator and splits: left out, as they always were
+            if f.name == "turn_tiles" and not value:
+                continue  # no corner tiles: left out, as the records were before the option
             if f.name == "layout":
                 value = f"{value.__module__}:{getattr(value, '__qualname__', repr(value))}"
             elif f.name == "splits":
@@ -613,22 +638,105 @@ def run_to_end(straight: np.ndarray, r: int, c: int, h: int) -> int:
     return n
 
 
+def corner_cells(free: np.ndarray) -> np.ndarray:
+    """Corner cells of the free-cell mask ``free``: free, exactly two free neighbours, at a right
+    angle."""
+    nb = mask_neighbours(free)
+    count = nb.sum(-1)
+    return free & (count == 2) & ~((nb[..., _N] & nb[..., _S]) | (nb[..., _E] & nb[..., _W]))
+
+
+def turn_leads(
+    free: np.ndarray, r: int, c: int, tiles: Iterable[tuple[int, int]] = ()
+) -> list[list[tuple[int, int]]]:
+    """The arms of the corner ``(r, c)`` of the free-cell mask ``free`` that run through
+    straight corridor cells, none of them in ``tiles``, to a T or plus crossing: each as the
+    straight cells between the corner and the crossing (none where the crossing is next to the
+    corner), in the order N E S W of the arm."""
+    nb = mask_neighbours(free)
+    count = np.where(free, nb.sum(-1), 0)
+    return _leads(nb, count, straight_cells(free), r, c, set(tiles))
+
+
+def _leads(
+    nb: np.ndarray,
+    count: np.ndarray,
+    straight: np.ndarray,
+    r: int,
+    c: int,
+    held: Container[tuple[int, int]],
+) -> list[list[tuple[int, int]]]:
+    """:func:`turn_leads` from the mask's neighbours, their counts (0 in walls) and straight
+    cells, the tiles ``held``."""
+    leads = []
+    for h in range(4):
+        if not nb[r, c, h]:
+            continue
+        n = run_to_end(straight, r, c, h)
+        dr, dc = STEPS[h]
+        cells = [(r + dr * (i + 1), c + dc * (i + 1)) for i in range(n)]
+        if count[r + dr * (n + 1), c + dc * (n + 1)] >= 3 and not any(x in held for x in cells):
+            leads.append(cells)
+    return leads
+
+
+def _place_turn_tiles(
+    fam: Family,
+    free: np.ndarray,
+    rng: np.random.Generator,
+    tiles: dict[tuple[int, int], tuple[int, str]],
+    kept_clear: set[tuple[int, int]],
+) -> None:
+    """:func:`place_tiles`'s corner tiles: ``fam.turn_tiles`` of each kind into ``tiles``, and
+    the straight cells of one arm of each, drawn, into ``kept_clear``."""
+    nb = mask_neighbours(free)
+    count = np.where(free, nb.sum(-1), 0)
+    straight = straight_cells(free)
+    corners = [(int(r), int(c)) for r, c in np.argwhere(corner_cells(free))]
+    for kind in fam.tile_kinds:
+        for _ in range(fam.turn_tiles):
+            options: list[tuple[int, int, list[list[tuple[int, int]]]]] = []
+            for r, c in corners:
+                if (r, c) in tiles or any((r + dr, c + dc) in tiles for dr, dc in STEPS):
+                    continue
+                leads = _leads(nb, count, straight, r, c, tiles)
+                if leads:
+                    options.append((r, c, leads))
+            if not options:
+                raise _RetryError(
+                    f"no corner with a T or plus crossing along an arm for a {kind}-colour tile"
+                )
+            r, c, leads = options[int(rng.integers(len(options)))]
+            tiles[(r, c)] = (kind, "turn")
+            kept_clear.update(leads[int(rng.integers(len(leads)))])
+
+
 def place_tiles(
     fam: Family, free: np.ndarray, rng: np.random.Generator
 ) -> dict[tuple[int, int], tuple[int, str]]:
     """Tile cells ``{(row, col): (colours, where)}``, ``where`` ``"d=K"`` (K cells before a T or
-    plus crossing) or ``"mid"`` (the middle of a corridor); no two tiles side by side."""
+    plus crossing), ``"mid"`` (the middle of a corridor) or ``"turn"`` (a corner, with
+    ``fam.turn_tiles``); no two tiles side by side.
+
+    With ``turn_tiles`` the corner tiles are drawn first (corners are fewer than corridor
+    cells), each on a corner with a T or plus crossing at the end of one of its arms
+    (:func:`turn_leads`); the straight cells of one such arm, drawn, are kept free of tiles, so
+    that the corner's tile is the last before that crossing. Without, nothing of this is drawn
+    and the tiles are those the generator always drew."""
     nb = mask_neighbours(free)
     count = nb.sum(-1)
     straight = straight_cells(free)
     junction_cells = [tuple(map(int, rc)) for rc in np.argwhere(free & (count >= 3))]
     tiles: dict[tuple[int, int], tuple[int, str]] = {}
+    kept_clear: set[tuple[int, int]] = set()  # the arms leading from corner tiles to crossings
 
     def allowed(r: int, c: int) -> bool:
-        if not straight[r, c] or (r, c) in tiles:
+        if not straight[r, c] or (r, c) in tiles or (r, c) in kept_clear:
             return False
         return all((r + dr, c + dc) not in tiles for dr, dc in STEPS)
 
+    if fam.turn_tiles:
+        _place_turn_tiles(fam, free, rng, tiles, kept_clear)
     for kind in fam.tile_kinds:
         for k in range(fam.near_tiles):
             d = k % (fam.reach + 1)
@@ -910,10 +1018,14 @@ def check(maze: Maze, fam: Family) -> list[str]:
         for kind in fam.tile_kinds:
             mine = [p for p in places if p["colors"] == kind]
             for d in sorted({k % (fam.reach + 1) for k in range(fam.near_tiles)}):
-                if not any(d in p["before"] for p in mine):
+                if not any(d in p["before"] for p in mine if not p["corner"]):
                     problems.append(f"no {kind}-colour tile {d} cells before a junction")
             if sum(p["mid"] for p in mine) < fam.mid_tiles:
                 problems.append(f"fewer than {fam.mid_tiles} mid-corridor {kind}-colour tiles")
+            if sum(p["turn"] for p in mine) < fam.turn_tiles:
+                problems.append(
+                    f"fewer than {fam.turn_tiles} {kind}-colour tiles on a corner before a junction"
+                )
         for first in fam.first_rules:
             caught = program_swaps_caught(
                 maze, first, fam.junctions, tuple(fam.tile_rules[: max(fam.tile_kinds)])
@@ -932,17 +1044,21 @@ def check(maze: Maze, fam: Family) -> list[str]:
 def tile_places(maze: Maze) -> list[dict[str, Any]]:
     """Where each tile of a grid maze lies, in the order of ``maze.tiles``: ``colors``;
     ``before``, the distances (free cells between) to the T or plus crossings at the ends of its
-    corridor, one per end that is one; ``mid``, whether it lies at least :data:`MID_CORRIDOR`
-    cells from both ends of its corridor."""
+    corridor (for a tile on a corner, of its two arms), one per end that is one; ``mid``,
+    whether it lies at least :data:`MID_CORRIDOR` cells from both ends of its corridor;
+    ``corner``, whether it lies on a corner; ``turn``, whether on a corner with a T or plus
+    crossing at the end of one of its arms and no tile between (:func:`turn_leads`)."""
     from mbn.world.junctions import cell_of
 
     free = np.asarray(maze.grid) != "#"
     nb = mask_neighbours(free)
     count = np.where(free, nb.sum(-1), 0)
     straight = straight_cells(free)
+    corners = corner_cells(free)
+    cells = [cell_of(maze, t.x, t.y) for t in maze.tiles]
+    held = set(cells)
     out = []
-    for tile in maze.tiles:
-        r, c = cell_of(maze, tile.x, tile.y)
+    for tile, (r, c) in zip(maze.tiles, cells, strict=True):
         before, runs = [], []
         for h in range(4):
             if not nb[r, c, h]:
@@ -957,7 +1073,12 @@ def tile_places(maze: Maze) -> list[dict[str, Any]]:
             {
                 "colors": tile.colors,
                 "before": sorted(before),
-                "mid": bool(runs) and min(runs) >= MID_CORRIDOR and len(runs) == 2,
+                "mid": bool(runs)
+                and min(runs) >= MID_CORRIDOR
+                and len(runs) == 2
+                and not corners[r, c],
+                "corner": bool(corners[r, c]),
+                "turn": bool(corners[r, c]) and bool(_leads(nb, count, straight, r, c, held)),
             }
         )
     return out
@@ -1113,4 +1234,23 @@ for _kinds, _doc in (
             tile_rules=MANY_TILE_RULES[:_kinds],
         ),
         salt=_kinds,
+    )
+#: The families of the switch: ``turns2`` .. ``turns6`` are ``tiles2`` .. ``tiles6`` (their tile
+#: kinds, tile rules, first rules and rules) with a tile of each kind also on a corner, before a
+#: T or plus crossing (:attr:`Family.turn_tiles`), and every distance 0 .. 3 before a junction
+#: asked of every kind, in mazes two cells larger a side.
+for _kinds in range(2, 7):
+    _tiles = FAMILIES[f"tiles{_kinds}"]
+    register_family(
+        dataclasses.replace(
+            _tiles,
+            name=f"turns{_kinds}",
+            doc=f"the switch: the tiles of tiles{_kinds} 0, 1, 2 and 3 cells before a junction "
+            "and on corners (the program changes mid-turn)",
+            size=(_tiles.size[0] + 2, _tiles.size[1] + 2),
+            reach=3,
+            near_tiles=4,
+            turn_tiles=1,
+        ),
+        salt=5 + _kinds,
     )

@@ -22,7 +22,9 @@
   ignored; a blank line inside the grid (with grid lines after it) is an error, as is a header
   line after the grid has started.
 * A tile lies across the corridor at its cell's centre, ``cell`` wide and
-  :data:`~mbn.world.mazes.model.DEFAULT_TILE_LENGTH` long. Its heading (the corridor's direction) is
+  :data:`~mbn.world.mazes.model.DEFAULT_TILE_LENGTH` long; on a corner (two free neighbours at a
+  right angle) ``cell`` long, the whole cell, so that a robot turning there drives over it
+  however it cuts the corner (:func:`grid_tile_length`). Its heading (the corridor's direction) is
   east (0) when the cell has more free east/west neighbours than north/south ones, and north (pi/2)
   otherwise. So the heading is pi/2 in a north-south corridor and at a dead end open to the north or
   south; 0 in an east-west corridor; in a T junction it follows the T's bar (the side with two free
@@ -56,6 +58,7 @@ __all__ = [
     "START_HEADINGS",
     "grid_shape",
     "grid_tile_heading",
+    "grid_tile_length",
     "parse_maze_text",
     "read_maze_file",
 ]
@@ -81,6 +84,21 @@ def grid_tile_heading(grid: np.ndarray, row: int, col: int) -> float:
     vertical = int(free(row - 1, col)) + int(free(row + 1, col))
     horizontal = int(free(row, col - 1)) + int(free(row, col + 1))
     return 0.0 if horizontal > vertical else math.pi / 2
+
+
+def grid_tile_length(grid: np.ndarray, row: int, col: int, cell: float) -> float:
+    """The length (along its heading) of a tile in cell ``(row, col)`` of a grid of cells of side
+    ``cell``: the whole cell on a corner (exactly two free neighbours, at a right angle),
+    :data:`~mbn.world.mazes.model.DEFAULT_TILE_LENGTH` elsewhere."""
+    rows, cols = grid.shape
+
+    def free(r: int, c: int) -> bool:
+        return 0 <= r < rows and 0 <= c < cols and grid[r, c] != "#"
+
+    north, south = free(row - 1, col), free(row + 1, col)
+    west, east = free(row, col - 1), free(row, col + 1)
+    corner = (north != south) and (west != east)
+    return cell if corner else DEFAULT_TILE_LENGTH
 
 
 def _parse_header_value(key: str, value: str, at: str) -> float | str:
@@ -206,7 +224,7 @@ def parse_maze_text(
                     y=y,
                     colors=int(ch),
                     width=cell,
-                    length=DEFAULT_TILE_LENGTH,
+                    length=grid_tile_length(grid, r, c, cell),
                     heading=grid_tile_heading(grid, r, c),
                 )
             )
