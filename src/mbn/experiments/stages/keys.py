@@ -1,5 +1,6 @@
 """Every stage's random-stream number, in one table: a stage draws from ``fold_in(run key,
-KEYS[module])``, keyed by its module in the stage library. A number is never moved or used
+KEYS[module])``, keyed by its module in the stage library (a module of several stages:
+``MODULE.STAGE``). A number is never moved or used
 again (a run's results depend on it); a new stage takes the next one. A stage of a lab's own
 experiment, outside the library, takes a number of 100 or more (``OWN_KEYS_FROM``)."""
 
@@ -26,12 +27,13 @@ KEYS: dict[str, int] = {
     "generalization": 16,
     "generalization3": 17,
     "interpolation": 18,
-    "mbn_k2": 19,
-    "mbn_k3": 20,
-    "mbn_k4": 21,
-    "mbn_k5": 22,
-    "mbn_k6": 23,
-    "generalization_scaling": 24,
+    # a module of several stages: MODULE.STAGE
+    "scaling.mbn_k2": 19,
+    "scaling.mbn_k3": 20,
+    "scaling.mbn_k4": 21,
+    "scaling.mbn_k5": 22,
+    "scaling.mbn_k6": 23,
+    "scaling.generalization": 24,
 }
 
 #: The first number the stages of experiments outside the library may take.

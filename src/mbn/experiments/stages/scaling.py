@@ -336,7 +336,7 @@ def _stage_class(k: int) -> type[MBNKStage]:
     attributes: dict[str, Any] = {
         "k": k,
         "name": name,
-        "key_id": KEYS[name],
+        "key_id": KEYS[f"scaling.{name}"],
         "outputs": (f"controllers/{name}.json",),
         "needs": ("im_full", "programs") + ((f"mbn_k{k - 1}",) if k > min(KS) else ()),
         "__module__": __name__,
@@ -345,8 +345,19 @@ def _stage_class(k: int) -> type[MBNKStage]:
     return type(f"MBNK{k}Stage", (MBNKStage,), attributes)
 
 
+MBNK2Stage = _stage_class(2)
+MBNK3Stage = _stage_class(3)
+MBNK4Stage = _stage_class(4)
+MBNK5Stage = _stage_class(5)
+MBNK6Stage = _stage_class(6)
 #: The stage class of each K.
-STAGE_CLASSES: dict[int, type[MBNKStage]] = {k: _stage_class(k) for k in KS}
+STAGE_CLASSES: dict[int, type[MBNKStage]] = {
+    2: MBNK2Stage,
+    3: MBNK3Stage,
+    4: MBNK4Stage,
+    5: MBNK5Stage,
+    6: MBNK6Stage,
+}
 
 
 def scaling_stages() -> list[MBNKStage]:
@@ -361,7 +372,7 @@ class ScalingGeneralization(GeneralizationStage):
     test split of the family of K - 1 behaviours too: the behaviours already there when the
     K-th was added (forgetting, against the MBN of K - 1 on the same mazes and trials)."""
 
-    key_id = KEYS["generalization_scaling"]
+    key_id = KEYS["scaling.generalization"]
     needs = tuple(f"mbn_k{k}" for k in KS)
 
     def controllers(self, ctx: StageContext) -> tuple[Judged, ...]:
