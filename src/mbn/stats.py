@@ -272,15 +272,23 @@ def iqm_interval(
 
 
 def _bootstrap_ends(
-    samples: tuple[np.ndarray, ...], statistic: Any, seed: int, resamples: int, level: float
+    samples: tuple[np.ndarray, ...],
+    statistic: Any,
+    seed: int,
+    resamples: int,
+    level: float,
+    *,
+    paired: bool = False,
 ) -> tuple[float, float]:
     """The ends of SciPy's percentile bootstrap interval of ``statistic`` (vectorised over an
-    ``axis``), each sample resampled apart (``seed``: its NumPy generator)."""
+    ``axis``), each sample resampled apart, or with ``paired`` the samples' units together
+    (``seed``: its NumPy generator)."""
     from scipy.stats import bootstrap
 
     res = bootstrap(
         samples,
         statistic,
+        paired=paired,
         n_resamples=resamples,
         confidence_level=level,
         method="percentile",
@@ -374,8 +382,6 @@ def paired_difference(
     """The mean of ``a - b`` over paired units (e.g. the same mazes judged twice), with a
     percentile bootstrap interval that resamples the pairs (SciPy's ``bootstrap``,
     ``paired=True``; ``seed``: its NumPy generator): ``{"mean", "low", "high"}``."""
-    from scipy.stats import bootstrap
-
     x, y = np.asarray(a, float), np.asarray(b, float)
     if x.shape != y.shape:
         raise ValueError(f"paired_difference: {x.shape} against {y.shape} units")
@@ -384,17 +390,12 @@ def paired_difference(
     point = float(np.mean(x - y))
     if x.size < 2 or np.all(x - y == (x - y)[0]):
         return {"mean": point, "low": point, "high": point}
-    res = bootstrap(
-        (x, y),
-        lambda u, v, axis=-1: np.mean(u - v, axis=axis),
-        paired=True,
-        n_resamples=resamples,
-        confidence_level=level,
-        method="percentile",
-        rng=np.random.default_rng(seed),
-    )
-    ci = res.confidence_interval
-    return {"mean": point, "low": float(ci.low), "high": float(ci.high)}
+    low, high = _bootstrap_ends((x, y), _mean_difference, seed, resamples, level, paired=True)
+    return {"mean": point, "low": low, "high": high}
+
+
+def _mean_difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.asarray(np.mean(x - y, axis=axis))
 
 
 def _transfer(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:

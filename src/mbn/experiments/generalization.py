@@ -428,6 +428,11 @@ def tile_distances(mazes: list[Any], verdicts: dict[str, dict[str, np.ndarray]])
         v = verdicts[maze.name]
         cells, headings = np.asarray(v["cells"]), np.asarray(v["headings"])
         right = np.asarray(v["exits"]) == np.asarray(v["expected"])
+        stretch = (
+            (np.asarray(v["stretch_steps"]), np.asarray(v["stretch_stalls"]))
+            if "stretch_steps" in v
+            else None
+        )
         memo: dict[tuple[int, int, int], int | str | None] = {}
         for idx in zip(*np.nonzero(headings >= 0), strict=True):
             r, c = (int(x) for x in cells[idx])
@@ -442,7 +447,7 @@ def tile_distances(mazes: list[Any], verdicts: dict[str, dict[str, np.ndarray]])
             row = out.setdefault(key, {"passes": 0, "correct": 0})
             row["passes"] += 1
             row["correct"] += int(right[idx])
-            if "stretch_steps" in v:
-                row["steps"] = row.get("steps", 0) + int(np.asarray(v["stretch_steps"])[idx])
-                row["stalled"] = row.get("stalled", 0) + int(np.asarray(v["stretch_stalls"])[idx])
+            if stretch is not None:
+                row["steps"] = row.get("steps", 0) + int(stretch[0][idx])
+                row["stalled"] = row.get("stalled", 0) + int(stretch[1][idx])
     return {k: out[k] for k in keys if k in out}

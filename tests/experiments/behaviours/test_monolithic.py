@@ -121,7 +121,8 @@ def test_tasks_must_match_the_tile_kinds():
 def test_rf_embedded_in_the_genome_is_the_follower_shaped_network():
     import jax
 
-    from mbn.experiments.stages.monolithic import add_tile_kind, around, embed_rf
+    from mbn.experiments.stages.contest import neighbour_population as around
+    from mbn.experiments.stages.monolithic import add_tile_kind, embed_rf
 
     g, genes, follower = _follower_like(neurons=6, kinds=2)
     rf = Genome().network(jnp.asarray(follower))

@@ -29,7 +29,7 @@ from typing import Any
 
 from mbn.experiments.behaviours.report import claims, write_report
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
-from mbn.experiments.stages.compose import PROGRAMS_QUICK
+from mbn.experiments.stages.compose import PROGRAMS_QUICK, PROGRAMS_SHARED
 from mbn.experiments.stages.generalization3 import BehavioursGeneralization
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.lf import LFStage
@@ -41,15 +41,7 @@ from mbn.experiments.stages.rf import RFStage
 from mbn.experiments.stages.settings import (
     QUICK as REPRODUCE_QUICK,
 )
-from mbn.experiments.stages.settings import (
-    DESettings,
-    EpisodeSettings,
-    FollowerSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    derived_seeds,
-)
-from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.settings import derived_seeds
 from mbn.experiments.stages.tests3 import Tests3Stage
 
 __all__ = ["NEW_BEHAVIOURS", "RUN_KIND", "STAGES"]
@@ -92,14 +84,7 @@ NEW_BEHAVIOURS = Experiment(
     name="new-behaviours",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(
-        DESettings,
-        FollowerSettings,
-        EpisodeSettings,
-        InterpreterSettings,
-        ValidationSettings,
-        TestsSettings,
-    ),
+    shared=PROGRAMS_SHARED,
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

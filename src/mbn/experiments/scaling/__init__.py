@@ -17,7 +17,7 @@ from typing import Any
 
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
 from mbn.experiments.scaling.report import claims, scaling_summary, write_report
-from mbn.experiments.stages.compose import PROGRAMS_QUICK, program_stages
+from mbn.experiments.stages.compose import PROGRAMS_QUICK, PROGRAMS_SHARED, program_stages
 from mbn.experiments.stages.scaling import (
     SCALING_RULES,
     ScalingGeneralization,
@@ -25,15 +25,7 @@ from mbn.experiments.stages.scaling import (
     scaling_stages,
 )
 from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.stages.settings import (
-    DESettings,
-    EpisodeSettings,
-    FollowerSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    derived_seeds,
-)
-from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.settings import derived_seeds
 
 __all__ = ["RUN_KIND", "SCALING", "STAGES"]
 
@@ -79,15 +71,7 @@ SCALING = Experiment(
     name="scaling",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(
-        DESettings,
-        FollowerSettings,
-        EpisodeSettings,
-        InterpreterSettings,
-        ValidationSettings,
-        TestsSettings,
-        ScalingSettings,
-    ),
+    shared=(*PROGRAMS_SHARED, ScalingSettings),
     defaults=DEFAULTS,
     quick=QUICK,
     seeds=derived_seeds,

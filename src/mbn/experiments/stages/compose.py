@@ -21,9 +21,10 @@ from mbn.experiments.stages.settings import (
     InterpreterSettings,
     ValidationSettings,
 )
+from mbn.experiments.stages.tests import TestsSettings
 from mbn.world.sensors import NoiseConfig
 
-__all__ = ["PROGRAMS_QUICK", "SHARED", "controller_stages", "program_stages"]
+__all__ = ["PROGRAMS_QUICK", "PROGRAMS_SHARED", "SHARED", "controller_stages", "program_stages"]
 
 #: The sections every experiment built on the reproduction's controllers shares.
 SHARED = (
@@ -64,3 +65,14 @@ PROGRAMS_QUICK: dict[str, dict[str, Any]] = {
     "im_full": {"curve": False},
     "programs": {"generations": 10, "variants": 1},
 }
+
+#: The sections every experiment built on the programs shares (no run noise: the new-behaviours
+#: experiment and those that take its stages).
+PROGRAMS_SHARED = (
+    DESettings,
+    FollowerSettings,
+    EpisodeSettings,
+    InterpreterSettings,
+    ValidationSettings,
+    TestsSettings,
+)

@@ -66,6 +66,7 @@ from mbn.experiments.stages.contest import (
     check,
     contend,
     final_tests,
+    neighbour_population,
 )
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
@@ -73,7 +74,6 @@ from mbn.experiments.stages.mbn3 import code_mbn, evolve_code_pm
 from mbn.experiments.stages.monolithic import (
     MonolithicGenome,
     add_tile_kind,
-    around,
     embed_rf,
     monolithic_fitness,
 )
@@ -507,7 +507,7 @@ class Contest3Stage(Stage[Contest3Result]):
         contest = ctx.section(ContestSettings)
         two = MonolithicGenome(neurons=genome.neurons, kinds=2)
         popsize = ctx.section(DESettings).popsize
-        first = around(
+        first = neighbour_population(
             embed_rf(two, rf), jax.random.fold_in(key, 1), popsize, contest.neighbour_sigma, bound
         )
         name = f"contest_{TASK}_{who}_two"

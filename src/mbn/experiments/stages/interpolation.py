@@ -20,6 +20,7 @@ import itertools
 from dataclasses import dataclass
 from typing import Any
 
+import jax
 import numpy as np
 
 from mbn.config import Settings, setting
@@ -291,7 +292,7 @@ class InterpolationStage(Stage[InterpolationResult]):
         _, result, slices, _ = run_trial_groups(
             mazes, groups, controller, seconds=seconds, dt=spec.dt, sensors=spec.sensors
         )
-        stats = result.stats
+        stats = jax.tree.map(np.asarray, result.stats)  # to the host once, sliced per group
         inputs = probes(rf_spec.sensors) if s.fixed_points else {}
         base = rf_spec.net
 
@@ -351,8 +352,7 @@ class InterpolationStage(Stage[InterpolationResult]):
             sha256=digest,
             mazes=names,
             trials_per_program=sum(
-                len(np.asarray(_slice(stats, slices[f"p0a0m{m}"]).n_junctions))
-                for m in range(len(mazes))
+                slices[f"p0a0m{m}"].stop - slices[f"p0a0m{m}"].start for m in range(len(mazes))
             ),
             seconds=seconds,
             probes={k: [round(float(x), 6) for x in v] for k, v in inputs.items()},
@@ -382,6 +382,4 @@ class InterpolationStage(Stage[InterpolationResult]):
 
 
 def _slice(stats: Any, part: slice) -> Any:
-    import jax
-
-    return jax.tree.map(lambda a: np.asarray(a)[part], stats)
+    return jax.tree.map(lambda a: a[part], stats)

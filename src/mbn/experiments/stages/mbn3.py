@@ -59,6 +59,8 @@ __all__ = [
     "MBN3Result",
     "MBN3Settings",
     "MBN3Stage",
+    "attempts_record",
+    "choose_code_mbn",
     "code_mbn",
     "code_pm_fitness",
     "evolve_code_pm",
@@ -140,11 +142,13 @@ def evolve_code_pm(
     bound: float,
     switch_seconds: float,
     key: jax.Array | None = None,
+    population: np.ndarray | None = None,
 ) -> CodePM:
     """DE (the run's ``[de]``, checkpoint ``name``) of a program module with one camera input
     and one code neuron per tile kind of ``rules``, on the program reward without the robot
     (:func:`~mbn.experiments.program_module.code_fitness`): after a tile of kind k, code
-    ``e_k``. Genes in ``[-bound, bound]``; ``key`` defaults to the stage's."""
+    ``e_k``. Genes in ``[-bound, bound]``; ``key`` defaults to the stage's; ``population``:
+    the first generation (default: drawn at random)."""
     kinds = len(rules)
     genome, fitness = code_pm_fitness(kinds, switch_seconds)
     run = ctx.evolve(
@@ -154,6 +158,7 @@ def evolve_code_pm(
         ctx.key if key is None else key,
         generations,
         f"{kinds}-behaviour PM: DE",
+        population,
     )
     pm = genome.network(jnp.asarray(run.data["best_genome"]))
     pm = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), pm)
@@ -213,6 +218,66 @@ def code_mbn(
     )
 
 
+def choose_code_mbn(
+    ctx: StageContext,
+    stem: str,
+    im_spec: InterpreterControllerSpec,
+    rules: tuple[str, ...],
+    camera: CameraConfig,
+    meta: dict[str, Any],
+    *,
+    generations: int,
+    bound: float,
+    switch_seconds: float,
+    first: Callable[[jax.Array], np.ndarray] | None = None,
+) -> tuple[list[dict[str, Any]], int]:
+    """The MBN of a code program module for ``rules`` (their programs those of ``im_spec``),
+    as a stage makes its final choice: with maze episodes up to ``[validation] attempts``
+    program modules (checkpoints ``STEM_pm``, ``STEM_pm_attempt1``, ...; attempt ``a`` from the
+    stage's key folded with ``ATTEMPT_KEY + a``), each MBN judged in the validation split of its
+    tile family, stopping at the first that meets the target; else one. ``first``: a first
+    generation from an attempt's key (default: random). Returns every try (``pm``:
+    :class:`CodePM`, ``spec``, ``validation`` or None) and the index of the one kept: the best
+    by :func:`~mbn.experiments.stages.common.validation_figure`, then by program reward."""
+    programs = [im_spec.programs[r] for r in rules]
+    attempts = ctx.section(ValidationSettings).attempts if maze_episodes(ctx) is not None else 1
+    tries: list[dict[str, Any]] = []
+    for a in range(attempts):
+        key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
+        name = f"{stem}_pm" if a == 0 else f"{stem}_pm_attempt{a}"
+        population = None if first is None else first(key)
+        pm = evolve_code_pm(ctx, name, rules, generations, bound, switch_seconds, key, population)
+        spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
+        check = validate(ctx, spec, "tiles") if attempts > 1 else None
+        tries.append({"pm": pm, "spec": spec, "validation": check})
+        if check is None or check["meets_target"]:
+            break
+    chosen = max(
+        range(len(tries)),
+        key=lambda i: (
+            validation_figure(tries[i]["validation"]) if tries[i]["validation"] else 0.0,
+            tries[i]["pm"].run.data["best_fitness"],
+            -i,
+        ),
+    )
+    return tries, chosen
+
+
+def attempts_record(tries: list[dict[str, Any]], chosen: int) -> dict[str, Any]:
+    """What a stage records of :func:`choose_code_mbn`'s tries, where it made several: the kept
+    one's validation, every attempt's reward and validation, and which was kept."""
+    if tries[0]["validation"] is None:  # one attempt, not validated
+        return {}
+    return {
+        "validation": tries[chosen]["validation"],
+        "attempts": [
+            {"best_fitness": t["pm"].run.data["best_fitness"], "validation": t["validation"]}
+            for t in tries
+        ],
+        "chosen_attempt": chosen,
+    }
+
+
 @dataclass(frozen=True, kw_only=True)
 class MBN3Result(Record):
     """What the ``mbn3`` stage records (``stages/mbn3.json``): the program module's DE run, the
@@ -257,29 +322,20 @@ class MBN3Stage(Stage[MBN3Result]):
                 f"mbn3.tile_rules: {path} has no program for {', '.join(missing)} (it has "
                 f"{', '.join(im_spec.programs)})"
             )
-        programs = [im_spec.programs[r] for r in rules]
         meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest}
         camera = CameraConfig(range=s.camera_range)
         # with maze episodes the final choice drives the robot: up to [validation] attempts
         # PMs, each judged in the tiles3 family's validation mazes, the best kept
-        attempts = ctx.section(ValidationSettings).attempts if maze_episodes(ctx) is not None else 1
-        tries: list[dict[str, Any]] = []
-        for a in range(attempts):
-            key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
-            name = "mbn3_pm" if a == 0 else f"mbn3_pm_attempt{a}"
-            pm = evolve_code_pm(ctx, name, rules, s.generations, s.bound, s.switch_seconds, key)
-            spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
-            check = validate(ctx, spec, "tiles") if attempts > 1 else None
-            tries.append({"pm": pm, "spec": spec, "validation": check})
-            if check is None or check["meets_target"]:
-                break
-        chosen = max(
-            range(len(tries)),
-            key=lambda i: (
-                validation_figure(tries[i]["validation"]) if tries[i]["validation"] else 0.0,
-                tries[i]["pm"].run.data["best_fitness"],
-                -i,
-            ),
+        tries, chosen = choose_code_mbn(
+            ctx,
+            "mbn3",
+            im_spec,
+            rules,
+            camera,
+            meta,
+            generations=s.generations,
+            bound=s.bound,
+            switch_seconds=s.switch_seconds,
         )
         pm, spec = tries[chosen]["pm"], tries[chosen]["spec"]
         run = pm.run
@@ -298,21 +354,7 @@ class MBN3Stage(Stage[MBN3Result]):
                 "initial": None if spec.initial is None else spec.initial.rule,
                 "sha256": digest,
                 "sha256_checked": True,
-                **(
-                    {
-                        "validation": tries[chosen]["validation"],
-                        "attempts": [
-                            {
-                                "best_fitness": t["pm"].run.data["best_fitness"],
-                                "validation": t["validation"],
-                            }
-                            for t in tries
-                        ],
-                        "chosen_attempt": chosen,
-                    }
-                    if attempts > 1
-                    else {}
-                ),
+                **attempts_record(tries, chosen),
             }
         )
 

@@ -45,7 +45,6 @@ from mbn.world.rollout import rollout
 __all__ = [
     "MonolithicGenome",
     "add_tile_kind",
-    "around",
     "embed_rf",
     "monolithic_fitness",
     "priming_inputs",
@@ -128,15 +127,6 @@ def embed_rf(genome: MonolithicGenome, rf: CTRNN) -> np.ndarray:
         raise MbnInputError("embed_rf: RF with biases or gains is not a follower genome's")
     sonar = np.diagonal(np.asarray(rf.WE, float))[:NUM_INPUTS]
     return np.concatenate([W.ravel(), sonar, np.zeros(n * m), np.zeros(n)])
-
-
-def around(genes: np.ndarray, key: Array, popsize: int, sigma: float, bound: float) -> np.ndarray:
-    """A first population around ``genes``: the genes themselves, then copies with Gaussian
-    noise of ``sigma`` on every gene, clipped to ``[-bound, bound]`` (as the contest's
-    neighbour's around RF)."""
-    noise = np.array(jax.random.normal(key, (popsize, genes.size)), dtype=float)
-    noise[0] = 0.0
-    return np.clip(genes[None] + sigma * noise, -bound, bound)
 
 
 def add_tile_kind(

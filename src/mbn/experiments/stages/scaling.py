@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from mbn.config import Locator, Settings, setting
@@ -40,19 +39,14 @@ from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.stages.common import (
     MADE_BY,
-    de_config,
-    maze_episodes,
-    validate,
-    validation_figure,
 )
 from mbn.experiments.stages.generalization import GeneralizationStage, Judged
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
-from mbn.experiments.stages.lf import ATTEMPT_KEY
-from mbn.experiments.stages.mbn3 import code_mbn, code_pm_fitness, latched_codes
+from mbn.experiments.stages.mbn3 import CodePM, attempts_record, choose_code_mbn
 from mbn.experiments.stages.programs import check_digest
 from mbn.experiments.stages.records import History, Validation
-from mbn.experiments.stages.settings import DESettings, ValidationSettings
+from mbn.experiments.stages.settings import DESettings
 from mbn.world.engine import CameraConfig
 from mbn.world.rules import parse_rule, parse_rules
 
@@ -229,58 +223,36 @@ class MBNKStage(Stage[MBNKResult]):
                 f"scaling.rules: {path} has no program for {', '.join(missing)} (it has "
                 f"{', '.join(im_spec.programs)})"
             )
-        programs = [im_spec.programs[r] for r in rules]
         meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed, "sha256": digest}
-        camera = CameraConfig(range=s.camera_range)
         popsize = ctx.section(DESettings).popsize
         grown = s.incremental and k > min(KS)
-        attempts = ctx.section(ValidationSettings).attempts if maze_episodes(ctx) is not None else 1
-        genome, fitness = code_pm_fitness(k, s.switch_seconds)
-        tries: list[dict[str, Any]] = []
-        for a in range(attempts):
-            key = ctx.key if a == 0 else jax.random.fold_in(ctx.key, ATTEMPT_KEY + a)
-            name = f"{self.name}_pm" if a == 0 else f"{self.name}_pm_attempt{a}"
-            first = None
-            if grown:
-                before = ctx.rundir.load_checkpoint(_pm_checkpoint(ctx, k - 1)).state
-                first = grow_population(
-                    np.asarray(before.population, float),
-                    k - 1,
-                    jax.random.fold_in(key, GROW_KEY),
-                    s.bound,
-                )
-            run = ctx.evolve(
-                name,
-                de_config(ctx, genome.size, s.bound),
-                fitness,
-                key,
-                s.generations,
-                f"{k}-behaviour PM: DE" + (f" (attempt {a + 1})" if a else ""),
-                first,
-            )
-            pm = genome.network(jnp.asarray(run.data["best_genome"]))
-            pm = jax.tree.map(lambda x: jnp.asarray(np.asarray(x, np.float64)), pm)
-            spec = code_mbn(im_spec, pm, rules, programs, camera, meta)
-            check = validate(ctx, spec, "tiles") if attempts > 1 else None
-            tries.append({"run": run, "pm": pm, "spec": spec, "validation": check})
-            if check is None or check["meets_target"]:
-                break
-        chosen = max(
-            range(len(tries)),
-            key=lambda i: (
-                validation_figure(tries[i]["validation"]) if tries[i]["validation"] else 0.0,
-                tries[i]["run"].data["best_fitness"],
-                -i,
-            ),
+
+        def first(key: jax.Array) -> np.ndarray:
+            """The (K-1)-behaviour program module's final population, grown by a tile kind."""
+            before = ctx.rundir.load_checkpoint(_pm_checkpoint(ctx, k - 1)).state
+            population = np.asarray(before.population, float)
+            return grow_population(population, k - 1, jax.random.fold_in(key, GROW_KEY), s.bound)
+
+        tries, chosen = choose_code_mbn(
+            ctx,
+            self.name,
+            im_spec,
+            rules,
+            CameraConfig(range=s.camera_range),
+            meta,
+            generations=s.generations,
+            bound=s.bound,
+            switch_seconds=s.switch_seconds,
+            first=first if grown else None,
         )
         best = tries[chosen]
         save_controller(ctx.rundir.controller_file(self.name), best["spec"])
         again = read_controller_spec(ctx.rundir.controller_file(self.name))
         assert isinstance(again, MBNControllerSpec)
         check_digest(again.interpreter_spec.interpreter, digest, f"controllers/{self.name}.json")
-        codes = latched_codes(best["pm"], k)
-        errors = code_errors(codes)
-        run = best["run"]
+        pm: CodePM = best["pm"]
+        errors = code_errors([None if c is None else np.asarray(c) for c in pm.latched.values()])
+        run = pm.run
         return MBNKResult.from_json(
             {
                 "k": k,
@@ -291,28 +263,12 @@ class MBNKStage(Stage[MBNKResult]):
                 "history": run.data["history"],
                 "evaluations": popsize * (s.generations + 1) * len(tries),
                 "grown": grown,
-                "latched_codes": {
-                    r: None if c is None else c.tolist() for r, c in zip(rules, codes, strict=True)
-                },
+                "latched_codes": pm.latched,
                 "code_errors": dict(zip(rules, errors, strict=True)),
                 "initial": None if best["spec"].initial is None else best["spec"].initial.rule,
                 "sha256": digest,
                 "sha256_checked": True,
-                **(
-                    {
-                        "validation": best["validation"],
-                        "attempts": [
-                            {
-                                "best_fitness": t["run"].data["best_fitness"],
-                                "validation": t["validation"],
-                            }
-                            for t in tries
-                        ],
-                        "chosen_attempt": chosen,
-                    }
-                    if attempts > 1
-                    else {}
-                ),
+                **attempts_record(tries, chosen),
             }
         )
 

@@ -15,18 +15,10 @@ from __future__ import annotations
 from typing import Any
 
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
-from mbn.experiments.stages.compose import PROGRAMS_QUICK, program_stages
+from mbn.experiments.stages.compose import PROGRAMS_QUICK, PROGRAMS_SHARED, program_stages
 from mbn.experiments.stages.interpolation import InterpolationStage
 from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.stages.settings import (
-    DESettings,
-    EpisodeSettings,
-    FollowerSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    derived_seeds,
-)
-from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.settings import derived_seeds
 from mbn.experiments.switch.over_runs import brief
 from mbn.experiments.switch.report import claims, write_report
 
@@ -62,14 +54,7 @@ SWITCH = Experiment(
     name="switch",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(
-        DESettings,
-        FollowerSettings,
-        EpisodeSettings,
-        InterpreterSettings,
-        ValidationSettings,
-        TestsSettings,
-    ),
+    shared=PROGRAMS_SHARED,
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,
