@@ -95,3 +95,36 @@ def test_a_point_s_share_is_of_the_differing_passes():
     assert _point(0.5, 0, 0).first_share is None
     data = InterpolationResult.from_json(_stage(0.1)["interpolation"])
     assert np.isclose(data.pairs["right:left"].points[1].first_share, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("pairs", "message"),
+    [
+        (("right:right",), "pairs a program with itself"),
+        (("right-left",), "is not FIRST:SECOND"),
+        (("right:up",), r"'right:up': unknown rule 'up'"),
+        ((), "at least one pair"),
+    ],
+)
+def test_bad_pairs_are_refused_before_any_stage_runs(pairs, message):
+    from mbn.errors import MbnInputError
+    from mbn.experiments.stages.interpolation import InterpolationSettings
+
+    with pytest.raises(MbnInputError, match=message):
+        InterpolationSettings(pairs=pairs)
+
+
+def test_a_pair_needs_programs_the_run_makes(tmp_path):
+    import subprocess
+    import sys
+
+    config = tmp_path / "bad.toml"
+    config.write_text('[interpolation]\npairs = ["right:right-left"]\n')
+    done = subprocess.run(
+        [sys.executable, "-m", "mbn", "run", "switch", "--quick", "--config", str(config),
+         "--out", str(tmp_path / "run")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert "interpolation.pairs[0]: right-left has no program" in done.stderr
+    assert done.stderr.count("\n") == 1 and not (tmp_path / "run").exists()

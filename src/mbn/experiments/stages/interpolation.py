@@ -23,7 +23,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from mbn.config import Settings, setting
+from mbn.config import Locator, Settings, setting
 from mbn.controllers import (
     CTRNNControllerSpec,
     InterpreterControllerSpec,
@@ -31,6 +31,7 @@ from mbn.controllers import (
     read_controller_spec,
 )
 from mbn.errors import MbnInputError
+from mbn.experiments.named import locate
 from mbn.experiments.pipeline import Stage, StageContext
 from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.stages.im_full import IMFullStage
@@ -42,7 +43,7 @@ from mbn.networks.ctrnn import CTRNN
 from mbn.networks.fixed_points import fixed_points
 from mbn.world.geometry import rect_segments, sonar_ranges
 from mbn.world.mazes.model import Maze
-from mbn.world.rules import parse_rule, rule_exit_codes
+from mbn.world.rules import parse_rule, parse_rules, rule_exit_codes
 from mbn.world.sensors import SensorConfig, normalize, paper_inputs
 
 __all__ = [
@@ -104,6 +105,27 @@ class InterpolationSettings(Settings):
         doc="the equilibria of the network each P(alpha) decodes to, at the probes' inputs",
         source=_DOC,
     )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.pairs:
+            raise MbnInputError("interpolation.pairs: at least one pair FIRST:SECOND")
+        for text in self.pairs:
+            _pair_rules(text)
+
+    def check_names(self, sections: Any, where: Locator) -> None:
+        # every rule of a pair has a program: RF's, LF's or one the programs stage learns
+        if "programs" not in sections:
+            return
+        known = ("right", "left", *parse_rules(sections["programs"].rules, "programs.rules"))
+        for k, text in enumerate(self.pairs):
+            for rule in _pair_rules(text):
+                if rule not in known:
+                    at = locate(where, self.section, "pairs", k)
+                    raise MbnInputError(
+                        f"{at}: {rule} has no program: right and left are RF's and LF's, "
+                        f"[programs] rules learns {', '.join(known[2:])}"
+                    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -223,13 +245,22 @@ def equilibria(net: CTRNN, inputs: np.ndarray, motor: Any) -> list[Equilibrium]:
     return out
 
 
-def _pair(text: str, programs: dict[str, Any]) -> tuple[str, str]:
+def _pair_rules(text: str) -> tuple[str, str]:
+    """The two rules of a pair ``FIRST:SECOND`` (one line naming what is wrong)."""
     parts = text.split(":")
     if len(parts) != 2:
         raise MbnInputError(f"interpolation.pairs: {text!r} is not FIRST:SECOND")
-    first, second = (parse_rule(p.strip()).name for p in parts)
+    try:
+        first, second = (parse_rule(p.strip()).name for p in parts)
+    except MbnInputError as exc:
+        raise MbnInputError(f"interpolation.pairs: {text!r}: {exc}") from None
     if first == second:
         raise MbnInputError(f"interpolation.pairs: {text!r} pairs a program with itself")
+    return first, second
+
+
+def _pair(text: str, programs: dict[str, Any]) -> tuple[str, str]:
+    first, second = _pair_rules(text)
     missing = [r for r in (first, second) if r not in programs]
     if missing:
         raise MbnInputError(
