@@ -60,6 +60,21 @@ def _claims(runs: dict[str, dict[str, ContestRun]]) -> list[dict[str, Any]]:
     ]
 
 
+def _grown_text(three: Any) -> str:
+    """What the grown contenders' first phase (right and left) cost, from the stage's record."""
+    if three is None:
+        return ""
+    firsts = {
+        who: d["two_rule_evaluations"]
+        for who, d in three.runs.get(TASK, {}).items()
+        if d.get("two_rule_evaluations") is not None
+    }
+    return "".join(
+        f"; {who}'s first phase (right and left, two tile inputs) took {n} evaluations"
+        for who, n in firsts.items()
+    )
+
+
 def _pm_text(runs: dict[str, dict[str, ContestRun]]) -> str:
     """What the MBN's program module cost (robot-free), where the run evolved one."""
     d = runs.get(TASK, {}).get("programs")
@@ -149,6 +164,7 @@ def write_report(rundir: RunDir) -> None:
                         "Robot episodes per evaluation (with the perturbed copies): "
                         + ", ".join(f"{k} {v}" for k, v in three.episodes_per_evaluation.items())
                         + _pm_text(runs)
+                        + _grown_text(three)
                         + ".",
                     ],
                 )
