@@ -197,3 +197,60 @@ def test_program_reward_ranks_an_exact_latch_above_a_leaky_one_and_a_slow_one():
     assert float(swapped(jnp.asarray(exact[None], jnp.float32))[0]) < -0.9
     with pytest.raises(MbnInputError, match="programs must have 3 values"):
         pm_program_fitness(g, ((1.0, 0.0), (0.0, 1.0)))
+
+
+def test_a_pm_driving_the_robot_in_mazes_scores_as_its_controller_file_runs(quick_run):
+    """``pm_maze_fitness`` runs each genome's PM in the template MBN, started latched after a
+    one-colour tile: for the quick run's own PM (whose start settled after 1.5 s + 40 s, the
+    fitness's start) its value is the maze fitness of a rollout of the controller file itself;
+    each genome's value is its own (alone as in a population), within the episodes' ceiling."""
+    import json
+    from pathlib import Path
+
+    from mbn.controllers import make_controller, read_controller_spec
+    from mbn.experiments.crossroads import F_M_WEIGHT
+    from mbn.experiments.maze_task import MazeTask, maze_episode_fitness
+    from mbn.experiments.program_module import (
+        MAZE_START_SEE,
+        MAZE_START_SETTLE,
+        pm_maze_fitness,
+    )
+    from mbn.world.rollout import run_rollout
+
+    folder = Path(quick_run[0])
+    template = read_controller_spec(folder / "controllers" / "mbn.json")
+    record = json.loads((folder / "stages" / "pm.json").read_text())
+    genes = np.asarray(record["best_genome"])
+    assert record["initial"]["settled_after_seconds"] == pytest.approx(
+        MAZE_START_SEE - 1.5 + MAZE_START_SETTLE
+    )
+    genome = PMGenome(programs=3, inputs=2)
+    task = MazeTask(rule="tiles", family="tiles2", pool=6, mazes=2, starts=2, seconds=30.0)
+    fitness = pm_maze_fitness(template, genome, task)
+    rng = np.random.default_rng(0)
+    population = np.stack([genes, rng.uniform(-10, 10, genes.shape), np.zeros_like(genes)])
+    values = np.asarray(fitness(jnp.asarray(population)))
+    assert values.shape == (3,)
+    assert np.all(values <= task.episodes * (1 + F_M_WEIGHT) + 1e-9)
+    np.testing.assert_allclose(np.asarray(fitness(jnp.asarray(population[1:2]))), values[1:2],
+                               rtol=1e-6, atol=1e-6)  # fmt: skip
+
+    # the controller file, run as it is, from its recorded start
+    loaded = make_controller(template, where="mbn.json")
+    arrays = task.arrays()
+    stats = run_rollout(
+        arrays.world,
+        loaded.controller,
+        loaded.initial_state(arrays.episodes),
+        jnp.asarray(arrays.poses),
+        jnp.asarray(arrays.maze_index),
+        task.rollout_config(camera=loaded.camera),
+        junctions=arrays.junctions,
+    ).stats
+    own = float(np.sum(np.asarray(maze_episode_fitness(stats, task))))
+    assert values[0] == pytest.approx(own, abs=1e-3)
+
+    with pytest.raises(MbnInputError, match="tiles"):
+        pm_maze_fitness(template, genome, MazeTask(rule="right", pool=6, mazes=2, starts=2))
+    with pytest.raises(MbnInputError, match="program module of 3 neurons"):
+        pm_maze_fitness(template, PMGenome(programs=2, inputs=2), task)

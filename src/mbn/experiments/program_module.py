@@ -47,6 +47,7 @@ __all__ = [
     "mbn_controller",
     "memory_reward_maximum",
     "pm_fitness",
+    "pm_maze_fitness",
     "pm_memory_fitness",
     "pm_program_fitness",
     "prime",
@@ -696,6 +697,79 @@ def pm_memory_fitness(
         best = jnp.maximum(f_right, f_left)
         z = reward.rest_weight * jnp.clip(jnp.where(label == 2, best, 0.0).sum(-1), 0.0, None)
         return (r + z) * (left + z)
+
+    return fitness
+
+
+#: A PM genome driving the robot in mazes starts in the state it reaches after a one-colour tile
+#: shown for this long (s) and then this long without input (:func:`pm_maze_fitness`), as the
+#: MBN it makes starts latched (:func:`latch_after_tile`).
+MAZE_START_SEE, MAZE_START_SETTLE = 1.5, 40.0
+
+
+def pm_maze_fitness(
+    template: Any, genome: PMGenome, task: Any, arrays: TaskArrays | None = None
+) -> Callable[..., Array]:
+    """A jitted map from a population of program modules ``(P, genome.size)`` to their fitness
+    driving the robot in a maze task (:class:`~mbn.experiments.maze_task.MazeTask` of rule
+    ``"tiles"``: the rule in force is the last tile's), summed over its episodes
+    (:func:`~mbn.experiments.maze_task.maze_episode_fitness`): each genome's PM in the MBN
+    ``template`` (an :class:`~mbn.controllers.MBNControllerSpec`: its interpreter, programs,
+    readout, camera and substeps, run as the controller file runs, noise off), started in the
+    state it reaches after a one-colour tile (:data:`MAZE_START_SEE` s in view, then
+    :data:`MAZE_START_SETTLE` s without input: the MBN starts latched after tile 1). Arguments
+    after the population (a DE group's owners) are ignored."""
+    from mbn.controllers import make_controller
+    from mbn.experiments.maze_task import MazeTask, maze_episode_fitness
+
+    if not isinstance(task, MazeTask) or task.rule != "tiles":
+        raise MbnInputError("pm_maze_fitness needs a maze task of rule 'tiles'")
+    if task.noise.enabled:
+        raise MbnInputError("pm_maze_fitness: a maze task with noise is not supported")
+    loaded = make_controller(template, where="template", check_stability=False)
+    if loaded.dt != task.dt or loaded.sensors != task.sensors:
+        raise MbnInputError("template: its robot step and sensors must be the maze task's")
+    pm = template.program_module
+    if (pm.num_neurons, pm.num_inputs) != (genome.programs, genome.inputs):
+        raise MbnInputError(
+            f"template: a program module of {pm.num_neurons} neurons and {pm.num_inputs} "
+            f"inputs, the genome's has {genome.programs} and {genome.inputs}"
+        )
+    arrays = arrays or task.arrays()
+    e = arrays.episodes
+    shared = loaded.initial_state(1)
+    control = loaded.controller
+    config = task.rollout_config(camera=loaded.camera)
+    pm_substeps = template.pm_substeps
+    tile = tuple(float(i == 0) for i in range(genome.inputs))
+    start = camera_inputs(
+        [(tile, MAZE_START_SEE), ((0.0,) * genome.inputs, MAZE_START_SETTLE)], task.dt
+    )
+    poses, index = np.asarray(arrays.poses), np.asarray(arrays.maze_index, np.int32)
+
+    @jax.jit
+    def run(population: Array) -> Array:
+        p, dtype = population.shape[0], population.dtype
+        nets = genome.network(population)
+        y0 = prime(nets, [start], task.dt, pm_substeps)[:, 0]
+        state = shared._replace(
+            pm=genome.network(jnp.repeat(population, e, 0)),
+            pm_y=jnp.repeat(y0, e, 0).astype(dtype),
+            im_y=jnp.zeros((p * e, shared.im_y.shape[-1]), dtype),
+        )
+        stats = rollout(
+            arrays.world,
+            control,
+            state,
+            jnp.asarray(np.tile(poses, (p, 1)), dtype),
+            jnp.asarray(np.tile(index, p)),
+            config,
+            junctions=arrays.junctions,
+        ).stats
+        return maze_episode_fitness(stats, task).reshape(p, e).sum(-1)
+
+    def fitness(population: Array, *_per_genome: Array) -> Array:
+        return run(jnp.asarray(population))
 
     return fitness
 

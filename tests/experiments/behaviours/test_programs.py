@@ -235,3 +235,31 @@ def test_with_maze_episodes_programs_are_scored_on_redrawn_maze_episodes():
     assert np.all(first <= 2 * 1.1 + 1e-6)
     np.testing.assert_array_equal(first, again)
     assert not np.array_equal(first, other)
+
+
+@pytest.mark.slow
+def test_the_three_behaviour_pm_drives_the_robot_in_mazes_after_its_reward_when_asked(nb_copy):
+    """``[mbn3] maze_generations``: the code PM's DE goes on from its reward's last population
+    driving the robot in tiles3 mazes; the MBN written holds the best of those generations,
+    its codes are that genome's, and its interpreter is the one hash-checked."""
+    from mbn.experiments.program_module import PMGenome
+    from mbn.experiments.stages.mbn3 import latched_codes
+
+    rundir, _ = nb_copy
+    config = NEW_BEHAVIOURS.config(quick=True)
+    run_stage(NEW_BEHAVIOURS, rundir, "programs", seed=3, config=config)
+    config = replace_section(config, config["mbn3"].replace(maze_generations=2))
+    config = replace_section(
+        config, config["episodes"].replace(pool=6, mazes=2, starts=2, seconds=20.0)
+    )
+    data = run_stage(NEW_BEHAVIOURS, rundir, "mbn3", seed=3, config=config)
+    maze = data["maze"]
+    assert (maze["generations"], maze["family"], maze["episodes"]) == (2, "tiles3", 4)
+    assert (rundir.root / "checkpoints" / "mbn3_pm_mazes.npz").exists()
+    spec = read_controller_spec(rundir.controller_file("mbn3"))
+    net = PMGenome(programs=3, inputs=3).network(np.asarray(maze["best_genome"]))
+    np.testing.assert_allclose(np.asarray(spec.program_module.W), np.asarray(net.W), atol=1e-12)
+    codes = latched_codes(spec.program_module, 3)
+    for rule, code in zip(data["tile_rules"], codes, strict=True):
+        assert data["latched_codes"][rule] == pytest.approx(code.tolist(), abs=1e-9)
+    assert data["sha256"] == spec.interpreter_spec.interpreter.digest()

@@ -405,3 +405,27 @@ def test_the_lf_search_halves_the_triples_by_their_best_fitness_at_each_rungs_en
     assert went_on == sorted(sorted(range(20), key=lambda t: (-best[t][0], t))[:10])
     last = [t for t in range(20) if gens[t] == 2]
     assert last == sorted(sorted(went_on, key=lambda t: (-best[t][1], t))[:5])
+
+
+def test_the_pm_drives_the_robot_in_mazes_after_its_reward_when_asked(quick_run, tmp_path):
+    """``[pm] maze_generations``: after the program reward, DE goes on from its last population
+    with the PM driving the robot in tiles2 mazes of the train split; the MBN written is the
+    best of those generations, and the record says so."""
+    from mbn.controllers import read_controller_spec
+    from mbn.experiments.program_module import PMGenome
+
+    rundir, seed, config = _copy(quick_run, tmp_path)
+    config = _with(config, "pm", maze_generations=2)
+    config = _with(config, "episodes", pool=6, mazes=2, starts=2, seconds=20.0, redraw=1)
+    data = run_stage(REPRODUCE, rundir, "pm", seed=seed, config=config)
+    maze = data["maze"]
+    assert (maze["generations"], maze["family"], maze["episodes"]) == (2, "tiles2", 4)
+    assert len(maze["history"]["best"]) == 3  # generation 0 (the reward's population) and 2
+    assert (rundir.root / "checkpoints" / "pm_mazes.npz").exists()
+    assert data["attempts"][0]["maze_fitness"] == maze["best_fitness"]
+    spec = read_controller_spec(rundir.controller_file("mbn"))
+    net = PMGenome(programs=3, inputs=2).network(np.asarray(maze["best_genome"]))
+    np.testing.assert_allclose(np.asarray(spec.program_module.W), np.asarray(net.W), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(spec.program_module.bias), np.asarray(net.bias),
+                               atol=1e-12)  # fmt: skip
+    assert data["program_reward"] <= 0.0  # the kept genome's program reward (0 at best)

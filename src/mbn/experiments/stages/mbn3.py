@@ -47,6 +47,7 @@ from mbn.experiments.stages.common import (
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
+from mbn.experiments.stages.pm_mazes import evolve_in_mazes, maze_pm_task, maze_record
 from mbn.experiments.stages.programs import check_digest
 from mbn.experiments.stages.records import History, Validation
 from mbn.experiments.stages.settings import ValidationSettings
@@ -96,6 +97,14 @@ class MBN3Settings(Settings):
     )
     camera_range: float = setting(
         0.8, doc="the camera's range", unit="m", low=0.1, high=10.0, source="as [pm]"
+    )
+    maze_generations: int = setting(
+        0,
+        doc="DE generations of the program module driving the robot in mazes of the tiles3 "
+        "family's train split, after its reward and from its last population (0: none)",
+        low=0,
+        high=100_000,
+        source="as [pm] maze_generations",
     )
 
     def __post_init__(self) -> None:
@@ -230,15 +239,21 @@ def choose_code_mbn(
     bound: float,
     switch_seconds: float,
     first: Callable[[jax.Array], np.ndarray] | None = None,
+    maze_generations: int = 0,
 ) -> tuple[list[dict[str, Any]], int]:
     """The MBN of a code program module for ``rules`` (their programs those of ``im_spec``),
     as a stage makes its final choice: with maze episodes up to ``[validation] attempts``
     program modules (checkpoints ``STEM_pm``, ``STEM_pm_attempt1``, ...; attempt ``a`` from the
     stage's key folded with ``ATTEMPT_KEY + a``), each MBN judged in the validation split of its
     tile family, stopping at the first that meets the target; else one. ``first``: a first
-    generation from an attempt's key (default: random). Returns every try (``pm``:
-    :class:`CodePM`, ``spec``, ``validation`` or None) and the index of the one kept: the best
-    by :func:`~mbn.experiments.stages.common.validation_figure`, then by program reward."""
+    generation from an attempt's key (default: random). ``maze_generations``: DE generations
+    of each program module driving the robot in mazes of the tile family's train split after
+    its reward, from its last population (:func:`~mbn.experiments.stages.pm_mazes.
+    evolve_in_mazes`, checkpoint ``NAME_mazes``). Returns every try (``pm``: :class:`CodePM`,
+    the reward's run, the network and codes of the final genome; ``spec``; ``validation`` or
+    None; ``maze``: :func:`~mbn.experiments.stages.pm_mazes.maze_record` or None) and the
+    index of the one kept: the best by :func:`~mbn.experiments.stages.common.
+    validation_figure`, then by program reward."""
     programs = [im_spec.programs[r] for r in rules]
     attempts = ctx.section(ValidationSettings).attempts if maze_episodes(ctx) is not None else 1
     tries: list[dict[str, Any]] = []
@@ -248,8 +263,32 @@ def choose_code_mbn(
         population = None if first is None else first(key)
         pm = evolve_code_pm(ctx, name, rules, generations, bound, switch_seconds, key, population)
         spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
+        maze = None
+        if maze_generations:
+            genome = PMGenome(programs=len(rules), inputs=len(rules))
+            drove = evolve_in_mazes(
+                ctx,
+                f"{name}_mazes",
+                spec,
+                genome,
+                rules,
+                np.asarray(pm.run.state.population),
+                key,
+                maze_generations,
+                bound,
+                f"{len(rules)}-behaviour PM: generations driving the robot in mazes",
+            )
+            maze = maze_record(drove, maze_pm_task(ctx, rules), maze_generations)
+            net = genome.network(jnp.asarray(drove.data["best_genome"]))
+            net = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), net)
+            codes = latched_codes(net, len(rules))
+            latched = {
+                r: None if c is None else c.tolist() for r, c in zip(rules, codes, strict=True)
+            }
+            pm = CodePM(net, pm.run, latched)
+            spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
         check = validate(ctx, spec, "tiles") if attempts > 1 else None
-        tries.append({"pm": pm, "spec": spec, "validation": check})
+        tries.append({"pm": pm, "spec": spec, "validation": check, "maze": maze})
         if check is None or check["meets_target"]:
             break
     chosen = max(
@@ -271,7 +310,11 @@ def attempts_record(tries: list[dict[str, Any]], chosen: int) -> dict[str, Any]:
     return {
         "validation": tries[chosen]["validation"],
         "attempts": [
-            {"best_fitness": t["pm"].run.data["best_fitness"], "validation": t["validation"]}
+            {
+                "best_fitness": t["pm"].run.data["best_fitness"],
+                "validation": t["validation"],
+                **({"maze_fitness": t["maze"]["best_fitness"]} if t.get("maze") else {}),
+            }
             for t in tries
         ],
         "chosen_attempt": chosen,
@@ -282,7 +325,10 @@ def attempts_record(tries: list[dict[str, Any]], chosen: int) -> dict[str, Any]:
 class MBN3Result(Record):
     """What the ``mbn3`` stage records (``stages/mbn3.json``): the program module's DE run, the
     tile rules and the codes each latches, the initial rule, the interpreter's digest checked,
-    and, when it made several attempts, the kept one's validation and every attempt."""
+    and, when it made several attempts, the kept one's validation and every attempt; with
+    ``[mbn3] maze_generations``, ``maze``: the generations driving the robot that followed the
+    reward (:func:`~mbn.experiments.stages.pm_mazes.maze_record`: its ``best_genome`` is the
+    MBN's program module, and ``latched_codes`` are its)."""
 
     best_genome: list[float]
     best_fitness: float
@@ -296,6 +342,7 @@ class MBN3Result(Record):
     validation: Validation | None = optional()
     attempts: list[dict[str, Any]] | None = optional()
     chosen_attempt: int | None = optional()
+    maze: dict[str, Any] | None = optional()
 
 
 class MBN3Stage(Stage[MBN3Result]):
@@ -336,6 +383,7 @@ class MBN3Stage(Stage[MBN3Result]):
             generations=s.generations,
             bound=s.bound,
             switch_seconds=s.switch_seconds,
+            maze_generations=s.maze_generations,
         )
         pm, spec = tries[chosen]["pm"], tries[chosen]["spec"]
         run = pm.run
@@ -355,6 +403,7 @@ class MBN3Stage(Stage[MBN3Result]):
                 "sha256": digest,
                 "sha256_checked": True,
                 **attempts_record(tries, chosen),
+                **({"maze": tries[chosen]["maze"]} if tries[chosen]["maze"] else {}),
             }
         )
 

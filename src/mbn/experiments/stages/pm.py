@@ -24,7 +24,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.crossroads import EPISODE_FITNESS_MAX
 from mbn.experiments.evolve import robust_fitness
 from mbn.experiments.pipeline import Stage, StageContext
-from mbn.experiments.pipeline.results import Record
+from mbn.experiments.pipeline.results import Record, optional
 from mbn.experiments.program_module import (
     MemoryReward,
     PMGenome,
@@ -45,6 +45,7 @@ from mbn.experiments.stages.common import (
 )
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
+from mbn.experiments.stages.pm_mazes import evolve_in_mazes, maze_pm_task, maze_record
 from mbn.experiments.stages.records import History, Validation
 from mbn.experiments.stages.rf import evolution_summary
 from mbn.experiments.stages.settings import ValidationSettings
@@ -129,6 +130,15 @@ class PMSettings(Settings):
         low=0.01,
         source="docs/experiments.md (the camera range)",
     )
+    maze_generations: int = setting(
+        0,
+        doc="DE generations of the PM driving the robot in mazes of the tiles2 family's train "
+        "split ([episodes] pool, mazes, starts, seconds, redraw), after its reward and from its "
+        "last population (0: none)",
+        low=0,
+        high=100_000,
+        source="docs/generalization.md (the program module driving the robot)",
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -147,7 +157,13 @@ class PMSettings(Settings):
     def check_names(self, sections: Mapping[str, Settings], where: Locator) -> None:
         # a robot reward under the run's [noise] is refused by the stage: refuse it up front
         noise = sections.get("noise")
-        if self.reward != "programs" and isinstance(noise, NoiseConfig) and noise.enabled:
+        noisy = isinstance(noise, NoiseConfig) and noise.enabled
+        if self.maze_generations and noisy:
+            raise MbnInputError(
+                f"{where(self.section, 'maze_generations')} = {self.maze_generations}: a PM "
+                "driving the robot in mazes under [noise] is not supported (docs/noise.md)"
+            )
+        if self.reward != "programs" and noisy:
             raise MbnInputError(
                 f"{where(self.section, 'reward')} = {self.reward!r}: a PM evolved on robot "
                 "episodes under [noise] is not supported; the default reward ('programs') needs "
@@ -182,7 +198,9 @@ class PMResult(Record):
     """What the ``pm`` stage records (``stages/pm.json``): the kept attempt's DE run (best
     genome and fitness, generations, history), the MBN's initial state, the shaping run (None
     without one), the program reward, the validation, every attempt in brief, and the reward's
-    settings and ceiling."""
+    settings and ceiling; with ``[pm] maze_generations``, ``maze``: the generations driving the
+    robot in mazes that followed (:func:`~mbn.experiments.stages.pm_mazes.maze_record`; its
+    ``best_genome`` is the MBN's program module; None without them)."""
 
     best_genome: list[float]
     best_fitness: float
@@ -199,6 +217,7 @@ class PMResult(Record):
     switch_seconds: float
     max_fitness: float
     camera_range: float
+    maze: dict[str, Any] | None = optional()
 
 
 class PMStage(Stage[PMResult]):
@@ -270,28 +289,54 @@ class PMStage(Stage[PMResult]):
             de = ctx.evolve(
                 name, config, fitness, key, s.generations, "PM: DE generations" + suffix, population
             )
+            kept, maze = de.data["best_genome"], None
+
+            def mbn(genes: Any, fitness: float) -> tuple[MBNControllerSpec, dict[str, Any]]:
+                pm = genome.network(jnp.asarray(genes))
+                initial, start = _initial_state(
+                    pm, k, im_spec, references, MemoryReward().see, camera
+                )
+                spec = MBNControllerSpec(
+                    interpreter_spec=im_spec,
+                    program_module=pm,
+                    program_neurons=tuple(range(k)),
+                    camera=camera,
+                    initial=initial,
+                    metadata={
+                        "made_by": MADE_BY,
+                        "stage": "pm",
+                        "seed": ctx.seed,
+                        "pm_fitness": fitness,
+                        "pm_reward": s.reward,
+                        "initial": start,
+                    },
+                )
+                return spec, start
+
+            spec, start = mbn(kept, de.data["best_fitness"])
+            if s.maze_generations:
+                # the last generations drive the robot in mazes, from the reward's population
+                rules = ("right", "left")
+                drove = evolve_in_mazes(
+                    ctx,
+                    f"{name}_mazes",
+                    spec,
+                    genome,
+                    rules,
+                    np.asarray(de.state.population),
+                    key,
+                    s.maze_generations,
+                    s.bound,
+                    "PM: generations driving the robot in mazes" + suffix,
+                )
+                maze = maze_record(drove, maze_pm_task(ctx, rules), s.maze_generations)
+                kept = drove.data["best_genome"]
+                spec, start = mbn(kept, de.data["best_fitness"])
             # how closely this PM latches the programs (the program reward, 0 at best)
             program_error = (
                 de.data["best_fitness"]
-                if s.reward == "programs"
-                else float(latch(jnp.asarray([de.data["best_genome"]]))[0])
-            )
-            pm = genome.network(jnp.asarray(de.data["best_genome"]))
-            initial, start = _initial_state(pm, k, im_spec, references, MemoryReward().see, camera)
-            spec = MBNControllerSpec(
-                interpreter_spec=im_spec,
-                program_module=pm,
-                program_neurons=tuple(range(k)),
-                camera=camera,
-                initial=initial,
-                metadata={
-                    "made_by": MADE_BY,
-                    "stage": "pm",
-                    "seed": ctx.seed,
-                    "pm_fitness": de.data["best_fitness"],
-                    "pm_reward": s.reward,
-                    "initial": start,
-                },
+                if s.reward == "programs" and maze is None
+                else float(latch(jnp.asarray([kept]))[0])
             )
             # The whole MBN on the validation maze, judged from its start.
             check = validate(ctx, spec, "tiles")
@@ -303,6 +348,7 @@ class PMStage(Stage[PMResult]):
                     "initial": start,
                     "spec": spec,
                     "validation": check,
+                    "maze": maze,
                 }
             )
             if check["meets_target"]:
@@ -330,6 +376,11 @@ class PMStage(Stage[PMResult]):
                         "program_reward": x["program_reward"],
                         "initial_rule": x["initial"]["rule"],
                         "validation": x["validation"],
+                        **(
+                            {"maze_fitness": x["maze"]["best_fitness"]}
+                            if x["maze"] is not None
+                            else {}
+                        ),
                     }
                     for x in attempts
                 ],
@@ -339,6 +390,7 @@ class PMStage(Stage[PMResult]):
                 "switch_seconds": s.switch_seconds,
                 "max_fitness": float(maximum),
                 "camera_range": s.camera_range,
+                "maze": best["maze"],
             }
         )
 
@@ -348,6 +400,12 @@ class PMStage(Stage[PMResult]):
             if data.reward == "programs"
             else evolution_summary(data)
         )
+        if data.maze is not None:
+            head += (
+                f"; then {data.maze['generations']} generations driving the robot in "
+                f"{data.maze['family']} mazes (fitness {data.maze['best_fitness']:.2f} of "
+                f"{data.maze['episodes']} episodes)"
+            )
         start = data.initial
         if start["rule"] is None:
             return f"{head}; starts at rest (no settled state)"

@@ -1,0 +1,212 @@
+"""Measure the program module's last generations driving the robot (``[pm] maze_generations``).
+
+For each seed, ``mbn reproduce``'s stages up to ``pm`` run with the defaults (the arm
+``reward``: the PM evolved on its program reward alone, ``maze_generations`` 0) into
+``OUT/reward/seed-S``. Each other arm copies that folder and runs the ``pm`` stage again with its
+setting: its program-reward DE and attempts resume from the copied checkpoints (the same keys),
+and the generations driving the robot in ``tiles2`` mazes of the train split follow. Every
+arm's MBN is then judged on mazes no stage chooses on: by default 100 ``tiles2`` mazes of the
+train split far beyond any run's pool (``tiles2/train:900000-900099``; how many of them lay in
+the run's pool is recorded), every start mark once, as the test split is judged. One JSON line
+per arm and seed is appended to ``OUT/measure.jsonl`` (the judged figures, the validation the
+stage chose on, the stage's seconds); done pairs are skipped, so the script resumes.
+
+The test split is never touched: this chooses a setting (``docs/generalization.md``, "The
+program module driving the robot").
+
+    python scripts/measure_pm_mazes.py --out runs/pm-measure --seeds 30-34
+    python scripts/measure_pm_mazes.py --out runs/pm-measure --summary
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+#: The arms: name -> ``[pm] maze_generations``.
+ARMS: dict[str, int] = {"reward": 0, "mazes-50": 50, "mazes-150": 150}
+#: The stages of ``mbn reproduce`` the base run makes (the MBN's and those it needs).
+BASE_STAGES = ["multiplier", "rf", "lf_search", "lf", "im", "pm"]
+
+
+def _seeds(text: str) -> list[int]:
+    if "-" in text:
+        a, b = text.split("-")
+        return list(range(int(a), int(b) + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def _done(out: Path) -> set[tuple[str, int]]:
+    path = out / "measure.jsonl"
+    if not path.exists():
+        return set()
+    return {(r["arm"], r["seed"]) for r in map(json.loads, path.read_text().splitlines())}
+
+
+def _base(out: Path, seed: int) -> Path:
+    from mbn.experiments.pipeline.runner import run_experiment
+    from mbn.experiments.reproduce import REPRODUCE
+
+    folder = out / "reward" / f"seed-{seed}"
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    run_experiment(
+        REPRODUCE,
+        folder,
+        seed=seed,
+        config=REPRODUCE.config(quick=False),
+        resume=(folder / "run.json").exists(),
+        log=lambda _m: None,
+        stages=BASE_STAGES,
+        workers=2,
+    )
+    return folder
+
+
+def _arm_folder(out: Path, arm: str, seed: int, base: Path) -> Path:
+    """The arm's copy of the base run, its ``pm`` stage run again with the arm's setting."""
+    from mbn.experiments.pipeline import RunDir
+    from mbn.experiments.pipeline.runner import replace_section, run_stage
+    from mbn.experiments.reproduce import REPRODUCE
+
+    folder = out / arm / f"seed-{seed}"
+    if not (folder / "run.json").exists():
+        if folder.exists():
+            shutil.rmtree(folder)
+        shutil.copytree(base, folder)
+        for path in (folder / "stages" / "pm.json", folder / "controllers" / "mbn.json"):
+            path.unlink(missing_ok=True)
+    rundir = RunDir(folder)
+    config = REPRODUCE.config(quick=False)
+    config = replace_section(config, config["pm"].replace(maze_generations=ARMS[arm]))
+    if not rundir.stage_file("pm").exists():
+        run_stage(REPRODUCE, rundir, "pm", seed=seed, config=config)
+    return folder
+
+
+def measure(out: Path, arm: str, seed: int, judge_on: str) -> dict[str, Any]:
+    from mbn.controllers import make_controller, read_controller_spec
+    from mbn.experiments.generalization import evaluate_mazes
+    from mbn.experiments.reproduce import REPRODUCE
+    from mbn.experiments.stages.settings import EpisodeSettings
+    from mbn.experiments.trials import TrialSpec
+    from mbn.precision import ROBOT, scope
+    from mbn.world.mazes.load import load_mazes
+
+    base = _base(out, seed)
+    t0 = time.perf_counter()
+    folder = base if ARMS[arm] == 0 else _arm_folder(out, arm, seed, base)
+    wall = time.perf_counter() - t0  # the arm's pm stage again (0 for the base's own)
+    pm = json.loads((folder / "stages" / "pm.json").read_text())
+    mazes, split = load_mazes(judge_on)
+    episodes = REPRODUCE.config(quick=False).get(EpisodeSettings)
+    from mbn.experiments.maze_task import MazeTask
+
+    pool = set(
+        MazeTask(
+            rule="tiles",
+            family="tiles2",
+            pool=episodes.pool,
+            seed=REPRODUCE.seeds(seed)["crossroad_jitter"],
+        ).pool_seeds()
+    )
+    in_pool = sum(int(m.name.split(":")[1]) in pool for m in mazes if ":" in m.name)
+    with scope(ROBOT):  # as `mbn evaluate` and the runs judge
+        spec = read_controller_spec(folder / "controllers" / "mbn.json")
+        loaded = make_controller(spec, None, check_stability=False)
+        trial = TrialSpec(
+            behavior="tiles",
+            initial=loaded.initial_rule or "right",
+            tile_rules=tuple(loaded.tile_rules or ("right", "left")),
+        )
+        judged = evaluate_mazes(mazes, trial, loaded)
+    return {
+        "arm": arm,
+        "seed": seed,
+        "maze_generations": ARMS[arm],
+        "split": split,
+        "judged_mazes_in_training_pool": in_pool,
+        "pooled": judged["pooled"],
+        "mazes_at_95": judged["mazes_at_95"],
+        "validation": pm["validation"],
+        "attempts": len(pm["attempts"]),
+        "chosen_attempt": pm["chosen_attempt"],
+        "maze_fitness": (pm.get("maze") or {}).get("best_fitness"),
+        "base_pm_seconds": json.loads((base / "timings.json").read_text())["stages"]["pm"],
+        "arm_pm_seconds_this_call": round(wall, 1),
+    }
+
+
+def summary(out: Path) -> None:
+    rows = [json.loads(x) for x in (out / "measure.jsonl").read_text().splitlines()]
+    arms = [a for a in ARMS if any(r["arm"] == a for r in rows)]
+    print(
+        "| arm | seeds | judged pooled (each seed) | judged mazes at >= 95 % (each seed) "
+        "| validation mazes at target (each seed) | attempts (each seed) |"
+    )
+    print("|---|---|---|---|---|---|")
+    for arm in arms:
+        rs = sorted((r for r in rows if r["arm"] == arm), key=lambda r: r["seed"])
+        pooled = ", ".join(f"{r['pooled']['success_rate']:.1%}" for r in rs)
+        print(
+            f"| {arm} | {','.join(str(r['seed']) for r in rs)} "
+            f"| {pooled} "
+            f"| {', '.join(str(r['mazes_at_95']) for r in rs)} "
+            f"| {', '.join(str(r['validation'].get('mazes_at_target')) for r in rs)} "
+            f"| {', '.join(str(r['attempts']) for r in rs)} |"
+        )
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--seeds", default="30-34")
+    p.add_argument("--arms", default=",".join(ARMS), help="comma-separated arms (default all)")
+    p.add_argument("--summary", action="store_true", help="print the table of what is measured")
+    p.add_argument(
+        "--judge",
+        default="tiles2/train:900000-900099",
+        help="the mazes the MBNs are judged in (default: train mazes no run draws; never the "
+        "validation split the stage chose on, never a test split)",
+    )
+    args = p.parse_args()
+    family_split = args.judge.split(":")[0]
+    if family_split.endswith("/test") or family_split.endswith("/validation"):
+        print(
+            "--judge: the test split is only ever a test, and the stage chooses on the "
+            "validation split: judge on train mazes outside the pool",
+            file=sys.stderr,
+        )
+        return 2
+    if args.summary:
+        summary(args.out)
+        return 0
+    arms = args.arms.split(",")
+    for arm in arms:
+        if arm not in ARMS:
+            print(f"no arm {arm!r} (the arms: {', '.join(ARMS)})", file=sys.stderr)
+            return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    for seed in _seeds(args.seeds):
+        for arm in arms:
+            if (arm, seed) in _done(args.out):
+                continue
+            row = measure(args.out, arm, seed, args.judge)
+            with open(args.out / "measure.jsonl", "a") as f:
+                f.write(json.dumps(row) + "\n")
+            print(
+                f"{arm} seed {seed}: {row['pooled']['success_rate']:.1%} pooled, "
+                f"{row['mazes_at_95']} mazes at >= 95 %; validation "
+                f"{row['validation'].get('mazes_at_target')} mazes at target; "
+                f"{row['attempts']} attempt(s)",
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

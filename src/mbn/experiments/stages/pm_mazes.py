@@ -1,0 +1,98 @@
+"""A program module's last generations driving the robot: DE of its genes on episodes in mazes
+of its tile family's train split (tiles 0 to a few cells before junctions and in the middle of
+corridors), started from the population its robot-free reward left (``docs/generalization.md``,
+"The program module driving the robot"). Shared by the ``pm`` stage (``[pm] maze_generations``)
+and the code program modules of the three-behaviour MBN (``[mbn3] maze_generations``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import numpy as np
+
+from mbn.errors import MbnInputError
+from mbn.experiments.evolve import Redrawn
+from mbn.experiments.maze_task import MazeTask
+from mbn.experiments.pipeline import StageContext
+from mbn.experiments.program_module import PMGenome, pm_maze_fitness
+from mbn.experiments.stages.common import de_config, run_noise, tile_family
+from mbn.experiments.stages.settings import EpisodeSettings
+
+__all__ = ["MAZE_PM_KEY", "evolve_in_mazes", "maze_pm_task", "maze_record"]
+
+#: The maze generations of an attempt draw from ``fold_in(attempt's key, MAZE_PM_KEY)``.
+MAZE_PM_KEY = 11
+
+
+def maze_pm_task(ctx: StageContext, rules: tuple[str, ...]) -> MazeTask:
+    """The first draw of a program module's maze episodes: rule ``"tiles"`` (the rule in force
+    is the last tile's, ``rules[0]`` before any) in mazes of the family whose tile kinds put
+    ``rules`` in force (:func:`~mbn.experiments.stages.common.tile_family`), with the run's
+    ``[episodes]`` pool, mazes, starts, seconds and stall weight, seeded by the run's
+    ``crossroad_jitter`` seed (the followers' train pool is of another family)."""
+    episodes = ctx.section(EpisodeSettings)
+    if run_noise(ctx).enabled:
+        raise MbnInputError(
+            "a program module driving the robot in mazes under [noise] is not supported: set "
+            "maze_generations = 0 (docs/noise.md)"
+        )
+    return MazeTask(
+        rule="tiles",
+        family=tile_family(rules),
+        pool=episodes.pool,
+        mazes=episodes.mazes,
+        starts=episodes.starts,
+        seconds=episodes.seconds,
+        stall_weight=episodes.stall_weight,
+        seed=ctx.seeds["crossroad_jitter"],
+        initial=rules[0],
+        tile_rules=rules,
+    )
+
+
+def evolve_in_mazes(
+    ctx: StageContext,
+    name: str,
+    template: Any,
+    genome: PMGenome,
+    rules: tuple[str, ...],
+    population: np.ndarray,
+    key: jax.Array,
+    generations: int,
+    bound: float,
+    description: str,
+) -> Any:
+    """DE (checkpoint ``name``) of the program module of the MBN ``template`` driving the robot
+    (:func:`~mbn.experiments.program_module.pm_maze_fitness`) on :func:`maze_pm_task`'s
+    episodes, drawn again every ``[episodes] redraw`` generations, for ``generations``
+    generations from ``population`` (genes in ``[-bound, bound]``); generation ``g`` draws from
+    ``fold_in(key, MAZE_PM_KEY)`` folded with ``g``. Returns DE's result."""
+    first = maze_pm_task(ctx, rules)
+    fitness: Any = Redrawn(
+        lambda d: pm_maze_fitness(template, genome, first.redrawn(d)),
+        ctx.section(EpisodeSettings).redraw,
+    )
+    return ctx.evolve(
+        name,
+        de_config(ctx, genome.size, bound),
+        fitness,
+        jax.random.fold_in(key, MAZE_PM_KEY),
+        generations,
+        description,
+        population,
+    )
+
+
+def maze_record(run: Any, task: MazeTask, generations: int) -> dict[str, Any]:
+    """What a stage records of :func:`evolve_in_mazes`: DE's best genome and fitness (the sum
+    over a draw's episodes, at most ``(1 + 0.1) x episodes``), its generations and history, and
+    the family and episodes it drove in."""
+    return {
+        "best_genome": run.data["best_genome"],
+        "best_fitness": run.data["best_fitness"],
+        "generations": generations,
+        "history": run.data["history"],
+        "family": task.family,
+        "episodes": task.episodes,
+    }
