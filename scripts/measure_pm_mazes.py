@@ -30,8 +30,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-#: The arms: name -> ``[pm] maze_generations``.
-ARMS: dict[str, int] = {"reward": 0, "mazes-50": 50, "mazes-150": 150}
+#: The arms: name -> ``maze_generations`` (the generations run where the reward's MBN misses its
+#: validation target, the better MBN by validation kept). The first measurement's arm
+#: ``mazes-50`` ran them after every reward and kept their MBN (``docs/generalization.md``): its
+#: rows stay in ``measure.jsonl`` and the summary leaves them out.
+ARMS: dict[str, int] = {"reward": 0, "mend-50": 50, "mend-150": 150}
 #: Per MBN: the experiment's name, its stages up to the PM's (the base run), the PM's stage,
 #: its controller file and its tile family.
 MBNS: dict[str, tuple[str, list[str], str, str, str]] = {

@@ -407,24 +407,40 @@ def test_the_lf_search_halves_the_triples_by_their_best_fitness_at_each_rungs_en
     assert last == sorted(sorted(went_on, key=lambda t: (-best[t][1], t))[:5])
 
 
-def test_the_pm_drives_the_robot_in_mazes_after_its_reward_when_asked(quick_run, tmp_path):
-    """``[pm] maze_generations``: after the program reward, DE goes on from its last population
-    with the PM driving the robot in tiles2 mazes of the train split; the MBN written is the
-    best of those generations, and the record says so."""
+def test_the_pm_drives_the_robot_in_mazes_where_its_mbn_misses_its_target(quick_run, tmp_path):
+    """``[pm] maze_generations``: where the MBN meets its validation target nothing more runs;
+    where it misses, DE goes on from the reward's last population with the PM driving the
+    robot in tiles2 mazes of the train split, that MBN is validated too, and the better of the
+    two by validation is the one written; the record says which."""
     from mbn.controllers import read_controller_spec
     from mbn.experiments.program_module import PMGenome
+    from mbn.experiments.stages.common import validation_figure
 
     rundir, seed, config = _copy(quick_run, tmp_path)
     config = _with(config, "pm", maze_generations=2)
     config = _with(config, "episodes", pool=6, mazes=2, starts=2, seconds=20.0, redraw=1)
-    data = run_stage(REPRODUCE, rundir, "pm", seed=seed, config=config)
+    met = run_stage(REPRODUCE, rundir, "pm", seed=seed, config=_with_validation(config, target=0.0))
+    assert met["validation"]["meets_target"] and met.get("maze") is None
+    assert not (rundir.root / "checkpoints" / "pm_mazes.npz").exists()
+
+    strict = _with_validation(config, target=1.0, attempts=1)
+    data = run_stage(REPRODUCE, rundir, "pm", seed=seed, config=strict)
+    if data.get("maze") is None:
+        assert data["validation"]["meets_target"]
+        pytest.skip("the reward's MBN met even a 100 % target")
     maze = data["maze"]
     assert (maze["generations"], maze["family"], maze["episodes"]) == (2, "tiles2", 4)
     assert len(maze["history"]["best"]) == 3  # generation 0 (the reward's population) and 2
     assert (rundir.root / "checkpoints" / "pm_mazes.npz").exists()
     assert data["attempts"][0]["maze_fitness"] == maze["best_fitness"]
+    reward_check = data["validation"] if not maze["kept"] else None
+    if maze["kept"]:
+        assert data["validation"] == maze["validation"]
+    else:
+        assert validation_figure(maze["validation"]) <= validation_figure(reward_check)
     spec = read_controller_spec(rundir.controller_file("mbn"))
-    net = PMGenome(programs=3, inputs=2).network(np.asarray(maze["best_genome"]))
+    genes = maze["best_genome"] if maze["kept"] else data["best_genome"]
+    net = PMGenome(programs=3, inputs=2).network(np.asarray(genes))
     np.testing.assert_allclose(np.asarray(spec.program_module.W), np.asarray(net.W), atol=1e-12)
     np.testing.assert_allclose(np.asarray(spec.program_module.bias), np.asarray(net.bias),
                                atol=1e-12)  # fmt: skip

@@ -100,8 +100,9 @@ class MBN3Settings(Settings):
     )
     maze_generations: int = setting(
         0,
-        doc="DE generations of the program module driving the robot in mazes of the tiles3 "
-        "family's train split, after its reward and from its last population (0: none)",
+        doc="where the MBN misses its validation target: DE generations of the program module "
+        "driving the robot in mazes of the tiles3 family's train split, from its reward's last "
+        "population; the better MBN by validation is kept (0: none)",
         low=0,
         high=100_000,
         source="as [pm] maze_generations",
@@ -246,14 +247,15 @@ def choose_code_mbn(
     program modules (checkpoints ``STEM_pm``, ``STEM_pm_attempt1``, ...; attempt ``a`` from the
     stage's key folded with ``ATTEMPT_KEY + a``), each MBN judged in the validation split of its
     tile family, stopping at the first that meets the target; else one. ``first``: a first
-    generation from an attempt's key (default: random). ``maze_generations``: DE generations
-    of each program module driving the robot in mazes of the tile family's train split after
-    its reward, from its last population (:func:`~mbn.experiments.stages.pm_mazes.
-    evolve_in_mazes`, checkpoint ``NAME_mazes``). Returns every try (``pm``: :class:`CodePM`,
-    the reward's run, the network and codes of the final genome; ``spec``; ``validation`` or
-    None; ``maze``: :func:`~mbn.experiments.stages.pm_mazes.maze_record` or None) and the
-    index of the one kept: the best by :func:`~mbn.experiments.stages.common.
-    validation_figure`, then by program reward."""
+    generation from an attempt's key (default: random). ``maze_generations``: where an
+    attempt's MBN misses the validation target, DE generations of its program module driving
+    the robot in mazes of the tile family's train split, from its reward's last population
+    (:func:`~mbn.experiments.stages.pm_mazes.evolve_in_mazes`, checkpoint ``NAME_mazes``), the
+    better MBN by validation kept. Returns every try (``pm``: :class:`CodePM`, the reward's
+    run, the network and codes of the kept genome; ``spec``; ``validation`` or None; ``maze``:
+    :func:`~mbn.experiments.stages.pm_mazes.maze_record` with that MBN's ``validation`` and
+    whether it was ``kept``, or None) and the index of the one kept: the best by
+    :func:`~mbn.experiments.stages.common.validation_figure`, then by program reward."""
     programs = [im_spec.programs[r] for r in rules]
     attempts = ctx.section(ValidationSettings).attempts if maze_episodes(ctx) is not None else 1
     tries: list[dict[str, Any]] = []
@@ -263,8 +265,11 @@ def choose_code_mbn(
         population = None if first is None else first(key)
         pm = evolve_code_pm(ctx, name, rules, generations, bound, switch_seconds, key, population)
         spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
+        check = validate(ctx, spec, "tiles") if attempts > 1 or maze_generations else None
         maze = None
-        if maze_generations:
+        if maze_generations and check is not None and not check["meets_target"]:
+            # it misses its target: the PM's last generations drive the robot in mazes, from
+            # the reward's population, and the better MBN by validation is kept
             genome = PMGenome(programs=len(rules), inputs=len(rules))
             drove = evolve_in_mazes(
                 ctx,
@@ -281,13 +286,15 @@ def choose_code_mbn(
             maze = maze_record(drove, maze_pm_task(ctx, rules), maze_generations)
             net = genome.network(jnp.asarray(drove.data["best_genome"]))
             net = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), net)
-            codes = latched_codes(net, len(rules))
-            latched = {
-                r: None if c is None else c.tolist() for r, c in zip(rules, codes, strict=True)
-            }
-            pm = CodePM(net, pm.run, latched)
-            spec = code_mbn(im_spec, pm.network, rules, programs, camera, meta)
-        check = validate(ctx, spec, "tiles") if attempts > 1 else None
+            driven = code_mbn(im_spec, net, rules, programs, camera, meta)
+            maze["validation"] = validate(ctx, driven, "tiles")
+            maze["kept"] = validation_figure(maze["validation"]) > validation_figure(check)
+            if maze["kept"]:
+                codes = latched_codes(net, len(rules))
+                latched = {
+                    r: None if c is None else c.tolist() for r, c in zip(rules, codes, strict=True)
+                }
+                pm, spec, check = CodePM(net, pm.run, latched), driven, maze["validation"]
         tries.append({"pm": pm, "spec": spec, "validation": check, "maze": maze})
         if check is None or check["meets_target"]:
             break
@@ -313,7 +320,11 @@ def attempts_record(tries: list[dict[str, Any]], chosen: int) -> dict[str, Any]:
             {
                 "best_fitness": t["pm"].run.data["best_fitness"],
                 "validation": t["validation"],
-                **({"maze_fitness": t["maze"]["best_fitness"]} if t.get("maze") else {}),
+                **(
+                    {"maze_fitness": t["maze"]["best_fitness"], "maze_kept": t["maze"]["kept"]}
+                    if t.get("maze")
+                    else {}
+                ),
             }
             for t in tries
         ],
@@ -326,9 +337,10 @@ class MBN3Result(Record):
     """What the ``mbn3`` stage records (``stages/mbn3.json``): the program module's DE run, the
     tile rules and the codes each latches, the initial rule, the interpreter's digest checked,
     and, when it made several attempts, the kept one's validation and every attempt; with
-    ``[mbn3] maze_generations``, ``maze``: the generations driving the robot that followed the
-    reward (:func:`~mbn.experiments.stages.pm_mazes.maze_record`: its ``best_genome`` is the
-    MBN's program module, and ``latched_codes`` are its)."""
+    ``[mbn3] maze_generations``, ``maze``: the kept attempt's generations driving the robot,
+    run where its MBN missed the validation target (:func:`~mbn.experiments.stages.pm_mazes.
+    maze_record`, with that MBN's ``validation`` and whether it was ``kept``: then its
+    ``best_genome`` is the MBN's program module and ``latched_codes`` are its)."""
 
     best_genome: list[float]
     best_fitness: float

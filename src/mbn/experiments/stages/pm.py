@@ -132,9 +132,10 @@ class PMSettings(Settings):
     )
     maze_generations: int = setting(
         0,
-        doc="DE generations of the PM driving the robot in mazes of the tiles2 family's train "
-        "split ([episodes] pool, mazes, starts, seconds, redraw), after its reward and from its "
-        "last population (0: none)",
+        doc="where the MBN misses its validation target: DE generations of the PM driving the "
+        "robot in mazes of the tiles2 family's train split ([episodes] pool, mazes, starts, "
+        "seconds, redraw), from its reward's last population; the better MBN by validation is "
+        "kept (0: none)",
         low=0,
         high=100_000,
         source="docs/generalization.md (the program module driving the robot)",
@@ -198,9 +199,11 @@ class PMResult(Record):
     """What the ``pm`` stage records (``stages/pm.json``): the kept attempt's DE run (best
     genome and fitness, generations, history), the MBN's initial state, the shaping run (None
     without one), the program reward, the validation, every attempt in brief, and the reward's
-    settings and ceiling; with ``[pm] maze_generations``, ``maze``: the generations driving the
-    robot in mazes that followed (:func:`~mbn.experiments.stages.pm_mazes.maze_record`; its
-    ``best_genome`` is the MBN's program module; None without them)."""
+    settings and ceiling; with ``[pm] maze_generations``, ``maze``: the kept attempt's
+    generations driving the robot in mazes, run where its MBN missed the validation target
+    (:func:`~mbn.experiments.stages.pm_mazes.maze_record`, with that MBN's ``validation`` and
+    whether it was ``kept``, i.e. validated better: then its ``best_genome`` is the MBN's program
+    module; None where they did not run)."""
 
     best_genome: list[float]
     best_fitness: float
@@ -314,8 +317,11 @@ class PMStage(Stage[PMResult]):
                 return spec, start
 
             spec, start = mbn(kept, de.data["best_fitness"])
-            if s.maze_generations:
-                # the last generations drive the robot in mazes, from the reward's population
+            # The whole MBN on the validation mazes, judged from its start.
+            check = validate(ctx, spec, "tiles")
+            if s.maze_generations and not check["meets_target"]:
+                # it misses its target: the PM's last generations drive the robot in mazes,
+                # from the reward's population, and the better MBN by validation is kept
                 rules = ("right", "left")
                 drove = evolve_in_mazes(
                     ctx,
@@ -330,16 +336,18 @@ class PMStage(Stage[PMResult]):
                     "PM: generations driving the robot in mazes" + suffix,
                 )
                 maze = maze_record(drove, maze_pm_task(ctx, rules), s.maze_generations)
-                kept = drove.data["best_genome"]
-                spec, start = mbn(kept, de.data["best_fitness"])
+                driven, driven_start = mbn(drove.data["best_genome"], de.data["best_fitness"])
+                maze["validation"] = validate(ctx, driven, "tiles")
+                maze["kept"] = validation_figure(maze["validation"]) > validation_figure(check)
+                if maze["kept"]:
+                    kept, spec, start = drove.data["best_genome"], driven, driven_start
+                    check = maze["validation"]
             # how closely this PM latches the programs (the program reward, 0 at best)
             program_error = (
                 de.data["best_fitness"]
-                if s.reward == "programs" and maze is None
+                if s.reward == "programs" and not (maze and maze["kept"])
                 else float(latch(jnp.asarray([kept]))[0])
             )
-            # The whole MBN on the validation maze, judged from its start.
-            check = validate(ctx, spec, "tiles")
             attempts.append(
                 {
                     "data": de.data,
@@ -377,7 +385,10 @@ class PMStage(Stage[PMResult]):
                         "initial_rule": x["initial"]["rule"],
                         "validation": x["validation"],
                         **(
-                            {"maze_fitness": x["maze"]["best_fitness"]}
+                            {
+                                "maze_fitness": x["maze"]["best_fitness"],
+                                "maze_kept": x["maze"]["kept"],
+                            }
                             if x["maze"] is not None
                             else {}
                         ),
@@ -403,8 +414,8 @@ class PMStage(Stage[PMResult]):
         if data.maze is not None:
             head += (
                 f"; then {data.maze['generations']} generations driving the robot in "
-                f"{data.maze['family']} mazes (fitness {data.maze['best_fitness']:.2f} of "
-                f"{data.maze['episodes']} episodes)"
+                f"{data.maze['family']} mazes ({'kept' if data.maze['kept'] else 'not kept'}: "
+                f"{data.maze['validation']['mazes_at_target']} validation mazes at target)"
             )
         start = data.initial
         if start["rule"] is None:
