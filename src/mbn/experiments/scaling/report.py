@@ -114,6 +114,8 @@ def scaling_summary(stages: dict[str, dict[str, Any]]) -> dict[str, dict[str, An
             "code_error_worst": max(errors),
             "code_error_mean": sum(errors) / len(errors),
             "pm_evaluations": mbn.evaluations,
+            # genomes the PM's generations driving the robot evaluated (0: none ran)
+            "pm_maze_evaluations": mbn.maze_evaluations,
             "grown": mbn.grown,
             "sha256_checked": mbn.sha256_checked,
         }

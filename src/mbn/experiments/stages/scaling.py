@@ -108,6 +108,15 @@ class ScalingSettings(Settings):
     camera_range: float = setting(
         0.8, doc="the camera's range", unit="m", low=0.1, high=10.0, source="as [mbn3]"
     )
+    maze_generations: int = setting(
+        0,
+        doc="where an MBN misses its validation target: DE generations of its program module "
+        "driving the robot in mazes of the family of its K tile kinds (train split), the "
+        "better MBN by validation kept (0: none)",
+        low=0,
+        high=100_000,
+        source="as [mbn3] maze_generations",
+    )
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -179,7 +188,10 @@ class MBNKResult(Record):
     module's DE (best genome and fitness, generations, history, the evaluations it took over
     every attempt), whether it grew from the one before, the codes it latches and their errors,
     the initial rule, the interpreter's digest checked, and with several attempts the kept
-    one's validation and every attempt."""
+    one's validation and every attempt; with ``[scaling] maze_generations``, the robot
+    evaluations of the generations driving the robot (``maze_evaluations``: genomes evaluated,
+    each on one draw of maze episodes) and the kept attempt's ``maze`` record
+    (:func:`~mbn.experiments.stages.mbn3.choose_code_mbn`)."""
 
     k: int
     tile_rules: list[str]
@@ -197,6 +209,8 @@ class MBNKResult(Record):
     validation: Validation | None = optional()
     attempts: list[dict[str, Any]] | None = optional()
     chosen_attempt: int | None = optional()
+    maze_evaluations: int = optional(0)
+    maze: dict[str, Any] | None = optional()
 
 
 class MBNKStage(Stage[MBNKResult]):
@@ -244,6 +258,7 @@ class MBNKStage(Stage[MBNKResult]):
             bound=s.bound,
             switch_seconds=s.switch_seconds,
             first=first if grown else None,
+            maze_generations=s.maze_generations,
         )
         best = tries[chosen]
         save_controller(ctx.rundir.controller_file(self.name), best["spec"])
@@ -262,6 +277,9 @@ class MBNKStage(Stage[MBNKResult]):
                 "generations": s.generations,
                 "history": run.data["history"],
                 "evaluations": popsize * (s.generations + 1) * len(tries),
+                "maze_evaluations": popsize
+                * (s.maze_generations + 1)
+                * sum(1 for t in tries if t["maze"] is not None),
                 "grown": grown,
                 "latched_codes": pm.latched,
                 "code_errors": dict(zip(rules, errors, strict=True)),
@@ -269,6 +287,7 @@ class MBNKStage(Stage[MBNKResult]):
                 "sha256": digest,
                 "sha256_checked": True,
                 **attempts_record(tries, chosen),
+                **({"maze": best["maze"]} if best["maze"] else {}),
             }
         )
 
