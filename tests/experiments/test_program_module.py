@@ -254,3 +254,32 @@ def test_a_pm_driving_the_robot_in_mazes_scores_as_its_controller_file_runs(quic
         pm_maze_fitness(template, genome, MazeTask(rule="right", pool=6, mazes=2, starts=2))
     with pytest.raises(MbnInputError, match="program module of 3 neurons"):
         pm_maze_fitness(template, PMGenome(programs=2, inputs=2), task)
+
+
+def test_a_pm_driving_the_robot_in_mazes_runs_under_the_tasks_noise(quick_run):
+    """Under the maze task's noise the fitness changes, and the same key gives the same
+    values (the noise is drawn from the task's key, inside the compiled fitness)."""
+    from pathlib import Path
+
+    import jax
+
+    from mbn.controllers import read_controller_spec
+    from mbn.experiments.maze_task import MazeTask
+    from mbn.experiments.program_module import pm_maze_fitness
+    from mbn.world.sensors import NoiseConfig
+
+    folder = Path(quick_run[0])
+    template = read_controller_spec(folder / "controllers" / "mbn.json")
+    genome = PMGenome(programs=3, inputs=2)
+    genes = np.random.default_rng(1).uniform(-10, 10, (2, genome.size))
+    plain = MazeTask(rule="tiles", family="tiles2", pool=6, mazes=2, starts=2, seconds=20.0)
+    noise = NoiseConfig(sonar_std=0.05, wheel_std=0.1, camera_miss=0.2)
+    noisy = MazeTask(
+        rule="tiles", family="tiles2", pool=6, mazes=2, starts=2, seconds=20.0,
+        noise=noise, noise_key=jax.random.key(4),
+    )  # fmt: skip
+    quiet = np.asarray(pm_maze_fitness(template, genome, plain)(jnp.asarray(genes)))
+    once = np.asarray(pm_maze_fitness(template, genome, noisy)(jnp.asarray(genes)))
+    again = np.asarray(pm_maze_fitness(template, genome, noisy)(jnp.asarray(genes)))
+    np.testing.assert_array_equal(once, again)
+    assert not np.allclose(once, quiet, atol=1e-6)

@@ -715,7 +715,8 @@ def pm_maze_fitness(
     ``"tiles"``: the rule in force is the last tile's), summed over its episodes
     (:func:`~mbn.experiments.maze_task.maze_episode_fitness`): each genome's PM in the MBN
     ``template`` (an :class:`~mbn.controllers.MBNControllerSpec`: its interpreter, programs,
-    readout, camera and substeps, run as the controller file runs, noise off), started in the
+    readout, camera and substeps, run as the controller file runs, under the task's noise),
+    started in the
     state it reaches after a one-colour tile (:data:`MAZE_START_SEE` s in view, then
     :data:`MAZE_START_SETTLE` s without input: the MBN starts latched after tile 1). Arguments
     after the population (a DE group's owners) are ignored."""
@@ -724,9 +725,8 @@ def pm_maze_fitness(
 
     if not isinstance(task, MazeTask) or task.rule != "tiles":
         raise MbnInputError("pm_maze_fitness needs a maze task of rule 'tiles'")
-    if task.noise.enabled:
-        raise MbnInputError("pm_maze_fitness: a maze task with noise is not supported")
-    loaded = make_controller(template, where="template", check_stability=False)
+    noise = task.noise if task.noise.enabled else None
+    loaded = make_controller(template, where="template", check_stability=False, noise=noise)
     if loaded.dt != task.dt or loaded.sensors != task.sensors:
         raise MbnInputError("template: its robot step and sensors must be the maze task's")
     pm = template.program_module
@@ -765,6 +765,7 @@ def pm_maze_fitness(
             jnp.asarray(np.tile(index, p)),
             config,
             junctions=arrays.junctions,
+            key=task.rollout_key,
         ).stats
         return maze_episode_fitness(stats, task).reshape(p, e).sum(-1)
 

@@ -59,12 +59,3 @@ def test_the_tests_and_the_follower_evolution_run_under_the_runs_noise(quick_run
         (rundir.root / f).unlink(missing_ok=True)
     rf = run_stage(REPRODUCE, rundir, "rf", seed=seed, config=config)
     assert rf["best_fitness"] != clean["rf"]["best_fitness"]
-
-
-def test_a_pm_driving_the_robot_in_mazes_under_noise_is_refused(quick_run, tmp_path):
-    rundir, seed, config = _copy(quick_run, tmp_path, REALISTIC)
-    config = replace_section(config, dataclasses.replace(config["pm"], maze_generations=5))
-    with pytest.raises(
-        MbnInputError, match=r"pm\.maze_generations = 5.*\[noise\] is not supported"
-    ):
-        run_stage(REPRODUCE, rundir, "pm", seed=seed, config=config)

@@ -66,7 +66,7 @@ STAGES = Registry(
 QUICK: dict[str, dict[str, Any]] = {
     **REPRODUCE_QUICK,
     **PROGRAMS_QUICK,
-    "mbn3": {"generations": 30},
+    "mbn3": {"generations": 30, "maze_generations": 0},
 }
 
 

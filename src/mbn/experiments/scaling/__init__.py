@@ -50,7 +50,7 @@ DEFAULTS: dict[str, dict[str, Any]] = {
 QUICK: dict[str, dict[str, Any]] = {
     **REPRODUCE_QUICK,
     **PROGRAMS_QUICK,
-    "scaling": {"generations": 30},
+    "scaling": {"generations": 30, "maze_generations": 0},
     "generalization": {
         **REPRODUCE_QUICK["generalization"],
         "test_mazes": 2,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -74,6 +74,8 @@ class MBN3Settings(Settings):
     """The three-behaviour MBN."""
 
     section = "mbn3"
+    # a run recorded before the generations driving the robot existed ran none
+    recorded_before: ClassVar[dict[str, Any]] = {"maze_generations": 0}
     tile_rules: tuple[str, ...] = setting(
         ("right", "left", "straight-right"),
         doc="the rule a tile of 1, 2, 3 colours puts in force (programs of im_full_programs)",
@@ -99,7 +101,7 @@ class MBN3Settings(Settings):
         0.8, doc="the camera's range", unit="m", low=0.1, high=10.0, source="as [pm]"
     )
     maze_generations: int = setting(
-        0,
+        50,
         doc="where the MBN misses its validation target: DE generations of the program module "
         "driving the robot in mazes of the tiles3 family's train split, from its reward's last "
         "population; the better MBN by validation is kept (0: none)",

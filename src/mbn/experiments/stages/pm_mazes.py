@@ -11,12 +11,17 @@ from typing import Any
 import jax
 import numpy as np
 
-from mbn.errors import MbnInputError
 from mbn.experiments.evolve import Redrawn
 from mbn.experiments.maze_task import MazeTask
 from mbn.experiments.pipeline import StageContext
 from mbn.experiments.program_module import PMGenome, pm_maze_fitness
-from mbn.experiments.stages.common import de_config, run_noise, tile_family
+from mbn.experiments.stages.common import (
+    FITNESS_NOISE_KEY,
+    de_config,
+    noise_key,
+    run_noise,
+    tile_family,
+)
 from mbn.experiments.stages.settings import EpisodeSettings
 
 __all__ = ["MAZE_PM_KEY", "evolve_in_mazes", "maze_pm_task", "maze_record"]
@@ -30,13 +35,9 @@ def maze_pm_task(ctx: StageContext, rules: tuple[str, ...]) -> MazeTask:
     is the last tile's, ``rules[0]`` before any) in mazes of the family whose tile kinds put
     ``rules`` in force (:func:`~mbn.experiments.stages.common.tile_family`), with the run's
     ``[episodes]`` pool, mazes, starts, seconds and stall weight, seeded by the run's
-    ``crossroad_jitter`` seed (the followers' train pool is of another family)."""
+    ``crossroad_jitter`` seed (the followers' train pool is of another family), under the run's
+    noise (drawn as the followers' training episodes draw theirs)."""
     episodes = ctx.section(EpisodeSettings)
-    if run_noise(ctx).enabled:
-        raise MbnInputError(
-            "a program module driving the robot in mazes under [noise] is not supported: set "
-            "maze_generations = 0 (docs/noise.md)"
-        )
     return MazeTask(
         rule="tiles",
         family=tile_family(rules),
@@ -48,6 +49,8 @@ def maze_pm_task(ctx: StageContext, rules: tuple[str, ...]) -> MazeTask:
         seed=ctx.seeds["crossroad_jitter"],
         initial=rules[0],
         tile_rules=rules,
+        noise=run_noise(ctx),
+        noise_key=noise_key(ctx, FITNESS_NOISE_KEY),
     )
 
 

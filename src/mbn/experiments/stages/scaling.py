@@ -77,6 +77,8 @@ class ScalingSettings(Settings):
     """The MBNs of K behaviours: the order of their rules and their program modules."""
 
     section = "scaling"
+    # a run recorded before the generations driving the robot existed ran none
+    recorded_before: ClassVar[dict[str, Any]] = {"maze_generations": 0}
     rules: tuple[str, ...] = setting(
         SCALING_RULES,
         doc="the rule a tile of 1, 2, ... 6 colours puts in force, in the order the behaviours "
@@ -109,7 +111,7 @@ class ScalingSettings(Settings):
         0.8, doc="the camera's range", unit="m", low=0.1, high=10.0, source="as [mbn3]"
     )
     maze_generations: int = setting(
-        0,
+        50,
         doc="where an MBN misses its validation target: DE generations of its program module "
         "driving the robot in mazes of the family of its K tile kinds (train split), the "
         "better MBN by validation kept (0: none)",

@@ -317,7 +317,8 @@ QUICK: dict[str, dict[str, Any]] = {
     "rf": {"generations": 15, "variants": 1, "restarts": 2},
     "lf_search": {"generations": 2, "variants": 1},
     "lf": {"generations": 20, "variants": 1, "finalists": 1, "rounds": 1},
-    "pm": {"generations": 30, "variants": 1},
+    # no generations driving the robot (a test runs them on the quick run)
+    "pm": {"generations": 30, "variants": 1, "maze_generations": 0},
     "tests": {"jitter_per_mark": 2, "heldout_repeats": 2},
     "validation": {
         "jitter_per_mark": 1,
