@@ -716,10 +716,9 @@ def pm_maze_fitness(
     (:func:`~mbn.experiments.maze_task.maze_episode_fitness`): each genome's PM in the MBN
     ``template`` (an :class:`~mbn.controllers.MBNControllerSpec`: its interpreter, programs,
     readout, camera and substeps, run as the controller file runs, under the task's noise),
-    started in the
-    state it reaches after a one-colour tile (:data:`MAZE_START_SEE` s in view, then
-    :data:`MAZE_START_SETTLE` s without input: the MBN starts latched after tile 1). Arguments
-    after the population (a DE group's owners) are ignored."""
+    started in the state it reaches after a one-colour tile (:data:`MAZE_START_SEE` s in view,
+    then :data:`MAZE_START_SETTLE` s without input: the MBN starts latched after tile 1).
+    Arguments after the population (a DE group's owners) are ignored."""
     from mbn.controllers import make_controller
     from mbn.experiments.maze_task import MazeTask, maze_episode_fitness
 

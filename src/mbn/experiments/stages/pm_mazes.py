@@ -1,8 +1,9 @@
 """A program module's last generations driving the robot: DE of its genes on episodes in mazes
 of its tile family's train split (tiles 0 to a few cells before junctions and in the middle of
 corridors), started from the population its robot-free reward left (``docs/generalization.md``,
-"The program module driving the robot"). Shared by the ``pm`` stage (``[pm] maze_generations``)
-and the code program modules of the three-behaviour MBN (``[mbn3] maze_generations``)."""
+"The program module driving the robot"), where an MBN misses its validation target. Shared by
+the ``pm`` stage (``[pm] maze_generations``) and the code program modules of the three-behaviour
+MBN and of the MBNs of K behaviours (``[mbn3]``, ``[scaling] maze_generations``)."""
 
 from __future__ import annotations
 
