@@ -30,6 +30,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+# the seed list and the resumption of measure_episodes.py, beside this script
+from measure_episodes import _done, _seeds
+
 #: The arms: name -> ``maze_generations`` (the generations run where the reward's MBN misses its
 #: validation target, the better MBN by validation kept). The first measurement's arm
 #: ``mazes-50`` ran them after every reward and kept their MBN (``docs/generalization.md``): its
@@ -54,20 +57,6 @@ def _experiment(mbn: str) -> Any:
     from mbn.experiments.reproduce import REPRODUCE
 
     return {"reproduce": REPRODUCE, "new-behaviours": NEW_BEHAVIOURS}[MBNS[mbn][0]]
-
-
-def _seeds(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
-
-
-def _done(out: Path) -> set[tuple[str, int]]:
-    path = out / "measure.jsonl"
-    if not path.exists():
-        return set()
-    return {(r["arm"], r["seed"]) for r in map(json.loads, path.read_text().splitlines())}
 
 
 def _base(out: Path, mbn: str, seed: int) -> Path:

@@ -22,6 +22,7 @@ from typing import Any
 
 from mbn.experiments.contest.report import claims, write_report
 from mbn.experiments.pipeline import Experiment, Registry, RunConfig, RunDir
+from mbn.experiments.stages.compose import PROGRAMS_SHARED
 from mbn.experiments.stages.contest import CONTENDERS, ContestStage
 from mbn.experiments.stages.contest3 import Contest3Stage
 from mbn.experiments.stages.im_full import IMFullStage
@@ -30,15 +31,7 @@ from mbn.experiments.stages.lf_search import LFSearchStage
 from mbn.experiments.stages.multiplier import MultiplierStage
 from mbn.experiments.stages.rf import RFStage
 from mbn.experiments.stages.settings import QUICK as REPRODUCE_QUICK
-from mbn.experiments.stages.settings import (
-    DESettings,
-    EpisodeSettings,
-    FollowerSettings,
-    InterpreterSettings,
-    ValidationSettings,
-    derived_seeds,
-)
-from mbn.experiments.stages.tests import TestsSettings
+from mbn.experiments.stages.settings import derived_seeds
 from mbn.experiments.stages.tests3 import Tests3Settings
 
 __all__ = ["CONTENDERS", "PROGRAMS_VS_DYNAMICS", "RUN_KIND", "STAGES"]
@@ -90,15 +83,7 @@ PROGRAMS_VS_DYNAMICS = Experiment(
     name="programs-vs-dynamics",
     kind=RUN_KIND,
     registry=STAGES,
-    shared=(
-        DESettings,
-        FollowerSettings,
-        EpisodeSettings,
-        InterpreterSettings,
-        ValidationSettings,
-        TestsSettings,
-        Tests3Settings,
-    ),
+    shared=(*PROGRAMS_SHARED, Tests3Settings),
     quick=QUICK,
     seeds=derived_seeds,
     results=_results,

@@ -51,6 +51,7 @@ __all__ = [
     "SCORE_KEYS",
     "SCORING_DRAW",
     "de_config",
+    "episode_maze_task",
     "evolve_follower",
     "interpreter_of",
     "maze_episodes",
@@ -153,9 +154,26 @@ def training_task(
     episodes = ctx.section(EpisodeSettings)
     if episodes.kind == "crossroads":
         return task(ctx, rule, variants, approaches)
+    return episode_maze_task(ctx, rule, episodes.family, starts=starts, draw=draw)
+
+
+def episode_maze_task(
+    ctx: StageContext,
+    rule: str,
+    family: str,
+    *,
+    starts: int | None = None,
+    draw: int = 0,
+    **more: Any,
+) -> MazeTask:
+    """Draw ``draw`` of ``rule``'s episodes in mazes of ``family``'s train split as the run's
+    ``[episodes]`` draws them (pool, mazes, ``starts`` marks of each, default its ``starts``,
+    seconds, stall weight), seeded by the run's ``crossroad_jitter`` seed, under the run's
+    noise; ``more``: other :class:`MazeTask` fields (a tile rule's ``initial``, ``tile_rules``)."""
+    episodes = ctx.section(EpisodeSettings)
     return MazeTask(
         rule=rule,
-        family=episodes.family,
+        family=family,
         pool=episodes.pool,
         mazes=episodes.mazes,
         starts=episodes.starts if starts is None else starts,
@@ -165,6 +183,7 @@ def training_task(
         draw=draw,
         noise=run_noise(ctx),
         noise_key=noise_key(ctx, FITNESS_NOISE_KEY),
+        **more,
     )
 
 

@@ -47,7 +47,7 @@ from mbn.experiments.stages.common import (
 from mbn.experiments.stages.im_full import IMFullStage
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
-from mbn.experiments.stages.pm_mazes import evolve_in_mazes, maze_pm_task, maze_record
+from mbn.experiments.stages.pm_mazes import mend_in_mazes
 from mbn.experiments.stages.programs import check_digest
 from mbn.experiments.stages.records import History, Validation
 from mbn.experiments.stages.settings import ValidationSettings
@@ -273,10 +273,17 @@ def choose_code_mbn(
             # it misses its target: the PM's last generations drive the robot in mazes, from
             # the reward's population, and the better MBN by validation is kept
             genome = PMGenome(programs=len(rules), inputs=len(rules))
-            drove = evolve_in_mazes(
+
+            def build(genes: Any, genome: PMGenome = genome) -> tuple[MBNControllerSpec, CTRNN]:
+                net = genome.network(jnp.asarray(genes))
+                net = jax.tree.map(lambda x: jnp.asarray(np.asarray(x, np.float64)), net)
+                return code_mbn(im_spec, net, rules, programs, camera, meta), net
+
+            maze, (driven, net) = mend_in_mazes(
                 ctx,
                 f"{name}_mazes",
                 spec,
+                check,
                 genome,
                 rules,
                 np.asarray(pm.run.state.population),
@@ -284,13 +291,8 @@ def choose_code_mbn(
                 maze_generations,
                 bound,
                 f"{len(rules)}-behaviour PM: generations driving the robot in mazes",
+                build,
             )
-            maze = maze_record(drove, maze_pm_task(ctx, rules), maze_generations)
-            net = genome.network(jnp.asarray(drove.data["best_genome"]))
-            net = jax.tree.map(lambda a: jnp.asarray(np.asarray(a, np.float64)), net)
-            driven = code_mbn(im_spec, net, rules, programs, camera, meta)
-            maze["validation"] = validate(ctx, driven, "tiles")
-            maze["kept"] = validation_figure(maze["validation"]) > validation_figure(check)
             if maze["kept"]:
                 codes = latched_codes(net, len(rules))
                 latched = {

@@ -4,6 +4,7 @@ rewards: ``docs/experiments.md``."""
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -45,7 +46,7 @@ from mbn.experiments.stages.common import (
 )
 from mbn.experiments.stages.keys import KEYS
 from mbn.experiments.stages.lf import ATTEMPT_KEY
-from mbn.experiments.stages.pm_mazes import evolve_in_mazes, maze_pm_task, maze_record
+from mbn.experiments.stages.pm_mazes import mend_in_mazes
 from mbn.experiments.stages.records import History, Validation
 from mbn.experiments.stages.rf import evolution_summary
 from mbn.experiments.stages.settings import ValidationSettings
@@ -319,25 +320,22 @@ class PMStage(Stage[PMResult]):
             if s.maze_generations and not check["meets_target"]:
                 # it misses its target: the PM's last generations drive the robot in mazes,
                 # from the reward's population, and the better MBN by validation is kept
-                rules = ("right", "left")
-                drove = evolve_in_mazes(
+                maze, (driven, driven_start) = mend_in_mazes(
                     ctx,
                     f"{name}_mazes",
                     spec,
+                    check,
                     genome,
-                    rules,
+                    ("right", "left"),
                     np.asarray(de.state.population),
                     key,
                     s.maze_generations,
                     s.bound,
                     "PM: generations driving the robot in mazes" + suffix,
+                    functools.partial(mbn, fitness=de.data["best_fitness"]),
                 )
-                maze = maze_record(drove, maze_pm_task(ctx, rules), s.maze_generations)
-                driven, driven_start = mbn(drove.data["best_genome"], de.data["best_fitness"])
-                maze["validation"] = validate(ctx, driven, "tiles")
-                maze["kept"] = validation_figure(maze["validation"]) > validation_figure(check)
                 if maze["kept"]:
-                    kept, spec, start = drove.data["best_genome"], driven, driven_start
+                    kept, spec, start = maze["best_genome"], driven, driven_start
                     check = maze["validation"]
             # how closely this PM latches the programs (the program reward, 0 at best)
             program_error = (
@@ -409,11 +407,16 @@ class PMStage(Stage[PMResult]):
             else evolution_summary(data)
         )
         if data.maze is not None:
+            maze = data.maze
             head += (
-                f"; then {data.maze['generations']} generations driving the robot in "
-                f"{data.maze['family']} mazes ({'kept' if data.maze['kept'] else 'not kept'}: "
-                f"{data.maze['validation']['mazes_at_target']} validation mazes at target)"
+                f"; then {maze['generations']} generations driving the robot in "
+                f"{maze['family']} mazes"
             )
+            if "kept" in maze:  # recorded since the better MBN by validation is kept
+                head += (
+                    f" ({'kept' if maze['kept'] else 'not kept'}: "
+                    f"{maze['validation']['mazes_at_target']} validation mazes at target)"
+                )
         start = data.initial
         if start["rule"] is None:
             return f"{head}; starts at rest (no settled state)"

@@ -7,6 +7,7 @@ MBN and of the MBNs of K behaviours (``[mbn3]``, ``[scaling] maze_generations``)
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -17,15 +18,15 @@ from mbn.experiments.maze_task import MazeTask
 from mbn.experiments.pipeline import StageContext
 from mbn.experiments.program_module import PMGenome, pm_maze_fitness
 from mbn.experiments.stages.common import (
-    FITNESS_NOISE_KEY,
     de_config,
-    noise_key,
-    run_noise,
+    episode_maze_task,
     tile_family,
+    validate,
+    validation_figure,
 )
 from mbn.experiments.stages.settings import EpisodeSettings
 
-__all__ = ["MAZE_PM_KEY", "evolve_in_mazes", "maze_pm_task", "maze_record"]
+__all__ = ["MAZE_PM_KEY", "evolve_in_mazes", "maze_pm_task", "maze_record", "mend_in_mazes"]
 
 #: The maze generations of an attempt draw from ``fold_in(attempt's key, MAZE_PM_KEY)``.
 MAZE_PM_KEY = 11
@@ -38,21 +39,7 @@ def maze_pm_task(ctx: StageContext, rules: tuple[str, ...]) -> MazeTask:
     ``[episodes]`` pool, mazes, starts, seconds and stall weight, seeded by the run's
     ``crossroad_jitter`` seed (the followers' train pool is of another family), under the run's
     noise (drawn as the followers' training episodes draw theirs)."""
-    episodes = ctx.section(EpisodeSettings)
-    return MazeTask(
-        rule="tiles",
-        family=tile_family(rules),
-        pool=episodes.pool,
-        mazes=episodes.mazes,
-        starts=episodes.starts,
-        seconds=episodes.seconds,
-        stall_weight=episodes.stall_weight,
-        seed=ctx.seeds["crossroad_jitter"],
-        initial=rules[0],
-        tile_rules=rules,
-        noise=run_noise(ctx),
-        noise_key=noise_key(ctx, FITNESS_NOISE_KEY),
-    )
+    return episode_maze_task(ctx, "tiles", tile_family(rules), initial=rules[0], tile_rules=rules)
 
 
 def evolve_in_mazes(
@@ -100,3 +87,34 @@ def maze_record(run: Any, task: MazeTask, generations: int) -> dict[str, Any]:
         "family": task.family,
         "episodes": task.episodes,
     }
+
+
+def mend_in_mazes(
+    ctx: StageContext,
+    name: str,
+    template: Any,
+    check: dict[str, Any],
+    genome: PMGenome,
+    rules: tuple[str, ...],
+    population: np.ndarray,
+    key: jax.Array,
+    generations: int,
+    bound: float,
+    description: str,
+    build: Callable[[Any], Any],
+) -> tuple[dict[str, Any], Any]:
+    """For an MBN ``template`` whose validation ``check`` missed its target: its program
+    module's generations driving the robot (:func:`evolve_in_mazes`), the MBN of their best
+    genome made by ``build(genes)`` (a spec, or a tuple whose first item is the spec) and
+    validated. Returns the :func:`maze_record`, with that MBN's ``validation`` and whether it
+    was ``kept`` (validated better than ``check``; the caller keeps it then), and ``build``'s
+    result."""
+    drove = evolve_in_mazes(
+        ctx, name, template, genome, rules, population, key, generations, bound, description
+    )
+    maze = maze_record(drove, maze_pm_task(ctx, rules), generations)
+    built = build(drove.data["best_genome"])
+    spec = built[0] if isinstance(built, tuple) else built
+    maze["validation"] = validate(ctx, spec, "tiles")
+    maze["kept"] = validation_figure(maze["validation"]) > validation_figure(check)
+    return maze, built
