@@ -59,9 +59,11 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         "reproduce",
         help="the paper's whole experiment: evolve, build, test, report",
         description="Reproduce Montone, Donnarumma & Prevete (2011) end to end: the multiplier, "
-        "the right- and left-follower evolved by DE on the crossroads, the interpreter built "
-        "from them, the program module evolved with it, the paper's tests (plus jittered starts, "
-        "a held-out maze and the published weights), and a report with a claims table.",
+        "the right- and left-follower evolved by DE (on maze episodes by default; the paper's "
+        "crossroads with docs/configs/paper.toml), the interpreter built from them, the program "
+        "module evolved with it, the paper's tests (plus jittered starts, a held-out maze and "
+        "the published weights), every controller judged in generated mazes, and a report with a "
+        "claims table.",
         epilog=_REPRODUCE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
