@@ -2,7 +2,8 @@
 suite (``docs/generalization.md``).
 
 :func:`evaluate_mazes` runs every maze's trials in one batched rollout under one time limit (the
-longest of the mazes' own, unless given) and gives one row per maze and the pooled figures;
+longest of the mazes' own, unless given; each trial stops once judged,
+:mod:`mbn.world.judged`) and gives one row per maze and the pooled figures;
 ``mbn evaluate --maze FAMILY/SPLIT`` prints it, and the runs' generalization sections are made
 of it.
 """
@@ -221,6 +222,7 @@ def evaluate_mazes(
         camera=camera,
         noise=loaded.noise,
         key=key,
+        until_judged=True,
     )
     rows = [{"maze": m.name, **summary(out[m.name])} for m in mazes]
     result: dict[str, Any] = {"mazes": rows, **pooled_rows(rows), "seconds": float(seconds)}

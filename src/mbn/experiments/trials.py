@@ -29,6 +29,7 @@ from mbn.errors import MbnInputError
 from mbn.experiments.starts import JITTER, mark_starts
 from mbn.host import put
 from mbn.world.engine import CameraConfig, compile_mazes
+from mbn.world.judged import run_rollout_until_judged
 from mbn.world.junctions import rule_route
 from mbn.world.mazes.model import TILE_COLORS, Maze
 from mbn.world.rollout import (
@@ -363,13 +364,14 @@ def run_trials(
     record_controller: bool = False,
     noise: NoiseConfig | None = None,
     key: Array | None = None,
+    until_judged: bool = False,
 ) -> tuple[dict[str, np.ndarray], RolloutResult, np.ndarray]:
     """Run and judge every trial of ``spec`` in ``maze``.
 
     ``initial_state(n)`` gives the controller's batched initial state for ``n`` robots. The camera
     is on for "tiles" (default :class:`~mbn.world.engine.CameraConfig`) unless given. ``noise``
-    (with its PRNG ``key``) is the rollout's (:func:`run_trial_groups`). Returns the verdict of
-    :func:`judge`, the rollout result and the start poses.
+    (with its PRNG ``key``) and ``until_judged`` are the rollout's (:func:`run_trial_groups`).
+    Returns the verdict of :func:`judge`, the rollout result and the start poses.
     """
     if camera is None and spec.behavior == "tiles":
         camera = CameraConfig()
@@ -385,16 +387,24 @@ def run_trials(
         record_controller=record_controller,
         noise=noise,
         key=key,
+        until_judged=until_judged,
     )
     return verdicts["trials"], result, poses
 
 
 def run_loaded_trials(
-    maze: Maze, spec: TrialSpec, loaded: Any, key: Array | None = None
+    maze: Maze,
+    spec: TrialSpec,
+    loaded: Any,
+    key: Array | None = None,
+    *,
+    until_judged: bool = True,
 ) -> tuple[dict[str, np.ndarray], RolloutResult, np.ndarray]:
     """:func:`run_trials` of a controller made from a file
     (:class:`mbn.controllers.LoadedController`): its controller, initial state, robot step,
-    sensors, camera and noise (``key``: the noise's PRNG key, needed when it is on)."""
+    sensors, camera and noise (``key``: the noise's PRNG key, needed when it is on). Each trial
+    stops once judged unless ``until_judged`` is false (the rollout's statistics then cover the
+    whole time limit)."""
     return run_trials(
         maze,
         spec,
@@ -405,6 +415,7 @@ def run_loaded_trials(
         camera=loaded.camera,
         noise=loaded.noise,
         key=key,
+        until_judged=until_judged,
     )
 
 
@@ -432,6 +443,7 @@ def run_trial_groups(
     record_controller: bool = False,
     noise: NoiseConfig | None = None,
     key: Array | None = None,
+    until_judged: bool = False,
 ) -> tuple[dict[str, dict[str, np.ndarray]], RolloutResult, dict[str, slice], np.ndarray]:
     """Run several tests of one controller function in one rollout (one compilation).
 
@@ -439,8 +451,11 @@ def run_trial_groups(
     initial states; each group is judged by its own spec (its ``seconds`` is ignored: the batch
     runs ``seconds``). ``noise``: the rollout's noise (:class:`~mbn.world.sensors.NoiseConfig`;
     a controller that draws its own channels must be built with the same), ``key`` its PRNG key
-    (required when it is on). Returns the verdicts by group name, the rollout result, each
-    group's slice of the batch, and the start poses.
+    (required when it is on). ``until_judged``: each trial stops once its judged junctions are
+    behind it (:func:`mbn.world.judged.run_rollout_until_judged`; the same verdicts, the
+    rollout's other statistics up to that point; not with ``record_every``). Returns the
+    verdicts by group name, the rollout result, each group's slice of the batch, and the start
+    poses.
     """
     if not groups:
         raise MbnInputError("run_trial_groups needs at least one group")
@@ -482,16 +497,33 @@ def run_trial_groups(
     all_poses = np.concatenate(poses)
     # one compiled program per controller, config and shapes (run_rollout): the mazes are
     # arguments, not constants folded into the program
-    result = run_rollout(
-        world,
-        controller,
-        state,
-        put(all_poses),
-        put(np.concatenate(index)),
-        config,
-        junctions=junctions,
-        key=key if config.noise.enabled else None,
-    )
+    if until_judged and not record_every:
+        sizes = [len(p) for p in poses]
+        result = run_rollout_until_judged(
+            world,
+            controller,
+            state,
+            put(all_poses),
+            np.concatenate(index),
+            config,
+            judged=np.repeat([g.spec.junctions for g in groups], sizes),
+            after_tile=np.repeat(
+                [g.spec.behavior == "tiles" and g.spec.initial == "none" for g in groups], sizes
+            ),
+            junctions=junctions,
+            key=key if config.noise.enabled else None,
+        )
+    else:
+        result = run_rollout(
+            world,
+            controller,
+            state,
+            put(all_poses),
+            put(np.concatenate(index)),
+            config,
+            junctions=junctions,
+            key=key if config.noise.enabled else None,
+        )
     stats = jax.tree.map(np.asarray, result.stats)  # sliced by group on the host
     verdicts = {
         g.name: judge(jax.tree.map(lambda a, s=slices[g.name]: a[s], stats), g.spec) for g in groups

@@ -85,11 +85,13 @@ __all__ = [
     "RolloutResult",
     "Shared",
     "Trajectory",
+    "cast_world",
     "concatenate_states",
     "count_robot_steps",
     "episode_batch",
     "input_reach",
     "junction_arrays",
+    "make_scene",
     "map_controller",
     "own_tally",
     "robot_steps",
@@ -630,6 +632,53 @@ def finish(scene: Scene, carry: Carry) -> EpisodeStats:
     return episode_stats(tally, junctions, final.place.pose, carry.tile, steps)
 
 
+def cast_world(world: World, dtype: Any) -> World:
+    """``world`` with its geometry in ``dtype``: the poses' precision (float32 or float64)."""
+    return dataclasses.replace(
+        world,
+        origin=world.origin.astype(dtype),
+        cell=world.cell.astype(dtype),
+        tiles=world.tiles.astype(dtype),
+    )
+
+
+def make_scene(
+    world: World,
+    controller: Controller,
+    controller_state: Any,
+    maze_index: Array,
+    config: RolloutConfig,
+    junctions: Array | None,
+    key: Array | None,
+    b: int,
+    dtype: Any = None,
+) -> Scene:
+    """The :class:`Scene` of ``b`` robots in ``world`` (its geometry cast to ``dtype``, default
+    the world's own), each in its maze ``maze_index``, run by ``controller`` (mapped over states
+    shaped like ``controller_state``); the episode draws (:func:`mbn.world.step.draw_episode`)
+    come from the start's key."""
+    if dtype is not None:
+        world = cast_world(world, dtype)
+    if junctions is None:
+        junctions = jnp.full((world.n_junction_rows, 4, 2), -1, jnp.int8)
+    mc = maze_constants(world, maze_index)
+    # drawn once per episode: the start's key (step -1) folded with 7 and 8
+    episode = draw_episode(
+        config.noise, step_key_of(key, config.noise, jnp.asarray(-1)), b, world.origin.dtype
+    )
+    return Scene(
+        world=world,
+        mc=mc,
+        junction_mc=junction_constants(world, mc, maze_index),
+        maze_index=maze_index,
+        junctions=junctions,
+        config=config,
+        controller=map_controller(controller, controller_state),
+        key=key,
+        episode=episode,
+    )
+
+
 def rollout(
     world: World,
     controller: Controller,
@@ -656,7 +705,6 @@ def rollout(
         key: PRNG key for noise (required when noise is on).
     """
     poses = jnp.asarray(poses)
-    dtype = poses.dtype
     maze_index = jnp.asarray(maze_index, jnp.int32)
     b = poses.shape[0]
     if poses.shape != (b, 3) or maze_index.shape != (b,):
@@ -665,28 +713,8 @@ def rollout(
         )
     if config.noise.enabled and key is None:
         raise MbnInputError("noise is on: pass a PRNG key")
-    # the world's geometry in the poses' precision (float32 or float64)
-    world = dataclasses.replace(
-        world,
-        origin=world.origin.astype(dtype),
-        cell=world.cell.astype(dtype),
-        tiles=world.tiles.astype(dtype),
-    )
-    if junctions is None:
-        junctions = jnp.full((world.n_junction_rows, 4, 2), -1, jnp.int8)
-    mc = maze_constants(world, maze_index)
-    # drawn once per episode: the start's key (step -1) folded with 7 and 8
-    episode = draw_episode(config.noise, step_key_of(key, config.noise, jnp.asarray(-1)), b, dtype)
-    scene = Scene(
-        world=world,
-        mc=mc,
-        junction_mc=junction_constants(world, mc, maze_index),
-        maze_index=maze_index,
-        junctions=junctions,
-        config=config,
-        controller=map_controller(controller, controller_state),
-        key=key,
-        episode=episode,
+    scene = make_scene(
+        world, controller, controller_state, maze_index, config, junctions, key, b, poses.dtype
     )
     carry, trajectory = run_steps(scene, start_carry(scene, poses, controller_state))
     return RolloutResult(

@@ -269,6 +269,7 @@ class AblationsStage(Stage[AblationsResult]):
                 dt=first.dt,
                 sensors=first.sensors,
                 camera=mbn.camera,
+                until_judged=True,
             )
             return verdicts
 

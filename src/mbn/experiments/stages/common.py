@@ -607,6 +607,7 @@ def validation_verdicts(
         camera=first.camera,
         noise=noise,
         key=noise_key(ctx, VALIDATION_NOISE_KEY),
+        until_judged=True,
     )
     return [_joined([verdicts[f"c{i}m{m}"] for m in range(len(mazes))]) for i in range(len(loaded))]
 

@@ -331,6 +331,7 @@ def check(ctx: StageContext, maze: Any, specs: dict[str, Any], loaded: Any) -> d
             dt=loaded.dt,
             sensors=loaded.sensors,
             camera=loaded.camera,
+            until_judged=True,
         )
         return summary(verdicts["trials"])
 

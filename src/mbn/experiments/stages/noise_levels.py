@@ -232,6 +232,7 @@ class NoiseLevelsStage(Stage[NoiseLevelsResult]):
                     camera=first.camera,
                     noise=noise,
                     key=key if noise.enabled else None,
+                    until_judged=True,
                 )
                 for n in names:
                     entry = out[n].setdefault(channel, [])
