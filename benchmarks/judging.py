@@ -5,7 +5,8 @@ trials that stop once judged (:mod:`mbn.world.judged`).
 
 For each controller: both ways twice in one process (the first call compiles, the second runs
 what is compiled), the robot-steps each ran, and whether every verdict is the same. Prints one
-JSON line.
+JSON line. (The persistent compilation cache is the command line's; it is not on here, so the
+first call compiles every program.)
 
     python benchmarks/judging.py --run runs/nb-s0/seed-0 [--mazes 100] [--only NAME,...]
         [--shrink 4]

@@ -21,6 +21,7 @@ from mbn.world.stats import start_junctions
 
 def test_batch_sizes_shrink_by_a_factor_down_to_the_floor():
     assert batch_sizes(3000, 4, 32) == [3000, 750, 188, 47]
+    assert batch_sizes(3000, 16, 32) == [3000, 188]
     assert batch_sizes(60, 4, 32) == [60]
     assert batch_sizes(10, 2, 1) == [10, 5, 3, 2, 1]
     with pytest.raises(MbnInputError, match="shrink >= 2"):
