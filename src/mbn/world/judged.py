@@ -41,10 +41,10 @@ from mbn.world.rollout import (
     Controller,
     RolloutConfig,
     RolloutResult,
-    _is_shared,
     cast_world,
     count_robot_steps,
     finish,
+    is_shared,
     make_scene,
     one_step,
     start_carry,
@@ -148,11 +148,11 @@ def _finish(
 def _take(tree: Any, rows: np.ndarray) -> Any:
     """The rows ``rows`` of every batched leaf of a host ``tree`` (its :class:`Shared` parts as
     they are)."""
-    return jax.tree.map(lambda a: a if _is_shared(a) else a[rows], tree, is_leaf=_is_shared)
+    return jax.tree.map(lambda a: a if is_shared(a) else a[rows], tree, is_leaf=is_shared)
 
 
 def _device(tree: Any) -> Any:
-    return jax.tree.map(lambda a: a if _is_shared(a) else put(a), tree, is_leaf=_is_shared)
+    return jax.tree.map(lambda a: a if is_shared(a) else put(a), tree, is_leaf=is_shared)
 
 
 _compiled_start = jax.jit(_start, static_argnames=("controller", "config"))
@@ -161,7 +161,7 @@ _compiled_finish = jax.jit(_finish, static_argnames=("controller", "config"))
 
 
 def _host(tree: Any) -> Any:
-    return jax.tree.map(lambda a: a if _is_shared(a) else np.asarray(a), tree, is_leaf=_is_shared)
+    return jax.tree.map(lambda a: a if is_shared(a) else np.asarray(a), tree, is_leaf=is_shared)
 
 
 def _join(parts: list[Any], order: np.ndarray) -> Any:
@@ -170,11 +170,11 @@ def _join(parts: list[Any], order: np.ndarray) -> Any:
     back = np.argsort(order, kind="stable")
 
     def one(*leaves: Any) -> Any:
-        if _is_shared(leaves[0]):
+        if is_shared(leaves[0]):
             return leaves[0]
         return put(np.concatenate([np.asarray(x) for x in leaves], 0)[back])
 
-    return jax.tree.map(one, *parts, is_leaf=_is_shared)
+    return jax.tree.map(one, *parts, is_leaf=is_shared)
 
 
 def run_rollout_until_judged(

@@ -90,6 +90,7 @@ __all__ = [
     "count_robot_steps",
     "episode_batch",
     "input_reach",
+    "is_shared",
     "junction_arrays",
     "make_scene",
     "map_controller",
@@ -158,29 +159,31 @@ class Shared:
     value: Any
 
 
-def _is_shared(x: Any) -> bool:
+def is_shared(x: Any) -> bool:
+    """Whether ``x`` is a :class:`Shared` part of a controller state (``is_leaf`` of the tree
+    maps that keep shared parts whole)."""
     return isinstance(x, Shared)
 
 
 def _unshare(tree: Any) -> Any:
-    return jax.tree.map(lambda x: x.value if _is_shared(x) else x, tree, is_leaf=_is_shared)
+    return jax.tree.map(lambda x: x.value if is_shared(x) else x, tree, is_leaf=is_shared)
 
 
 def _reshare(like: Any, tree: Any) -> Any:
     return jax.tree.map(
-        lambda a, b: Shared(b) if _is_shared(a) else b, like, tree, is_leaf=_is_shared
+        lambda a, b: Shared(b) if is_shared(a) else b, like, tree, is_leaf=is_shared
     )
 
 
 def strip_shared(tree: Any) -> Any:
     """``tree`` with its :class:`Shared` parts replaced by None (what a trajectory records)."""
-    return jax.tree.map(lambda x: None if _is_shared(x) else x, tree, is_leaf=_is_shared)
+    return jax.tree.map(lambda x: None if is_shared(x) else x, tree, is_leaf=is_shared)
 
 
 def map_controller(controller: Controller, state: Any) -> Controller:
     """``controller`` (written for one robot) mapped over a batch of states shaped like
     ``state``: batched leaves along their first axis, :class:`Shared` parts held for all."""
-    axes = jax.tree.map(lambda x: None if _is_shared(x) else 0, state, is_leaf=_is_shared)
+    axes = jax.tree.map(lambda x: None if is_shared(x) else 0, state, is_leaf=is_shared)
 
     def one(s: Any, obs: Any) -> tuple[Any, tuple[Array, Array]]:
         new, vw = controller(_unshare(s), obs)
@@ -197,7 +200,7 @@ def concatenate_states(states: list[Any], sizes: list[int]) -> Any:
         raise MbnInputError("concatenate_states: need one size per state, and a state")
 
     def join(*parts: Any) -> Any:
-        if not _is_shared(parts[0]):
+        if not is_shared(parts[0]):
             return _host_concatenate(parts)
         values = [p.value for p in parts]
         first = jax.tree.leaves(values[0])
@@ -219,7 +222,7 @@ def concatenate_states(states: list[Any], sizes: list[int]) -> Any:
             *values,
         )
 
-    return jax.tree.map(join, *states, is_leaf=_is_shared)
+    return jax.tree.map(join, *states, is_leaf=is_shared)
 
 
 def _host_concatenate(parts: Any) -> Array:
