@@ -103,14 +103,12 @@ def _advance(
     carry: Carry,
     maze_index: Array,
     config: RolloutConfig,
-    junctions: Array,
+    junctions: Array | None,
     key: Array | None,
     start: Array,
     stop: Array,
 ) -> Carry:
-    scene = make_scene(
-        world, controller, carry.ctrl, maze_index, config, junctions, key, maze_index.shape[0]
-    )
+    scene = make_scene(world, controller, carry.ctrl, maze_index, config, junctions, key)
     return lax.fori_loop(start, stop, lambda s, c: one_step(scene, c, s)[0], carry)
 
 
@@ -121,12 +119,10 @@ def _start(
     poses: Array,
     maze_index: Array,
     config: RolloutConfig,
-    junctions: Array,
+    junctions: Array | None,
     key: Array | None,
 ) -> Carry:
-    scene = make_scene(
-        world, controller, controller_state, maze_index, config, junctions, key, poses.shape[0]
-    )
+    scene = make_scene(world, controller, controller_state, maze_index, config, junctions, key)
     return start_carry(scene, poses, controller_state)
 
 
@@ -136,12 +132,10 @@ def _finish(
     carry: Carry,
     maze_index: Array,
     config: RolloutConfig,
-    junctions: Array,
+    junctions: Array | None,
     key: Array | None,
 ) -> Any:
-    scene = make_scene(
-        world, controller, carry.ctrl, maze_index, config, junctions, key, maze_index.shape[0]
-    )
+    scene = make_scene(world, controller, carry.ctrl, maze_index, config, junctions, key)
     return finish(scene, carry)
 
 
@@ -216,8 +210,6 @@ def run_rollout_until_judged(
         )
     need = np.broadcast_to(np.asarray(judged, np.int64), (b,))
     tiles = np.broadcast_to(np.asarray(False if after_tile is None else after_tile, bool), (b,))
-    if junctions is None:
-        junctions = jnp.full((world.n_junction_rows, 4, 2), -1, jnp.int8)
     dtype = jnp.asarray(poses).dtype
     world = cast_world(world, dtype)  # the poses' precision, once
     compact = not config.noise.enabled

@@ -653,19 +653,19 @@ def make_scene(
     config: RolloutConfig,
     junctions: Array | None,
     key: Array | None,
-    b: int,
     dtype: Any = None,
 ) -> Scene:
-    """The :class:`Scene` of ``b`` robots in ``world`` (its geometry cast to ``dtype``, default
-    the world's own), each in its maze ``maze_index``, run by ``controller`` (mapped over states
-    shaped like ``controller_state``); the episode draws (:func:`mbn.world.step.draw_episode`)
-    come from the start's key."""
+    """The :class:`Scene` of the robots in ``world`` (its geometry cast to ``dtype``, default
+    the world's own), each in its maze ``maze_index (B,)``, run by ``controller`` (mapped over
+    states shaped like ``controller_state``); the episode draws
+    (:func:`mbn.world.step.draw_episode`) come from the start's key."""
     if dtype is not None:
         world = cast_world(world, dtype)
     if junctions is None:
         junctions = jnp.full((world.n_junction_rows, 4, 2), -1, jnp.int8)
     mc = maze_constants(world, maze_index)
     # drawn once per episode: the start's key (step -1) folded with 7 and 8
+    b = maze_index.shape[0]
     episode = draw_episode(
         config.noise, step_key_of(key, config.noise, jnp.asarray(-1)), b, world.origin.dtype
     )
@@ -717,7 +717,7 @@ def rollout(
     if config.noise.enabled and key is None:
         raise MbnInputError("noise is on: pass a PRNG key")
     scene = make_scene(
-        world, controller, controller_state, maze_index, config, junctions, key, b, poses.dtype
+        world, controller, controller_state, maze_index, config, junctions, key, poses.dtype
     )
     carry, trajectory = run_steps(scene, start_carry(scene, poses, controller_state))
     return RolloutResult(
