@@ -41,8 +41,9 @@ def test_passes_count_for_the_verdict_from_the_first_tile_where_it_is_judged_so(
 
 def _trials(quick_run, name, family, noise=None):
     out, _ = quick_run
-    spec = read_controller_spec(out / "controllers" / f"{name}.json")
-    loaded = make_controller(spec, None, check_stability=False, noise=noise)
+    with precision.scope(precision.ROBOT):  # as the runs read it: its parameters in float32
+        spec = read_controller_spec(out / "controllers" / f"{name}.json")
+        loaded = make_controller(spec, None, check_stability=False, noise=noise)
     mazes = [families.generate(family, s) for s in families.split_seeds("validation", 0, 5, family)]
     if name == "mbn":
         trial = TrialSpec(
@@ -57,7 +58,7 @@ def _trials(quick_run, name, family, noise=None):
 
     def run(until_judged, key=None):
         before = robot_steps()
-        with precision.scope("float32"):
+        with precision.scope(precision.ROBOT):
             verdicts, result, _, _ = run_trial_groups(
                 mazes,
                 groups,
