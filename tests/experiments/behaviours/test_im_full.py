@@ -8,15 +8,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mbn.controllers import read_controller_spec
+from mbn.controllers import CTRNNControllerSpec, make_controller, read_controller_spec
 from mbn.errors import MbnInputError
 from mbn.experiments.behaviours import NEW_BEHAVIOURS
 from mbn.experiments.stages.im_full import (
     FULL_CONNECTIONS,
     IMFullSettings,
     nested_sets,
+    reference_controller,
 )
 from mbn.experiments.trials import agreement
+from mbn.networks.ctrnn import make_ctrnn
 from mbn.networks.programmable import Connection
 
 
@@ -52,6 +54,16 @@ def test_settings_refuse_bad_connections():
     assert IMFullSettings().connections == FULL_CONNECTIONS
     # the default step: multipliers at tau/40, 80 sub-steps (h / tau_m = 0.1)
     assert (IMFullSettings().tau_ratio, IMFullSettings().substeps) == (0.025, 80)
+
+
+def test_a_stiff_lf_is_compared_with_as_the_runs_judge_it():
+    # an LF whose turning neuron needs 181 sub-steps at its 20 (as one evolved LF of a run of
+    # seed 22 did): the stage compares the interpreter with it rather than end the run
+    net = make_ctrnn(np.diag([1.0, -800.0, 1.0]), np.eye(3), [0.5, 0.5, 0.5])
+    with pytest.raises(MbnInputError, match="stability limit"):
+        make_controller(CTRNNControllerSpec(net=net, behavior="left"), None)
+    loaded = reference_controller(net, "left")
+    assert loaded.dt == pytest.approx(0.1)
 
 
 @pytest.mark.slow
