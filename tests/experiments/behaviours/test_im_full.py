@@ -52,8 +52,8 @@ def test_settings_refuse_bad_connections():
         IMFullSettings(connections=("W[1,1]", "W[1,1]"))
     assert len(FULL_CONNECTIONS) == 14  # the default: the genome's 12 and the turning neuron's
     assert IMFullSettings().connections == FULL_CONNECTIONS
-    # the default step: multipliers at tau/40, 80 sub-steps (h / tau_m = 0.1)
-    assert (IMFullSettings().tau_ratio, IMFullSettings().substeps) == (0.025, 80)
+    # the default step: multipliers at tau/80, 160 sub-steps (h / tau_m = 0.1)
+    assert (IMFullSettings().tau_ratio, IMFullSettings().substeps) == (0.0125, 160)
 
 
 def test_a_stiff_lf_is_compared_with_as_the_runs_judge_it():
