@@ -63,20 +63,19 @@ def measure(
 ) -> dict[str, Any]:
     import numpy as np
 
-    from mbn.controllers import (
-        CTRNNControllerSpec,
-        InterpreterControllerSpec,
-        make_controller,
-        read_controller_spec,
-    )
+    from mbn.controllers import CTRNNControllerSpec, make_controller, read_controller_spec
     from mbn.experiments.behaviours import NEW_BEHAVIOURS
-    from mbn.experiments.stages.common import rf_lf_programs
-    from mbn.experiments.stages.im_full import IMFullSettings, reference_controller
+    from mbn.experiments.stages.im_full import (
+        IMFullSettings,
+        full_interpreter,
+        full_interpreter_spec,
+        reference_controller,
+    )
     from mbn.experiments.stages.protocol import SUFFIXES, test_specs
     from mbn.experiments.stages.tests import TestsSettings
     from mbn.experiments.trials import agreement, run_loaded_trials, summary
     from mbn.networks.multiplier import load_multiplier
-    from mbn.networks.programmable import Connection, Programmable, build_interpreter
+    from mbn.networks.programmable import Connection
     from mbn.world.mazes.load import load_maze
 
     manifest = json.loads((run / "run.json").read_text())
@@ -91,16 +90,8 @@ def measure(
     mul = load_multiplier(run / "controllers" / "multiplier.json")
     s = IMFullSettings(tau_ratio=tau_ratio, substeps=substeps)
     t = TestsSettings()
-    conns = [Connection.parse(c) for c in s.connections]
-    interp = build_interpreter(
-        nets["rf"], [Programmable(c, -s.bound, s.bound) for c in conns], mul, tau_ratio=tau_ratio
-    )
-    emulated_spec = InterpreterControllerSpec(
-        interpreter=interp,
-        programs=rf_lf_programs(interp, nets["rf"], nets["lf"]),
-        substeps=substeps,
-        simulation="blocks",
-    )
+    interp = full_interpreter(nets["rf"], [Connection.parse(c) for c in s.connections], mul, s)
+    emulated_spec = full_interpreter_spec(interp, nets["rf"], nets["lf"], s, {})
     mazes = {
         "": load_maze(t.maze),
         "_jitter": load_maze(t.maze),

@@ -48,6 +48,8 @@ __all__ = [
     "IMFullResult",
     "IMFullSettings",
     "IMFullStage",
+    "full_interpreter",
+    "full_interpreter_spec",
     "nested_sets",
     "reference_controller",
 ]
@@ -144,15 +146,21 @@ def reference_controller(net: CTRNN, rule: str) -> Any:
     )
 
 
-def _interpreter(rf: CTRNN, conns: list[Connection], mul: Any, s: IMFullSettings) -> Interpreter:
+def full_interpreter(
+    rf: CTRNN, conns: list[Connection], mul: Any, s: IMFullSettings
+) -> Interpreter:
+    """The interpreter of ``rf`` with ``conns`` programmable in ``[-bound, bound]``, its
+    multipliers at ``s.tau_ratio``."""
     return build_interpreter(
         rf, [Programmable(c, -s.bound, s.bound) for c in conns], mul, tau_ratio=s.tau_ratio
     )
 
 
-def _spec(
+def full_interpreter_spec(
     interp: Interpreter, rf: CTRNN, lf: CTRNN, s: IMFullSettings, meta: dict[str, Any]
 ) -> InterpreterControllerSpec:
+    """The controller spec of ``interp`` with RF's and LF's programs, simulated by its blocks at
+    ``s.substeps``; refuses RF or LF with a weight beyond ``s.bound``."""
     for name, net in (("RF", rf), ("LF", lf)):
         weights = np.asarray([c.value(net) for c in interp.connections])
         if np.any(np.abs(weights) > s.bound):
@@ -234,9 +242,9 @@ class IMFullStage(Stage[IMFullResult]):
                     f"im_full.connections: LF differs from RF in {c.connection}, which is not "
                     "programmable: the interpreter could not run LF's program"
                 )
-        interp = _interpreter(rf, conns, mul, s)
+        interp = full_interpreter(rf, conns, mul, s)
         meta = {"made_by": MADE_BY, "stage": self.name, "seed": ctx.seed}
-        spec = _spec(interp, rf, lf, s, {**meta, "sha256": interp.digest()})
+        spec = full_interpreter_spec(interp, rf, lf, s, {**meta, "sha256": interp.digest()})
         save_controller(ctx.rundir.controller_file("im_full"), spec)
 
         mazes = {"": load_maze(t.maze), "_jitter": load_maze(t.maze)}
@@ -277,7 +285,7 @@ class IMFullStage(Stage[IMFullResult]):
             sets = nested_sets(first, conns)
             bar = ctx.progress.task("im_full agreement curve", len(sets))
             for k, subset in enumerate(sets):
-                sub = _spec(_interpreter(rf, subset, mul, s), rf, lf, s, meta)
+                sub = full_interpreter_spec(full_interpreter(rf, subset, mul, s), rf, lf, s, meta)
                 row: dict[str, Any] = {"connections": [str(c) for c in subset]}
                 for rule, short in (("right", "rf"), ("left", "lf")):
                     got, _, _ = run_loaded_trials(
