@@ -25,7 +25,8 @@ __all__ = [
 @dataclass
 class Section:
     """A section: title, paragraphs, an optional table (header, rows) with per-row pass/fail
-    status (colours the last column), and images (file under the run folder, caption)."""
+    status (colours the last column), and images (file under the run folder, caption). A table
+    without rows is not drawn (a header over nothing): the paragraphs say why it is empty."""
 
     title: str
     text: list[str] = field(default_factory=list)
@@ -62,7 +63,7 @@ def markdown(title: str, secs: list[Section]) -> str:
         lines += [f"## {sec.title}", ""]
         for p in sec.text:
             lines += [p, ""]
-        if sec.table:
+        if sec.table and sec.table[1]:  # a table without rows is left out
             head, rows = sec.table
             lines.append("| " + " | ".join(head) + " |")
             lines.append("|" + "---|" * len(head))
@@ -106,7 +107,7 @@ def self_contained_html(title: str, secs: list[Section], root: Path) -> str:
     for sec in secs:
         parts.append(f"<h2>{html.escape(sec.title)}</h2>")
         parts += [f"<p>{_inline(p)}</p>" for p in sec.text]
-        if sec.table:
+        if sec.table and sec.table[1]:  # a table without rows is left out
             head, rows = sec.table
             parts.append("<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head))
             for k, r in enumerate(rows):
