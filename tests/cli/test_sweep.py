@@ -79,8 +79,8 @@ def test_out_holding_another_sweep(capsys, tmp_path, monkeypatch):
         {"kind": SWEEP_KIND, "settings": {"seeds": [0, 1], "quick": True, "config": config}}
     )
     (out / "sweep.json").write_text(text)
-    code, err = _run(capsys, "--seeds", "0-2", "--out", str(out), "--quick")
-    assert code == 2 and "holds a sweep with other settings (seeds: [0, 1] then" in err
+    code, err = _run(capsys, "--seeds", "1-2", "--out", str(out), "--quick")
+    assert code == 2 and "has seeds 0, which --seeds leaves out" in err
     code, err = _run(capsys, "--seeds", "0-1", "--out", str(out))
     assert code == 2 and "other settings (quick: true then, false now)" in err
     assert (out / "sweep.json").read_text() == text and os.listdir(out) == ["sweep.json"]

@@ -81,7 +81,10 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         type=seed_list,
         default=None,
         metavar="SEEDS",
-        help="the seeds: 0-9, 3 or 0,2,5-7 (at most 1000); required unless --summarize",
+        help=(
+            "the seeds: 0-9, 3 or 0,2,5-7 (at most 1000); required unless --summarize. A sweep "
+            "continued in its --out may gain seeds, never lose one"
+        ),
     )
     sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="the sweep folder")
     names = ", ".join(n for n in registered() if n != "reproduce")

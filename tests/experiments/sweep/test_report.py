@@ -140,3 +140,21 @@ def test_a_sweep_without_per_run_targets_counts_finished_runs_not_targets_met(an
     }
     line = summary_line({"summary": summ, "runs": {}})
     assert line == "sweep: 2/3 seeds finished (no per-run targets), 1 not run"
+
+
+def test_a_sweep_that_gained_seeds_says_so(folder):
+    """A sweep continued with more seeds (`sweep.json` ``grown``) says in its first section
+    which seeds it held before, and when; a sweep that never grew says nothing of it."""
+    summarize_folder(folder)
+    assert "The sweep grew" not in (folder / "sweep.md").read_text()
+    data = json.loads((folder / "sweep.json").read_text())
+    data["grown"] = [
+        {"seeds_before": [0, 1], "at": "2026-12-07T20:00:00+0000"},
+        {"seeds_before": [0, 1, 2], "at": "2026-12-08T09:30:00+0000"},
+    ]
+    (folder / "sweep.json").write_text(json.dumps(data))
+    summarize_folder(folder)
+    assert (
+        "The sweep grew: it held seeds 0-1 until 2026-12-07T20:00:00+0000; then seeds 0-2 until "
+        "2026-12-08T09:30:00+0000." in (folder / "sweep.md").read_text()
+    )

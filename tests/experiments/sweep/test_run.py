@@ -170,15 +170,38 @@ def test_an_interrupted_seed_resumes_and_ends_as_an_uninterrupted_one(tmp_path):
         assert _files(seed_dir(tmp_path / "a", s)) == _files(seed_dir(tmp_path / "b", s))
 
 
-def test_a_sweep_with_other_settings_is_refused_and_left_alone(tmp_path):
-    _sweep(tmp_path / "s", [0, 1])
+def test_a_sweep_with_other_settings_or_fewer_seeds_is_refused_and_left_alone(tmp_path):
+    _sweep(tmp_path / "s", [0, 1, 2])
     before = _files(tmp_path / "s")
-    with pytest.raises(MbnInputError, match=r"other settings \(seeds: \[0, 1\] then, \[0, 1, 2\]"):
-        _sweep(tmp_path / "s", [0, 1, 2])
+    with pytest.raises(
+        MbnInputError, match=r"has seeds 0,2, which --seeds leaves out; a sweep may"
+    ):
+        _sweep(tmp_path / "s", [1, 3])
     other = TOY.config(quick=True)
+    with pytest.raises(MbnInputError, match=r"other settings \(quick: false then, true now\)"):
+        _sweep(tmp_path / "s", [0, 1, 2], other)
     with pytest.raises(MbnInputError, match="other settings"):
-        _sweep(tmp_path / "s", [0, 1], other)
+        _sweep(tmp_path / "s", [0, 1, 2, 3], other)  # more seeds do not excuse other settings
     assert _files(tmp_path / "s") == before
+
+
+def test_a_sweep_gains_seeds_runs_only_the_new_ones_and_records_that_it_grew(tmp_path):
+    """A sweep of seeds 0-1 continued with --seeds 0-2 (installments of a long sweep): seeds 0
+    and 1 are kept as they were, seed 2 runs, and ``sweep.json`` says what the sweep held
+    before."""
+    _sweep(tmp_path / "s", [0, 1])
+    kept = {s: _files(seed_dir(tmp_path / "s", s)) for s in (0, 1)}
+    CALLS.clear()
+    data = _sweep(tmp_path / "s", [0, 1, 2])
+    assert {seed for _, seed in CALLS} == {2}
+    assert data["settings"]["seeds"] == [0, 1, 2] and data["skipped"] == [0, 1]
+    assert {k: r["state"] for k, r in data["runs"].items()} == dict.fromkeys("012", "done")
+    assert [g["seeds_before"] for g in data["grown"]] == [[0, 1]]
+    for s in (0, 1):
+        assert _files(seed_dir(tmp_path / "s", s)) == kept[s]
+    # the same command again changes nothing of that record; a sweep never grown has none
+    assert [g["seeds_before"] for g in _sweep(tmp_path / "s", [0, 1, 2])["grown"]] == [[0, 1]]
+    assert "grown" not in _sweep(tmp_path / "t", [0])
 
 
 def test_out_that_is_a_file_or_holds_other_files_is_refused(tmp_path):

@@ -7,7 +7,7 @@ file holds more than the report reads (a run's worker, the sweep's executor)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from mbn.experiments.pipeline.results import Record, keyed
@@ -165,13 +165,23 @@ class SweepSettingsRecord(Record):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Growth(Record):
+    """One time a sweep gained seeds (``sweep.json``'s ``grown``): the seeds it held before,
+    and when (local time, ISO 8601)."""
+
+    seeds_before: list[int]
+    at: str
+
+
+@dataclass(frozen=True, kw_only=True)
 class SweepHead(Record):
-    """What ``sweep.json`` holds before it is summarized: its settings, its runs and its wall
-    seconds."""
+    """What ``sweep.json`` holds before it is summarized: its settings, its runs, its wall
+    seconds, and each time it gained seeds."""
 
     settings: SweepSettingsRecord | None = None
     runs: dict[str, Any]
     seconds: float | None = None
+    grown: list[Growth] = field(default_factory=list)
 
     def run(self, seed: int) -> RunEntry:
         """A seed's entry (``missing`` where the sweep has none)."""

@@ -19,6 +19,7 @@ from mbn.experiments.pipeline.document import Section, write_document
 from mbn.experiments.pipeline.rundir import RunDir
 from mbn.experiments.sweep.records import (
     ClaimOverRuns,
+    Growth,
     ReusedStages,
     SweepFile,
     SweepHead,
@@ -124,7 +125,8 @@ def _sections(
                     if summ.judged
                     else "The runs have no per-run targets: they are compared over runs."
                 )
-                + quick,
+                + quick
+                + _grown_text(sweep.grown),
                 summary_line(data) + ".",
             ],
         )
@@ -200,6 +202,15 @@ def _sections(
         )
     secs.append(Section("Figures", [], images=images))
     return secs
+
+
+def _grown_text(grown: list[Growth]) -> str:
+    """Where a sweep gained seeds, which it held before each time (its seeds' runs were made
+    in installments; each run records its own code and time)."""
+    if not grown:
+        return ""
+    steps = "; then ".join(f"seeds {format_seeds(g.seeds_before)} until {g.at}" for g in grown)
+    return f" The sweep grew: it held {steps}."
 
 
 def _claim_count(c: ClaimOverRuns) -> str:

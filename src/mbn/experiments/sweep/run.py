@@ -36,6 +36,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 from mbn._version import __version__
 from mbn.errors import MbnInputError
 from mbn.experiments.sweep.reaper import GRACE_S, start_reaper
+from mbn.experiments.sweep.records import Growth
+from mbn.experiments.sweep.seeds import format_seeds
 from mbn.io import atomic_open, check_writable, json_text, read_json
 from mbn.provenance import code_difference, code_identity, environment
 
@@ -173,7 +175,9 @@ def _nearest_existing(path: Path) -> Path:
 def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None:
     """Refuse, touching nothing, an ``--out`` the sweep cannot use: a file, a folder that cannot
     be written, a folder holding other files and no sweep, or one holding a sweep with other
-    settings (naming the first that differs). Returns the ``sweep.json`` found, if any."""
+    settings (naming the first that differs). A sweep may gain seeds (the same settings
+    otherwise, every seed it had still asked for), never lose one: a seed left out of a sweep
+    that ran it would be a seed picked by hand. Returns the ``sweep.json`` found, if any."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise MbnInputError(f"--out {out}: is a file, not a folder")
@@ -201,12 +205,34 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
     if old["settings"] != mine:
         from mbn.experiments.pipeline.runconfig import first_difference
 
+        before = {k: v for k, v in old["settings"].items() if k != "seeds"}
+        now = {k: v for k, v in mine.items() if k != "seeds"}
+        had = old["settings"].get("seeds", [])
+        dropped = sorted(set(had) - set(mine["seeds"]))
+        if before == now and not dropped:
+            return old  # the same sweep, grown by seeds
+        if before == now:
+            raise MbnInputError(
+                f"{out / SWEEP_FILE}: the sweep there has seeds {format_seeds(dropped)}, which "
+                "--seeds leaves out; a sweep may gain seeds, never lose one (use another --out)"
+            )
         diff = first_difference(old["settings"], mine, root="settings")
         raise MbnInputError(
             f"{out / SWEEP_FILE}: the folder holds a sweep with other settings ({diff}); use "
-            "another --out or the same --seeds, --quick and --config"
+            "another --out or the same --quick and --config (--seeds may add seeds)"
         )
     return old
+
+
+def _grown(old: dict[str, Any], settings: SweepSettings) -> dict[str, Any]:
+    """``grown``: each time a sweep gained seeds, the seeds it had before and when (kept as
+    continued); empty for a sweep that never grew."""
+    grown = list(old.get("grown", []))
+    had = old.get("settings", {}).get("seeds")
+    if had is not None and list(had) != list(settings.seeds):
+        at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        grown.append(Growth(seeds_before=list(had), at=at).to_json())
+    return {"grown": grown} if grown else {}
 
 
 def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
@@ -749,6 +775,7 @@ def run_sweep(
         "code": old.get("code", code_identity()) if old else code_identity(),
         "versions": dict(environment()),
         **({"other_code": other_code} if other_code else {}),
+        **_grown(old, settings),
         "settings": settings.to_dict(),
         "executor": executor_name if todo else old.get("executor", executor_name),
         "runs": runs,
