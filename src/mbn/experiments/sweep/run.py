@@ -209,9 +209,9 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
         now = {k: v for k, v in mine.items() if k != "seeds"}
         had = old["settings"].get("seeds", [])
         dropped = sorted(set(had) - set(mine["seeds"]))
-        if before == now and not dropped:
-            return old  # the same sweep, grown by seeds
         if before == now:
+            if not dropped:
+                return old  # the same sweep, grown by seeds
             raise MbnInputError(
                 f"{out / SWEEP_FILE}: the sweep there has seeds {format_seeds(dropped)}, which "
                 "--seeds leaves out; a sweep may gain seeds, never lose one (use another --out)"
@@ -226,10 +226,11 @@ def check_sweep_dir(out: Path, settings: SweepSettings) -> dict[str, Any] | None
 
 def _grown(old: dict[str, Any], settings: SweepSettings) -> dict[str, Any]:
     """``grown``: each time a sweep gained seeds, the seeds it had before and when (kept as
-    continued); empty for a sweep that never grew."""
+    continued); empty for a sweep that never grew. The same seeds in another order are no
+    growth."""
     grown = list(old.get("grown", []))
     had = old.get("settings", {}).get("seeds")
-    if had is not None and list(had) != list(settings.seeds):
+    if had is not None and set(settings.seeds) - set(had):
         at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
         grown.append(Growth(seeds_before=list(had), at=at).to_json())
     return {"grown": grown} if grown else {}
