@@ -271,6 +271,7 @@ def test_swap_keeps_the_potentials_and_swaps_the_weights():
     np.testing.assert_allclose(vw[-1], np.array([v, w]), rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_neuron_noise_is_the_ctrnns_for_one_network_and_each_gate_networks_own():
     noise = NoiseConfig(neuron_std=0.5)
     keys = [jax.random.split(jax.random.fold_in(jax.random.key(3), t), 2) for t in range(4)]
@@ -318,7 +319,7 @@ def tile_two():
     return {mode: _drive(_switched(mode), maze) for mode in ("swap", "gate")}
 
 
-@pytest.mark.parametrize("mode", ["swap", "gate"])
+@pytest.mark.parametrize("mode", ["swap", pytest.param("gate", marks=pytest.mark.slow)])
 def test_with_one_rule_it_drives_as_the_plain_ctrnn(mode):
     maze = crossroad("LR", tile=1)
     plain = _drive(CTRNNControllerSpec(published_rf(), **RUN), maze)
@@ -399,6 +400,7 @@ def test_the_decoded_networks_are_the_followers_the_programs_encode(mbn_spec):
         switched_from_mbn(MBNControllerSpec(unnamed, pm, (0, 1, 2)))
 
 
+@pytest.mark.slow
 def test_mbn_evaluate_takes_it_on_tiles(tmp_path, capsys):
     path = tmp_path / "oracle.json"
     save_controller(path, _switched("swap", initial="left"))

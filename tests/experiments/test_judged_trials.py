@@ -83,7 +83,10 @@ def _same_verdicts(a, b):
             np.testing.assert_array_equal(a[group][field], b[group][field], err_msg=field)
 
 
-@pytest.mark.parametrize(("name", "family"), [("rf", "grid"), ("mbn", "tiles2")])
+@pytest.mark.parametrize(
+    ("name", "family"),
+    [pytest.param("rf", "grid", marks=pytest.mark.slow), ("mbn", "tiles2")],
+)
 def test_trials_stopped_once_judged_get_the_verdicts_of_the_whole_rollout(
     quick_run, monkeypatch, name, family
 ):

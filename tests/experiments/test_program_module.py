@@ -256,6 +256,7 @@ def test_a_pm_driving_the_robot_in_mazes_scores_as_its_controller_file_runs(quic
         pm_maze_fitness(template, PMGenome(programs=2, inputs=2), task)
 
 
+@pytest.mark.slow
 def test_a_pm_driving_the_robot_in_mazes_runs_under_the_tasks_noise(quick_run):
     """Under the maze task's noise the fitness changes, and the same key gives the same
     values (the noise is drawn from the task's key, inside the compiled fitness)."""

@@ -78,7 +78,7 @@ def test_block_field_equals_the_dense_field(seed):
     assert float(jnp.max(jnp.abs(dense - blocks))) <= 1e-12 * max(scale, 1.0)
 
 
-@pytest.mark.parametrize("batch", [1, 5, 2 * CHUNK])
+@pytest.mark.parametrize("batch", [1, pytest.param(5, marks=pytest.mark.slow), 2 * CHUNK])
 def test_batched_steps_equal_the_dense_steps(full, batch):
     """Mapped over a batch with the network held (neuron-major, cut into chunks for a large
     batch, the logistic as tanh), the steps are the dense network's to round-off (float64)."""

@@ -184,6 +184,7 @@ def test_a_scaled_maze_reads_a_wall_beyond_five_metres_as_the_miss():
     assert r[1, 11] == SONAR_MAX_RANGE  # behind it, nothing: the miss at any scale
 
 
+@pytest.mark.slow
 def test_a_scaled_maze_with_a_sonar_reach_reads_every_wall_within_it_exactly():
     world = world_of(corridor)
     n = 64
@@ -264,7 +265,7 @@ def crossroad_run(noise):
     return maze, jax.jit(go)
 
 
-@pytest.mark.parametrize("turn", ["left", "right"])
+@pytest.mark.parametrize("turn", [pytest.param("left", marks=pytest.mark.slow), "right"])
 def test_junctions_are_judged_in_a_scaled_maze(turn):
     """Robots in crossroads scaled by s, driving s times as fast (0.4 s m/s for 9 s to the
     junction's centre, a quarter turn, on), follow the unscaled path in the compiled maze's

@@ -49,7 +49,7 @@ def _read(maze: Maze, poses, cfg: E.CameraConfig = VIEW):
     return world, _camera(world, jnp.zeros(len(poses), jnp.int32), poses, cfg)
 
 
-@pytest.mark.parametrize("colors", [4, 5, 6])
+@pytest.mark.parametrize("colors", [4, pytest.param(5, marks=pytest.mark.slow), 6])
 def test_a_tile_of_c_colours_shows_c_blobs_side_by_side(colors):
     world, cam = _read(_maze(Tile(4.2, 2.2, colors)), [FACING, (4.2, 0.6, -math.pi / 2)])
     assert world.n_blobs == colors
@@ -88,7 +88,7 @@ def _aim(x: float, y: float, target: tuple[float, float]) -> tuple[float, float,
     return (x, y, theta)
 
 
-@pytest.mark.parametrize("colors", [4, 5, 6])
+@pytest.mark.parametrize("colors", [4, pytest.param(5, marks=pytest.mark.slow), 6])
 def test_each_part_of_a_tile_is_a_blob_of_its_own(colors):
     """A camera of a 2-degree field of view aimed at the middle of one part sees that blob
     alone (every part has a sample point of its own)."""
@@ -158,21 +158,27 @@ def test_a_false_blob_reads_at_most_the_worlds_most_colours():
     n, b = camera_noise(nearest, nearest, always, key, most=6)
     assert np.asarray(n).tolist() == [1, 2, 3, 4, 5, 6, 6]
     assert np.asarray(b).tolist() == [1, 2, 3, 4, 5, 6, 6]
-    # through the camera sensor: the cap is the world's n_blobs (3 for one of a 4-colour tile
-    # would lose the kind; 4 there, 6 in a world that also has a 6-colour tile)
-    for tiles, want in (
-        ((Tile(4.2, 2.2, 4),), 4),
+
+
+@pytest.mark.parametrize(
+    ("tiles", "want"),
+    [
         ((Tile(4.2, 2.2, 4), Tile(1.2, 4.2, 6, heading=0.0)), 5),
-        ((Tile(4.2, 2.2, 3),), 3),
-        ((Tile(4.2, 2.2, 2),), 3),
-    ):
-        world = E.compile_mazes([_maze(*tiles)])
-        mi = jnp.zeros(1, jnp.int32)
-        mc = E.maze_constants(world, mi)
-        place = locate(world, mc, jnp.asarray([FACING], jnp.float32))
-        senses = Senses(camera=VIEW, noise=always)
-        reading = sense(world, mc, mi, place, senses, jax.random.key(1))
-        assert int(reading.camera[0]) == want, tiles
+        pytest.param((Tile(4.2, 2.2, 4),), 4, marks=pytest.mark.slow),
+        pytest.param((Tile(4.2, 2.2, 3),), 3, marks=pytest.mark.slow),
+        pytest.param((Tile(4.2, 2.2, 2),), 3, marks=pytest.mark.slow),
+    ],
+)
+def test_a_false_blob_through_the_camera_reads_at_most_the_worlds_blob_count(tiles, want):
+    """The cap is the world's ``n_blobs`` (3 for one of a 4-colour tile would lose the kind; 4
+    there, 6 in a world that also has a 6-colour tile); a world of at most 3 colours, 3."""
+    world = E.compile_mazes([_maze(*tiles)])
+    mi = jnp.zeros(1, jnp.int32)
+    mc = E.maze_constants(world, mi)
+    place = locate(world, mc, jnp.asarray([FACING], jnp.float32))
+    senses = Senses(camera=VIEW, noise=NoiseConfig(camera_false=1.0))
+    reading = sense(world, mc, mi, place, senses, jax.random.key(1))
+    assert int(reading.camera[0]) == want
 
 
 def test_seven_colours_are_refused_in_one_line(tmp_path):
@@ -228,7 +234,9 @@ MANY = ("tiles4", "tiles5", "tiles6")
 SEEDS = (0, 1, 1_000_000, 1_000_001, 2_000_000)
 
 
-@pytest.mark.parametrize("name", MANY)
+@pytest.mark.parametrize(
+    "name", [*(pytest.param(n, marks=pytest.mark.slow) for n in MANY[:-1]), MANY[-1]]
+)
 def test_the_families_of_many_tile_kinds(name):
     kinds = int(name[-1])
     fam = fm.family(name)

@@ -399,18 +399,22 @@ def program_swaps_caught(
     return caught
 
 
-#: The last few mazes' grid, free neighbours and decision cells (:func:`_walk_tables`).
-_WALK_TABLES: list[tuple[Maze, tuple[np.ndarray, np.ndarray, np.ndarray]]] = []
+_Tables = tuple[np.ndarray, np.ndarray, np.ndarray, tuple[tuple[tuple[int, int], int], ...]]
+
+#: The last few mazes' grid, free neighbours, decision cells and tile cells
+#: (:func:`_walk_tables`).
+_WALK_TABLES: list[tuple[Maze, _Tables]] = []
 
 
-def _walk_tables(maze: Maze) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(grid, free_neighbours, decision_cells)`` of ``maze``, kept for the last 8 mazes (a
-    maze is frozen: the same object has the same tables), so that the many walks from one
-    maze's starts compute them once."""
+def _walk_tables(maze: Maze) -> _Tables:
+    """``(grid, free_neighbours, decision_cells, tiles)`` of ``maze``, ``tiles`` each tile's
+    cell and colours, kept for the last 8 mazes (a maze is frozen: the same object has the
+    same tables), so that the many walks from one maze's starts compute them once."""
     for held, tables in _WALK_TABLES:
         if held is maze:
             return tables
-    tables = (_grid(maze), free_neighbours(maze), decision_cells(maze))
+    tiles = tuple((cell_of(maze, t.x, t.y), t.colors) for t in maze.tiles)
+    tables = (_grid(maze), free_neighbours(maze), decision_cells(maze), tiles)
     _WALK_TABLES.insert(0, (maze, tables))
     del _WALK_TABLES[8:]
     return tables
@@ -428,7 +432,7 @@ def _walk(
     """:func:`rule_route`'s walk: its length and the decision cells it counts."""
     if junctions < 1:
         raise MbnInputError(f"junctions must be >= 1, got {junctions!r}")
-    grid, nb, decision = _walk_tables(maze)
+    grid, nb, decision, tiles = _walk_tables(maze)
     rows, cols = grid.shape
     # each cell's extent along the north-south axis (h % 2 == 0) and the east-west axis
     if maze.cell is not None:
@@ -440,17 +444,17 @@ def _walk(
             np.repeat(np.diff(xe)[None, :], rows, 0),
         )
     tile_rule: dict[tuple[int, int], tuple[str, int]] = {}
-    for t in maze.tiles:
-        if follow_tiles and t.colors > len(tile_rules):
+    names: dict[int, str] = {}  # each tile kind's rule, parsed once per walk
+    for cell, colors in tiles:
+        if follow_tiles and colors > len(tile_rules):
             raise MbnInputError(
-                f"maze {maze.name!r}: a {t.colors}-colour tile, and tile_rules name rules for "
+                f"maze {maze.name!r}: a {colors}-colour tile, and tile_rules name rules for "
                 f"tiles of up to {len(tile_rules)} colours"
             )
-        if t.colors <= len(tile_rules):
-            tile_rule[cell_of(maze, t.x, t.y)] = (
-                parse_rule(tile_rules[t.colors - 1]).name,
-                t.colors,
-            )
+        if colors <= len(tile_rules):
+            if colors not in names:
+                names[colors] = parse_rule(tile_rules[colors - 1]).name
+            tile_rule[cell] = (names[colors], colors)
     r, c = cell_of(maze, float(start[0]), float(start[1]))
     if grid[r, c] == "#":
         raise MbnInputError(f"maze {maze.name!r}: start {tuple(start)} is in a wall")

@@ -19,8 +19,16 @@ from mbn.world.mazes.load import load_maze, load_mazes
 #: Validation seeds the checks below draw (the test split is only ever a test).
 SAMPLE = range(1_000_000, 1_000_008)
 
+#: The families every run of the suite checks; the others (tiles4-6, turns2 and turns4-6, the
+#: same generator with more tile kinds or other corner tiles) run with the slow tests.
+IN_CI = ("grid", "tiles2", "tiles3", "turns3")
+MANY_SLOW = ("tiles4", "tiles5", "tiles6")
+EVERY_FAMILY = [
+    name if name in IN_CI else pytest.param(name, marks=pytest.mark.slow) for name in fm.FAMILIES
+]
 
-@pytest.mark.parametrize("name", list(fm.FAMILIES))
+
+@pytest.mark.parametrize("name", EVERY_FAMILY)
 def test_the_same_seed_gives_the_same_maze_and_others_differ(name):
     a = fm.generate_text(name, 12)
     fm._generate.cache_clear()  # made again from scratch, not read from the cache
@@ -34,7 +42,7 @@ def _grid_of(text: str) -> str:
     return "\n".join(line for line in text.splitlines() if line and line[0] in "#.")
 
 
-@pytest.mark.parametrize("name", list(fm.FAMILIES))
+@pytest.mark.parametrize("name", EVERY_FAMILY)
 def test_every_maze_has_the_familys_structure_and_judgeable_starts(name):
     """Corners, T junctions, plus crossings, dead ends, loops, a junction within 2 cells of a
     corner; one-cell corridors, connected; every start judgeable under every rule in use."""
@@ -62,7 +70,9 @@ def test_every_maze_has_the_familys_structure_and_judgeable_starts(name):
             assert nb[r, c, h]
 
 
-@pytest.mark.parametrize("name", ["tiles2", "tiles3", "tiles4", "tiles5", "tiles6"])
+@pytest.mark.parametrize(
+    "name", ["tiles2", "tiles3", *(pytest.param(n, marks=pytest.mark.slow) for n in MANY_SLOW)]
+)
 def test_tiles_lie_at_every_distance_before_a_junction_and_mid_corridor(name):
     fam = fm.family(name)
     for seed in SAMPLE:
@@ -90,13 +100,13 @@ def test_tiles_lie_at_every_distance_before_a_junction_and_mid_corridor(name):
                 assert route is not None
 
 
-def test_the_written_text_reads_back_as_the_same_maze():
-    for name in fm.FAMILIES:
-        maze = fm.generate(name, 5)
-        again = parse_maze_text(fm.generate_text(name, 5), "x.maze")
-        np.testing.assert_array_equal(again.grid, maze.grid)
-        np.testing.assert_array_equal(again.starts, maze.starts)
-        assert again.tiles == maze.tiles and again.name == f"{name}:5"
+@pytest.mark.parametrize("name", EVERY_FAMILY)
+def test_the_written_text_reads_back_as_the_same_maze(name):
+    maze = fm.generate(name, 5)
+    again = parse_maze_text(fm.generate_text(name, 5), "x.maze")
+    np.testing.assert_array_equal(again.grid, maze.grid)
+    np.testing.assert_array_equal(again.starts, maze.starts)
+    assert again.tiles == maze.tiles and again.name == f"{name}:5"
 
 
 def test_the_splits_are_disjoint_and_the_test_split_holds_100_mazes():

@@ -23,6 +23,8 @@ from mbn.world.mazes.families import Family
 from mbn.world.mazes.grid_text import parse_maze_text
 
 TURNS = ("turns2", "turns3", "turns4", "turns5", "turns6")
+#: turns6 (six tile kinds, the most) is checked with the slow tests; turns2-5 in every run.
+TURNS_IN_CI = [*TURNS[:-1], pytest.param(TURNS[-1], marks=pytest.mark.slow)]
 #: Seeds of each split (the test split is only ever a test: generated and checked, no more).
 SEEDS = (0, 1, 1_000_000, 1_000_001, 2_000_000)
 #: The camera the MBNs are trained and tested with (``docs/reproduce.md``) and the world's.
@@ -60,7 +62,7 @@ def test_the_salts_of_the_families_are_distinct():
     assert len(set(salts)) == len(salts)
 
 
-@pytest.mark.parametrize("name", TURNS)
+@pytest.mark.parametrize("name", TURNS_IN_CI)
 def test_every_maze_has_every_kind_at_every_distance_and_on_a_corner(name):
     fam = fm.family(name)
     for seed in SEEDS:
@@ -88,7 +90,7 @@ def test_every_maze_has_every_kind_at_every_distance_and_on_a_corner(name):
             assert all((r + dr, c + dc) not in held for dr, dc in STEPS)
 
 
-@pytest.mark.parametrize("name", ["turns2", "turns6"])
+@pytest.mark.parametrize("name", ["turns2", pytest.param("turns6", marks=pytest.mark.slow)])
 def test_the_generation_is_deterministic_and_reads_back(name):
     text = fm.generate_text(name, 1_000_000)
     fm._generate.cache_clear()  # made again from scratch, not read from the cache
@@ -193,7 +195,9 @@ def _corner(colors: int) -> str:
     return f"cell = 1.2\n#######\n#....{colors}#\n#####.#\n#####.#\n#####.#\n#######\n"
 
 
-@pytest.mark.parametrize("colors", [1, 2, 3, 4, 5, 6])
+@pytest.mark.parametrize(
+    "colors", [1, 2, 3, *(pytest.param(c, marks=pytest.mark.slow) for c in (4, 5, 6))]
+)
 def test_a_corner_tile_shows_all_its_colours_from_either_arm(colors):
     """Laid as the grid lays a tile in a cell with one free neighbour each way: heading north
     (across the east-west arm, along the north-south one), a cell wide, at the cell's centre.
@@ -238,7 +242,7 @@ def test_a_corner_tile_covers_the_whole_corner():
     assert np.asarray(under).tolist() == [2] * len(points)
 
 
-@pytest.mark.parametrize("name", ["turns3", "turns6"])
+@pytest.mark.parametrize("name", ["turns3", pytest.param("turns6", marks=pytest.mark.slow)])
 def test_every_corner_tile_of_a_maze_is_read_from_each_arm(name):
     """In a generated maze, a robot one cell out along either arm of a corner with a tile,
     facing the corner, reads the tile's colours and all its blobs."""
