@@ -314,7 +314,9 @@ def _drive(spec, maze, behavior="tiles"):
 
 @pytest.fixture(scope="module")
 def tile_two():
-    """Two robots entering a T whose south arm has a two-colour tile (left), starting as RF."""
+    """Two robots entering a T whose south arm has a two-colour tile (left), starting as RF.
+    The tests that drive them are slow tests: CI checks the latching step by step (above) and
+    the one-rule drive; the contests drive the switched controllers in mazes."""
     maze = crossroad("LR", tile=2)
     return {mode: _drive(_switched(mode), maze) for mode in ("swap", "gate")}
 
@@ -332,6 +334,7 @@ def test_with_one_rule_it_drives_as_the_plain_ctrnn(mode):
     assert np.asarray(switched.controller_state.rule).tolist() == [0, 0]
 
 
+@pytest.mark.slow
 def test_the_latched_rule_follows_the_camera_in_the_maze(tile_two):
     for result in tile_two.values():
         t = result.trajectory
@@ -346,6 +349,7 @@ def test_the_latched_rule_follows_the_camera_in_the_maze(tile_two):
         assert (after[tile == 2] == 1).all()
 
 
+@pytest.mark.slow
 def test_swap_and_gate_part_only_after_the_switch(tile_two):
     swap, gate = tile_two["swap"].trajectory, tile_two["gate"].trajectory
     rule = np.asarray(swap.controller.rule)

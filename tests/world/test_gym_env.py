@@ -214,6 +214,7 @@ def test_importing_mbn_does_not_import_gymnasium():
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
+@pytest.mark.slow  # CI's wheel check makes the environment so, from the wheel
 def test_gymnasium_make_works_in_a_fresh_interpreter_with_no_import_of_mbn():
     # the installed path file registers the environment when gymnasium is imported (docs/gym.md)
     code = (

@@ -167,6 +167,7 @@ def test_a_scaled_maze_scales_every_sonar_reading_and_nothing_else():
         np.testing.assert_array_equal(np.asarray(scaled[channel]), np.asarray(clean[channel]))
 
 
+@pytest.mark.slow
 def test_a_scaled_maze_reads_a_wall_beyond_five_metres_as_the_miss():
     wall = Maze("wall", walls=[[5.0, 6.0, -3.0, 3.0]], bounds=(-2, 7, -3, 3), outside_is_wall=False)
     world = compile_mazes([wall])
