@@ -39,11 +39,13 @@ def _evaluate_in_a_process(x64: bool, precision: str) -> dict:
 
 
 # float64 is the tests' own setting: the float32 case is the one a library user would meet
-@pytest.mark.parametrize("precision", ["float32", pytest.param("float64", marks=pytest.mark.slow)])
+@pytest.mark.slow  # two processes each; with the test below
+@pytest.mark.parametrize("precision", ["float32", "float64"])
 def test_a_library_call_gives_the_same_numbers_whatever_the_process_wide_setting(precision):
     assert _evaluate_in_a_process(False, precision) == _evaluate_in_a_process(True, precision)
 
 
+@pytest.mark.slow
 def test_float32_and_float64_differ_so_the_test_above_can_fail():
     a = _evaluate_in_a_process(False, "float32")
     b = _evaluate_in_a_process(False, "float64")

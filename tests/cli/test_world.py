@@ -29,6 +29,7 @@ def test_mazes_lists_every_builtin(capsys):
     assert all(name in out for name in BUILTIN_NAMES)
 
 
+@pytest.mark.slow  # the library's checks run in CI (tests/world)
 def test_sonar_reproduces_stage_readings(tmp_path):
     stage = _rows(DATA / "sonar_res0.005.csv")[:60]
     poses = tmp_path / "poses.csv"
@@ -63,6 +64,7 @@ def test_drive_reproduces_stage_kinematics(tmp_path):
     assert float(r1["v"]) == 0.5 and float(r1["w"]) == pytest.approx(np.pi / 2)
 
 
+@pytest.mark.slow  # the library's checks run in CI (tests/world)
 def test_drive_into_a_wall_stalls(tmp_path):
     out = tmp_path / "d.csv"
     args = ["drive", "--maze", "cross_S", "--start", "4.2,0.6,1.5707963", "--cmd", "0.5,0"]
@@ -74,6 +76,7 @@ def test_drive_into_a_wall_stalls(tmp_path):
     assert y.max() + 0.21085 <= 8.4  # the front never passes the end wall
 
 
+@pytest.mark.slow  # the library's checks run in CI (tests/world)
 def test_drive_in_chunks_equals_one_run(tmp_path, monkeypatch):
     args = ["drive", "--maze", "fig4", "--start", "4.2,11.4,0", "--cmd", "0.5,0.3"]
     one, chunked = tmp_path / "one.csv", tmp_path / "chunked.csv"
@@ -108,6 +111,7 @@ theta = 0
 """
 
 
+@pytest.mark.slow  # the library's checks run in CI (tests/world)
 def test_sonar_and_drive_in_a_world_that_is_not_a_grid(tmp_path):
     from mbn.world.geometry import collides, rect_segments, sonar_ranges
     from mbn.world.mazes.load import load_maze

@@ -240,7 +240,7 @@ def _steps(loaded, cameras, n=2, keys=None):
     return states, np.array(out)
 
 
-@pytest.mark.parametrize("mode", ["swap", "gate"])
+@pytest.mark.parametrize("mode", ["swap", pytest.param("gate", marks=pytest.mark.slow)])
 def test_the_rule_is_the_last_tile_in_view_of_the_kinds_it_knows(mode):
     """A tile of k colours in view puts tile_rules[k - 1] in force until another is seen; a tile
     of more colours than it has rules is not read (as the program module has no input for it)."""

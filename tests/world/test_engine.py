@@ -95,7 +95,13 @@ _exact_ranges = jax.jit(sonar_ranges)
 _exact_collides = jax.jit(collides)
 
 
-@pytest.mark.parametrize("m,name", list(enumerate(MAZES)))
+@pytest.mark.parametrize(
+    "m,name",
+    [
+        (m, n) if n != "open" else pytest.param(m, n, marks=pytest.mark.slow)
+        for m, n in enumerate(MAZES)
+    ],
+)
 def test_lattice_rays_equal_exact_segment_rays(m, name):
     maze = MAZES[name]
     poses = _random_poses(maze, 1500, seed=m)

@@ -372,6 +372,7 @@ def test_a_cone_leaves_the_other_sonar_channels_draws_as_they_were():
     assert np.all(both[:, side][kept] != drop[:, side][kept])
 
 
+@pytest.mark.slow
 def test_a_cone_varies_the_readings_per_step_and_not_the_path():
     b, steps = 4, 40
     noise = NoiseConfig(sonar_cone=20.0)

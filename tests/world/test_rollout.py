@@ -305,6 +305,7 @@ def test_sonar_choice_and_bad_config():
         SensorConfig(sonars=(1, 1))
 
 
+@pytest.mark.slow  # the reach read exactly: test_step
 def test_a_sonar_reach_at_the_inputs_far_changes_no_episode():
     """Casting the sonars only as far as the inputs read them (``input_reach``) leaves every
     episode and every statistic a fitness reads bit for bit as it was, in float32 as the

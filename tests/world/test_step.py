@@ -309,6 +309,7 @@ def test_gym_env_and_float64_rollout_drive_the_same_poses(episode):
         assert n_stalled > 0  # the stall rule is part of what is compared
 
 
+@pytest.mark.slow  # float64 above in CI
 def test_gym_env_and_float32_rollout_drive_the_same_poses(episode):
     """Gym as above (float64 world and pose); rollout in float32, as the experiments run it.
     float32 keeps 24 bits: a coordinate below 16 m is rounded to 2^-20 m (about 1e-6 m) at

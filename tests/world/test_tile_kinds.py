@@ -64,6 +64,7 @@ def test_a_tile_of_c_colours_shows_c_blobs_side_by_side(colors):
     assert np.asarray(under).tolist() == [colors]
 
 
+@pytest.mark.slow
 def test_the_segment_path_reads_tiles_of_many_colours_as_the_lattice(monkeypatch):
     maze = _maze(Tile(4.2, 2.2, 5), Tile(1.4, 4.2, 2, heading=0.0), Tile(4.2, 6.6, 6))
     poses = _poses(500, 1)

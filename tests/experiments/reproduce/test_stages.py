@@ -407,6 +407,7 @@ def test_the_lf_search_halves_the_triples_by_their_best_fitness_at_each_rungs_en
     assert last == sorted(sorted(went_on, key=lambda t: (-best[t][1], t))[:5])
 
 
+@pytest.mark.slow  # 1 min; the maze fitness: test_program_module
 def test_the_pm_drives_the_robot_in_mazes_where_its_mbn_misses_its_target(quick_run, tmp_path):
     """``[pm] maze_generations``: where the MBN meets its validation target nothing more runs;
     where it misses, DE goes on from the reward's last population with the PM driving the

@@ -249,7 +249,7 @@ def test_a_sweep_reusing_another_takes_each_seeds_stages_and_ends_the_same(tmp_p
         run_sweep(tmp_path / "b", settings, lambda: InlineExecutor(run_seed), reuse=tmp_path / "b")
 
 
-@pytest.mark.parametrize("cpus", [1, 2, 3])
+@pytest.mark.parametrize("cpus", [1, 2, pytest.param(3, marks=pytest.mark.slow)])
 def test_a_task_environment_lets_jax_start_and_compute(cpus):
     """XLA reads an ``XLA_FLAGS`` that does not start with ``--`` as a file name and aborts the
     process: the ``intra_op_parallelism_threads=N`` once written for N > 1 killed every task of

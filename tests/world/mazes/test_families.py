@@ -28,7 +28,13 @@ EVERY_FAMILY = [
 ]
 
 
-@pytest.mark.parametrize("name", EVERY_FAMILY)
+@pytest.mark.parametrize(
+    "name",
+    [
+        n if n in ("grid", "tiles3") else pytest.param(n, marks=pytest.mark.slow)
+        for n in fm.FAMILIES
+    ],
+)
 def test_the_same_seed_gives_the_same_maze_and_others_differ(name):
     a = fm.generate_text(name, 12)
     fm._generate.cache_clear()  # made again from scratch, not read from the cache
