@@ -22,19 +22,17 @@ SAMPLE = range(1_000_000, 1_000_008)
 #: The families every run of the suite checks; the others (tiles4-6, turns2 and turns4-6, the
 #: same generator with more tile kinds or other corner tiles) run with the slow tests.
 IN_CI = ("grid", "tiles2", "tiles3", "turns3")
-MANY_SLOW = ("tiles4", "tiles5", "tiles6")
-EVERY_FAMILY = [
-    name if name in IN_CI else pytest.param(name, marks=pytest.mark.slow) for name in fm.FAMILIES
-]
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        n if n in ("grid", "tiles3") else pytest.param(n, marks=pytest.mark.slow)
-        for n in fm.FAMILIES
-    ],
-)
+def _slow_but(names, in_ci=IN_CI):
+    """``names`` as parameters, those outside ``in_ci`` marked slow."""
+    return [n if n in in_ci else pytest.param(n, marks=pytest.mark.slow) for n in names]
+
+
+EVERY_FAMILY = _slow_but(fm.FAMILIES)
+
+
+@pytest.mark.parametrize("name", _slow_but(fm.FAMILIES, ("grid", "tiles3")))
 def test_the_same_seed_gives_the_same_maze_and_others_differ(name):
     a = fm.generate_text(name, 12)
     fm._generate.cache_clear()  # made again from scratch, not read from the cache
@@ -76,9 +74,7 @@ def test_every_maze_has_the_familys_structure_and_judgeable_starts(name):
             assert nb[r, c, h]
 
 
-@pytest.mark.parametrize(
-    "name", ["tiles2", "tiles3", *(pytest.param(n, marks=pytest.mark.slow) for n in MANY_SLOW)]
-)
+@pytest.mark.parametrize("name", _slow_but(("tiles2", "tiles3", "tiles4", "tiles5", "tiles6")))
 def test_tiles_lie_at_every_distance_before_a_junction_and_mid_corridor(name):
     fam = fm.family(name)
     for seed in SAMPLE:
