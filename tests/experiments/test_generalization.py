@@ -94,6 +94,7 @@ def test_the_quick_run_judges_its_controllers_on_every_split(quick_run):
     assert results["maze_splits"] == {
         name: [r.start, r.stop - 1] for name, r in families.SPLITS.items()
     }
+    assert results["mazes_looked_into"] == {"tiles3": [2_000_078]}
     config = results["config"]["generalization"]
     data = results["stages"]["generalization"]["controllers"]
     assert list(data) == ["rf", "lf", "im_rf", "im_lf", "mbn"]

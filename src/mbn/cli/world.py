@@ -220,6 +220,7 @@ def _cmd_mazes_families(args: argparse.Namespace) -> int:
         "families": {name: f.to_dict() for name, f in families.FAMILIES.items()},
         "splits": splits,
         "zero_shot": {k: list(v) for k, v in families.ZERO_SHOT.items()},
+        "looked_into": {k: list(v) for k, v in families.LOOKED_INTO.items()},
     }
     if args.json:
         print(json_text(data))
@@ -231,6 +232,11 @@ def _cmd_mazes_families(args: argparse.Namespace) -> int:
                 print(f"    {key} = {value}")
     for split, (a, b) in splits.items():
         print(f"split {split}: seeds {a}-{b}")
+    for name, seeds in families.LOOKED_INTO.items():
+        print(
+            f"looked into, moved from {name}'s test split to its validation: "
+            f"{', '.join(map(str, seeds))} (its test split goes on past {b} in their place)"
+        )
     for name, suite in families.ZERO_SHOT.items():
         print(f"zero-shot suite of {name} ({name}/zero-shot): {', '.join(suite)}")
     return 0

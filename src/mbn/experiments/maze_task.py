@@ -223,7 +223,7 @@ class MazeTask:
 def _pool_seeds(family: str, pool: int, seed: int) -> tuple[int, ...]:
     rng = np.random.default_rng([seed, 4747])
     train = families.family_splits(family)["train"]
-    seeds = sorted(int(s) for s in rng.choice(len(train), pool, replace=False) + train.start)
+    seeds = sorted(int(s) for s in rng.choice(len(train), pool, replace=False) + train[0])
     families.check_use(seeds, "train", where=f"maze task pool of {family}", fam=family)
     return tuple(seeds)
 

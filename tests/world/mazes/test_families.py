@@ -138,6 +138,31 @@ def test_a_test_seed_is_refused_for_training_and_validation():
         fm.check_use([5_000_000], "test")
 
 
+def test_a_test_maze_looked_into_moves_to_validation_and_a_fresh_seed_takes_its_place():
+    before, after = fm.SPLITS, fm.family_splits("tiles3")
+    looked = fm.LOOKED_INTO["tiles3"]
+    assert looked == (2_000_078,)
+    # the test split: the same size, the looked-into seed out, the next fresh seed in
+    assert len(after["test"]) == len(set(after["test"])) == fm.TEST_SIZE
+    assert set(after["test"]) == (set(before["test"]) - set(looked)) | {2_000_100}
+    # validation: its first members as before (what the stages read), the moved maze at the end
+    assert list(after["validation"]) == [*before["validation"], *looked]
+    assert set(after["test"]).isdisjoint(after["validation"])
+    assert fm.split_of(2_000_078, "tiles3") == "validation"
+    assert fm.split_of(2_000_100, "tiles3") == "test"
+    fm.check_use([2_000_078], "validation", fam="tiles3")
+    with pytest.raises(MbnInputError, match="2000078 is in the validation split, and test may"):
+        fm.check_use([2_000_078], "test", fam="tiles3")
+    with pytest.raises(MbnInputError, match=r"in no split \(.*test 2000000-2000077, 2000079-"):
+        fm.split_of(2_000_101, "tiles3")
+    # another family's maze of the same seed is another maze, never looked into
+    assert fm.split_of(2_000_078, "tiles2") == "test" and fm.family_splits("tiles2") is fm.SPLITS
+    names = fm.parse_name("tiles3/test")
+    assert names.text == "tiles3/test" and names.seeds == tuple(after["test"])
+    part = fm.parse_name("tiles3/test:77-79")
+    assert part.seeds == (2_000_077, 2_000_079, 2_000_080) and part.text == "tiles3/test:77-79"
+
+
 def test_names_load_a_generated_maze_or_a_split():
     maze = load_maze("tiles2:1000003")
     assert maze.name == "tiles2:1000003" and maze.grid is fm.generate("tiles2", 1_000_003).grid
@@ -216,6 +241,11 @@ def test_mbn_mazes_families_lists_the_families_and_splits(capsys):
     data = json.loads(capsys.readouterr().out)
     assert set(data["families"]) == set(fm.FAMILIES)
     assert data["splits"]["test"] == [2_000_000, 2_000_000 + fm.TEST_SIZE - 1]
+    assert data["looked_into"] == {"tiles3": [2_000_078]}
+    assert main(["mazes", "families"]) == 0
+    assert "looked into, moved from tiles3's test split to its validation: 2000078" in (
+        capsys.readouterr().out
+    )
 
 
 def test_the_zero_shot_suite_holds_ten_mazes_judgeable_under_their_familys_rules():

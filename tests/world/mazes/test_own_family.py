@@ -150,7 +150,8 @@ def test_the_built_in_families_are_registered_as_an_own_one_is():
         fam = fm.family(name)
         assert register_family(fam, zero_shot=fm.ZERO_SHOT[name], salt=fm._FAMILY_SALT[name])
         assert fam.layout is None and fam.splits is None  # the lattice, the shared splits
-        assert fm.family_splits(name) is fm.SPLITS
+        if name not in fm.LOOKED_INTO:  # tiles3's test mazes looked into: test_families.py
+            assert fm.family_splits(name) is fm.SPLITS
     assert fm._FAMILY_SALT == {
         "grid": 1,
         "tiles2": 2,

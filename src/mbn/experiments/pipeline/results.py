@@ -217,6 +217,7 @@ class RunResults(Record):
     versions: Versions
     code: dict[str, Any] | None = optional()  # runs before the code's identity was recorded
     maze_splits: dict[str, list[int]] | None = optional()
+    mazes_looked_into: dict[str, list[int]] | None = optional()  # runs before 2026-12-08
     stages: dict[str, Any]
     tests: dict[str, Any]
     claims: list[ClaimRow]

@@ -247,6 +247,14 @@ def maze_splits() -> dict[str, list[int]]:
     return {name: [r.start, r.stop - 1] for name, r in SPLITS.items()}
 
 
+def mazes_looked_into() -> dict[str, list[int]]:
+    """The test mazes somebody looked into, by family, which left the test split for validation
+    (:data:`mbn.world.mazes.families.LOOKED_INTO`): every ``results.json`` records them."""
+    from mbn.world.mazes.families import LOOKED_INTO
+
+    return {name: list(seeds) for name, seeds in LOOKED_INTO.items()}
+
+
 def collect_results(
     experiment: Experiment, rundir: RunDir, seed: int, config: RunConfig
 ) -> dict[str, Any]:
@@ -261,6 +269,7 @@ def collect_results(
         "versions": versions(),
         "code": code_identity(),
         "maze_splits": maze_splits(),
+        "mazes_looked_into": mazes_looked_into(),
         "stages": {s.name: s.metrics(stages[s.name]) for s in experiment.registry},
     }
     if experiment.results is not None:
