@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import gzip
 import io
 import json
 import math
 import os
 import tempfile
+import zlib
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
@@ -142,12 +144,18 @@ def check_writable(path: str | Path, what: str = "--out") -> Path:
 
 
 def read_text(path: str | Path) -> str:
-    """A text file as UTF-8 (errors: one line naming the file: unreadable, not UTF-8)."""
+    """A text file as UTF-8, gzip-compressed where its name ends in ``.gz`` (errors: one line
+    naming the file: unreadable, not gzip, not UTF-8)."""
     path = Path(path)
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise MbnInputError(f"{path}: cannot read ({exc.strerror})") from None
+    if path.suffix == ".gz":
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError, zlib.error) as exc:
+            raise MbnInputError(f"{path}: not gzip-compressed ({exc})") from None
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:

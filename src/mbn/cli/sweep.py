@@ -35,6 +35,10 @@ Every experiment starts with the reproduction's stages (RF, the LF search, LF, .
 DIR, another sweep's folder, lets seed K take those it shares with DIR/seed-K instead of
 running them again (docs/reproduce.md).
 
+A sweep can be made in installments (machines that keep nothing between sessions, several
+clusters): --keep keeps what a summary reads of its finished seeds, --combine makes one sweep of
+several installments and summarizes it (docs/sweep.md, Installments).
+
 outputs in DIR: seed-K/ (one per seed), sweep.json (settings, each seed's state, the statistics),
 sweep.md, sweep.html (self-contained), figures/
 
@@ -49,6 +53,8 @@ examples:
   mbn sweep --seeds 0-7 --experiment new-behaviours --out runs/nb --reuse runs/pvd
   mbn sweep --seeds 0-99 --out /shared/sweep --address head-node:6379
   mbn sweep --summarize --out runs/sweep
+  mbn sweep --keep kept/part1 --out runs/sweep              keep its finished seeds, small
+  mbn sweep --combine kept/part1 runs/sweep2 --out runs/all  one sweep of two installments
 """
 
 
@@ -139,6 +145,25 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         action="store_true",
         help="only rebuild sweep.json's statistics and the report from the folder (runs nothing)",
     )
+    sw.add_argument(
+        "--keep",
+        type=Path,
+        default=None,
+        metavar="NEW",
+        help="keep the finished seeds of the sweep in --out in a new folder NEW: what a summary "
+        "reads (each seed's run.json, timings.json and results.json gzip-compressed, and "
+        "sweep.json; a few tens of kB a seed), for a sweep made in installments (runs nothing)",
+    )
+    sw.add_argument(
+        "--combine",
+        type=Path,
+        nargs="+",
+        default=None,
+        metavar="DIR",
+        help="make --out (a new folder) one sweep of the finished seeds of these sweeps "
+        "(installments, whole or kept: the same experiment and settings, their seeds disjoint), "
+        "and summarize it (runs nothing; docs/sweep.md, Installments)",
+    )
     sw.add_argument("--allow-other-code", action="store_true", help=ALLOW_OTHER_CODE_HELP)
     sw.add_argument(
         "--quiet",
@@ -150,21 +175,39 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
 
 def run_sweep_command(args: argparse.Namespace) -> int:
     from mbn.experiments.sweep.report import summarize_folder, summary_line
+    from mbn.experiments.sweep.seeds import format_seeds
     from mbn.experiments.sweep.timings import print_sweep_timings
 
-    if args.summarize:
-        if (
-            args.seeds is not None
-            or args.config is not None
-            or args.quick
-            or args.experiment is not None
-            or args.reuse is not None
-            or args.allow_other_code
-        ):
-            raise MbnInputError(
-                "--summarize reads the settings from DIR/sweep.json: pass --out alone"
-            )
-        data = summarize_folder(args.out)
+    modes = [f for f, on in (("--summarize", args.summarize), ("--keep", args.keep is not None),
+                             ("--combine", args.combine is not None)) if on]  # fmt: skip
+    if len(modes) > 1:
+        raise MbnInputError(f"{modes[0]} and {modes[1]} do not go together")
+    if modes and (
+        args.seeds is not None
+        or args.config is not None
+        or args.quick
+        or args.experiment is not None
+        or args.reuse is not None
+        or args.allow_other_code
+        or args.batched
+    ):
+        raise MbnInputError(
+            f"{modes[0]} reads the settings from the sweeps' sweep.json: it takes --out "
+            "(and --quiet) alone"
+        )
+    if args.keep is not None:
+        from mbn.experiments.sweep.combine import keep_sweep
+
+        kept = keep_sweep(args.out, args.keep)
+        print(f"kept seeds {format_seeds(kept)} of {args.out} in {args.keep}")
+        return 0
+    if args.summarize or args.combine is not None:
+        if args.combine is not None:
+            from mbn.experiments.sweep.combine import combine_sweeps
+
+            data = combine_sweeps(args.combine, args.out)
+        else:
+            data = summarize_folder(args.out)
         if not args.quiet:
             seeds = [int(s) for s in data["settings"].get("seeds", [])]
             print_sweep_timings(args.out, seeds, data.get("seconds"))

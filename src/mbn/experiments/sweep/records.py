@@ -182,6 +182,8 @@ class SweepHead(Record):
     runs: dict[str, Any]
     seconds: float | None = None
     grown: list[Growth] = field(default_factory=list)
+    #: the installments a combined sweep was made of (``mbn sweep --combine``)
+    combined: list[dict[str, Any]] = field(default_factory=list)
 
     def run(self, seed: int) -> RunEntry:
         """A seed's entry (``missing`` where the sweep has none)."""

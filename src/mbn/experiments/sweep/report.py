@@ -28,9 +28,9 @@ from mbn.experiments.sweep.records import (
 )
 from mbn.experiments.sweep.run import (
     SWEEP_FILE,
+    finished_results,
     read_sweep,
     seed_dir,
-    seed_state,
     write_sweep,
 )
 from mbn.experiments.sweep.seeds import format_seeds
@@ -126,7 +126,8 @@ def _sections(
                     else "The runs have no per-run targets: they are compared over runs."
                 )
                 + quick
-                + _grown_text(sweep.grown),
+                + _grown_text(sweep.grown)
+                + (_combined_text(sweep.combined) if sweep.combined else ""),
                 summary_line(data) + ".",
             ],
         )
@@ -213,6 +214,19 @@ def _grown_text(grown: list[Growth]) -> str:
     return f" The sweep grew: it held {steps}."
 
 
+def _combined_text(combined: list[dict[str, Any]]) -> str:
+    """The installments a combined sweep was made of, in one sentence for its report."""
+    parts = []
+    for c in combined:
+        code = c.get("code") or {}
+        commit = code.get("commit") or code.get("package_sha256") or "unrecorded code"
+        parts.append(
+            f"seeds {format_seeds([int(s) for s in c.get('seeds') or []])} from "
+            f"`{c.get('folder')}` (code {str(commit)[:7]})"
+        )
+    return " Combined from installments: " + "; ".join(parts) + "."
+
+
 def _claim_count(c: ClaimOverRuns) -> str:
     """'k of N' runs reproducing a claim; where some runs could not judge it (their verdict
     None: e.g. an ablation of an MBN that itself fails), 'k of J judged (N - J not testable)';
@@ -239,9 +253,8 @@ def summarize_folder(out: Path) -> dict[str, Any]:
     # the sweep's recorded config, checked as this version reads it, compared as recorded
     spec.load().config_from_dict(settings.config, str(out / SWEEP_FILE))
     runs: dict[int, dict[str, Any] | None] = {}
-    for s in seeds:
-        done = seed_state(out, s, dict(settings.config or {})) == "done"
-        runs[s] = read_json(seed_dir(out, s) / "results.json") if done else None
+    for s in seeds:  # a kept installment's seeds hold their results only (sweep.combine)
+        runs[s] = finished_results(out, s, dict(settings.config or {}))
     errors = {
         s: str(head.run(s).error)
         for s in seeds

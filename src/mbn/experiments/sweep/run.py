@@ -47,6 +47,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "INSTALL_HINT",
+    "RESULTS_GZ",
     "SWEEP_FILE",
     "SWEEP_KIND",
     "BatchedExecutor",
@@ -55,6 +56,7 @@ __all__ = [
     "SweepSettings",
     "check_sweep_dir",
     "divert_ray_notices",
+    "finished_results",
     "ray_notice",
     "read_sweep",
     "run_seed",
@@ -236,27 +238,48 @@ def _grown(old: dict[str, Any], settings: SweepSettings) -> dict[str, Any]:
     return {"grown": grown} if grown else {}
 
 
-def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
-    """``"done"`` (a complete ``results.json`` of this seed and config, and its report),
-    ``"resume"`` (a ``run.json``: an interrupted run) or ``"new"``. ``config``: the run's config,
-    or its recorded form (``sweep.json``'s, which a later version of ``mbn`` may read with
-    settings it did not have)."""
+#: A seed's ``results.json`` as a kept installment holds it (``mbn sweep --keep``).
+RESULTS_GZ = "results.json.gz"
+
+
+def finished_results(
+    out: Path, seed: int, config: RunConfig | dict[str, Any]
+) -> dict[str, Any] | None:
+    """The seed's ``results.json`` where it is complete for this seed and config (what a
+    summary reads of a run), else None; a kept installment's seed holds it gzip-compressed
+    (:data:`RESULTS_GZ`). ``config``: the run's config, or its recorded form (``sweep.json``'s,
+    which a later version of ``mbn`` may read with settings it did not have)."""
     expected = config if isinstance(config, dict) else config.to_dict()
     folder = seed_dir(out, seed)
-    results = folder / "results.json"
-    if results.exists() and (folder / "report.html").exists():
-        try:
-            data = read_json(results)
-        except MbnInputError:
-            data = None
-        if (
-            isinstance(data, dict)
-            and data.get("seed") == seed
-            and data.get("config") == expected
-            and "tests" in data
-            and "claims" in data
-        ):
-            return "done"
+    data: Any = None
+    try:
+        if (folder / "results.json").exists():
+            data = read_json(folder / "results.json")
+        elif (folder / RESULTS_GZ).exists():
+            data = read_json(folder / RESULTS_GZ)
+    except MbnInputError:
+        data = None
+    if (
+        isinstance(data, dict)
+        and data.get("seed") == seed
+        and data.get("config") == expected
+        and "tests" in data
+        and "claims" in data
+    ):
+        return data
+    return None
+
+
+def seed_state(out: Path, seed: int, config: RunConfig | dict[str, Any]) -> str:
+    """``"done"`` (a complete ``results.json`` of this seed and config, :func:`finished_results`,
+    and its report), ``"resume"`` (a ``run.json``: an interrupted run) or ``"new"``."""
+    folder = seed_dir(out, seed)
+    if (
+        (folder / "results.json").exists()
+        and (folder / "report.html").exists()
+        and finished_results(out, seed, config) is not None
+    ):
+        return "done"
     return "resume" if (folder / "run.json").exists() else "new"
 
 
