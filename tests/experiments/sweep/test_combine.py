@@ -94,6 +94,12 @@ def test_combined_installments_summarize_as_one_sweep_of_their_seeds(tmp_path, c
     three = _sweep(tmp_path / "three", config, [5])
     again = combine_sweeps([tmp_path / "all", three], tmp_path / "all2")
     assert again["summary"]["finished"] == 5
+    # ... listing the installments it was made of, not the combined folder
+    assert [(c["folder"], c["seeds"]) for c in again["combined"]] == [
+        (str(tmp_path / "one-kept"), [0, 1]),
+        (str(two), [2, 3]),
+        (str(three), [5]),
+    ]
 
 
 def test_installments_that_differ_or_overlap_are_refused_in_one_line(tmp_path, config):

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from mbn._version import __version__
 from mbn.errors import MbnInputError
 from mbn.experiments.sweep.records import SweepHead
 from mbn.experiments.sweep.report import summarize_folder
@@ -35,6 +36,7 @@ from mbn.experiments.sweep.run import (
     write_sweep,
 )
 from mbn.io import atomic_open, read_text
+from mbn.provenance import code_identity, environment
 
 __all__ = ["KEPT_FILES", "combine_sweeps", "keep_sweep"]
 
@@ -112,6 +114,25 @@ def keep_sweep(src: Path, dst: Path) -> list[int]:
     return done
 
 
+def _installments(src: Path, data: dict[str, Any], done: list[int]) -> list[dict[str, Any]]:
+    """``src``'s entries for a combined sweep's ``combined``: its own (folder, code, seeds,
+    wall seconds), or, for a sweep combined before, the installments it was made of."""
+    if data.get("combined"):
+        return [
+            {**c, "seeds": [s for s in c.get("seeds", []) if s in done]}
+            for c in data["combined"]
+            if any(s in done for s in c.get("seeds", []))
+        ]
+    return [
+        {
+            "folder": str(src),
+            "code": data.get("code"),
+            "seeds": done,
+            "seconds": data.get("seconds"),
+        }
+    ]
+
+
 #: What installments must share, as ``sweep.json`` records it.
 _SAME = ("experiment", "quick", "config")
 
@@ -147,7 +168,6 @@ def combine_sweeps(sources: Sequence[Path], out: Path) -> dict[str, Any]:
     seeds = sorted(owner)
     if not seeds:
         raise MbnInputError("--combine: the installments hold no finished seed")
-    base = parts[0][1]
 
     def build(tmp: Path) -> None:
         runs: dict[str, Any] = {}
@@ -157,20 +177,14 @@ def combine_sweeps(sources: Sequence[Path], out: Path) -> dict[str, Any]:
                 runs[str(s)] = data.get("runs", {}).get(str(s), {"state": "done"})
         combined = {
             "kind": SWEEP_KIND,
-            "mbn_version": base.get("mbn_version"),
-            "code": base.get("code"),
-            "versions": base.get("versions"),
+            "mbn_version": __version__,
+            "code": code_identity(),  # what combined them; each installment's below
+            "versions": dict(environment()),
             "settings": {**first, "seeds": seeds},
             "executor": "combined",
             "runs": runs,
             "combined": [
-                {
-                    "folder": str(src),
-                    "code": data.get("code"),
-                    "seeds": done,
-                    "seconds": data.get("seconds"),
-                }
-                for src, data, done in parts
+                entry for src, data, done in parts for entry in _installments(src, data, done)
             ],
         }
         write_sweep(tmp, combined)
