@@ -235,7 +235,7 @@ def _cmd_mazes_families(args: argparse.Namespace) -> int:
     for name, seeds in families.LOOKED_INTO.items():
         print(
             f"looked into, moved from {name}'s test split to its validation: "
-            f"{', '.join(map(str, seeds))} (its test split goes on past {b} in their place)"
+            f"{', '.join(map(str, seeds))} (its test split takes as many seeds after {b} instead)"
         )
     for name, suite in families.ZERO_SHOT.items():
         print(f"zero-shot suite of {name} ({name}/zero-shot): {', '.join(suite)}")
