@@ -675,6 +675,10 @@ class RayExecutor:
         self._remote = ray.remote(task).options(
             num_cpus=cpus_per_run,
             max_retries=0,
+            # a fresh worker process for each seed: a worker reused for the next seed kept
+            # every program the last one compiled, and a noise run's hundreds of them took it
+            # past the kernel's limit on memory maps (LLVM: "Cannot allocate memory", SIGABRT)
+            max_calls=1,
             runtime_env={"env_vars": task_env(cpus_per_run, os.environ)},
         )
         self._seed: dict[Any, int] = {}
