@@ -163,6 +163,43 @@ def test_an_aborting_worker_on_a_real_ray_is_one_state_and_stays_off_stdout(tmp_
     assert lines and all(line.startswith("mbn: warning: Ray (raylet): ") for line in lines), err
 
 
+#: A sweep on a local Ray of one CPU and three seeds, each writing a complete run that records
+#: its worker's process id. Prints the ids.
+PIDS_SWEEP = """\
+import json, os, sys, warnings
+from pathlib import Path
+from mbn.experiments.reproduce import REPRODUCE
+from mbn.experiments.sweep.run import RayExecutor, SweepSettings, run_sweep, seed_dir
+
+def task(out, seed, config, resume, *rest):
+    folder = seed_dir(Path(out), seed)
+    folder.mkdir(parents=True)
+    results = {"seed": seed, "config": config.to_dict(), "tests": {}, "claims": [],
+               "pid": os.getpid()}
+    (folder / "results.json").write_text(json.dumps(results))
+    (folder / "report.html").write_text("<html></html>")
+    return {"seed": seed, "state": "done", "error": None, "seconds": 0.0}
+
+warnings.simplefilter("ignore")
+settings = SweepSettings((0, 1, 2), REPRODUCE.config(quick=True))
+run_sweep(Path(sys.argv[1]), settings, lambda: RayExecutor(None, 1, task=task))
+print(json.dumps([json.loads((seed_dir(Path(sys.argv[1]), s) / "results.json").read_text())["pid"]
+                  for s in (0, 1, 2)]))
+"""
+
+
+@pytest.mark.slow
+def test_each_seed_runs_in_a_fresh_worker_process(tmp_path):
+    """A worker reused for the next seed kept every program the last one compiled: a second
+    noise run in one worker passed the kernel's limit on memory maps and died."""
+    pytest.importorskip("ray")
+    proc = _start(PIDS_SWEEP, str(tmp_path / "sweep"))
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err[-3000:]
+    pids = json.loads(out.strip().splitlines()[-1])
+    assert len(set(pids)) == 3, pids
+
+
 #: A sweep's executor on a local Ray with a task that sleeps; prints READY once it runs.
 SLEEPING = """\
 import os, time

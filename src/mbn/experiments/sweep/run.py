@@ -672,13 +672,13 @@ class RayExecutor:
                 f"--cpus-per-run {cpus_per_run}: the Ray cluster has only {total} CPUs"
             )
         self.cpus = total
-        self._remote = ray.remote(task).options(
+        # a fresh worker process for each seed (max_calls, which .options() does not take): a
+        # worker reused for the next seed kept every program the last one compiled, and a noise
+        # run's hundreds of them took it past the kernel's limit on memory maps (LLVM: "Cannot
+        # allocate memory", SIGABRT)
+        self._remote = ray.remote(max_calls=1)(task).options(
             num_cpus=cpus_per_run,
             max_retries=0,
-            # a fresh worker process for each seed: a worker reused for the next seed kept
-            # every program the last one compiled, and a noise run's hundreds of them took it
-            # past the kernel's limit on memory maps (LLVM: "Cannot allocate memory", SIGABRT)
-            max_calls=1,
             runtime_env={"env_vars": task_env(cpus_per_run, os.environ)},
         )
         self._seed: dict[Any, int] = {}
