@@ -93,6 +93,7 @@ def test_combined_installments_summarize_as_one_sweep_of_their_seeds(tmp_path, c
     # a combined sweep is itself an installment for the next one
     three = _sweep(tmp_path / "three", config, [5])
     again = combine_sweeps([tmp_path / "all", three], tmp_path / "all2")
+    assert "; seed 5 from" in (tmp_path / "all2" / "sweep.md").read_text()
     assert again["summary"]["finished"] == 5
     # ... listing the installments it was made of, not the combined folder
     assert [(c["folder"], c["seeds"]) for c in again["combined"]] == [

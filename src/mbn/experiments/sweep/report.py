@@ -220,9 +220,10 @@ def _combined_text(combined: list[dict[str, Any]]) -> str:
     for c in combined:
         code = c.get("code") or {}
         commit = code.get("commit") or code.get("package_sha256") or "unrecorded code"
+        seeds = [int(s) for s in c.get("seeds") or []]
         parts.append(
-            f"seeds {format_seeds([int(s) for s in c.get('seeds') or []])} from "
-            f"`{c.get('folder')}` (code {str(commit)[:7]})"
+            f"seed{'s' * (len(seeds) != 1)} {format_seeds(seeds)} from `{c.get('folder')}` "
+            f"(code {str(commit)[:7]})"
         )
     return " Combined from installments: " + "; ".join(parts) + "."
 
