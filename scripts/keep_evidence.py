@@ -23,11 +23,13 @@ Existing files of that name are replaced; the total size kept is printed (keep i
 from __future__ import annotations
 
 import argparse
-import gzip
 import json
 import shutil
 import sys
 from pathlib import Path
+
+from mbn.experiments.sweep.combine import packed_results
+from mbn.experiments.sweep.run import RESULTS_GZ
 
 TOP = Path(__file__).resolve().parent.parent
 EVIDENCE = TOP / "evidence" / "runs"
@@ -61,8 +63,8 @@ def keep(
     for rel in files:
         (target / rel).parent.mkdir(parents=True, exist_ok=True)
         if rel.name == "results.json" and rel.parent.name.startswith("seed-"):
-            packed = gzip.compress((folder / rel).read_bytes(), mtime=0)
-            rel = rel.with_name("results.json.gz")
+            packed = packed_results(folder / rel)
+            rel = rel.with_name(RESULTS_GZ)
             (target / rel).write_bytes(packed)
         elif rel.name == "results.json":  # the same data without indentation (a third the size)
             data = json.loads((folder / rel).read_text())

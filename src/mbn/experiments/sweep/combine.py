@@ -38,7 +38,7 @@ from mbn.experiments.sweep.run import (
 from mbn.io import atomic_open, read_text
 from mbn.provenance import code_identity, environment
 
-__all__ = ["KEPT_FILES", "combine_sweeps", "keep_sweep"]
+__all__ = ["KEPT_FILES", "combine_sweeps", "keep_sweep", "packed_results"]
 
 #: A seed's files an installment keeps besides its results (``results.json``, compressed).
 KEPT_FILES = ("run.json", "timings.json")
@@ -62,10 +62,15 @@ def _write_seed(src: Path, dst: Path, seed: int) -> None:
             shutil.copyfile(a / name, b / name)
     if (a / RESULTS_GZ).exists():
         shutil.copyfile(a / RESULTS_GZ, b / RESULTS_GZ)
-    else:  # mtime 0: the same results give the same bytes
-        text = read_text(a / "results.json").encode()
+    else:
         with atomic_open(b / RESULTS_GZ, "wb") as handle:
-            handle.write(gzip.compress(text, mtime=0))
+            handle.write(packed_results(a / "results.json"))
+
+
+def packed_results(path: Path) -> bytes:
+    """A ``results.json`` gzip-compressed as a kept seed holds it (:data:`RESULTS_GZ`): mtime
+    0, so the same results give the same bytes."""
+    return gzip.compress(read_text(path).encode(), mtime=0)
 
 
 def _fill(out: Path, build: Any) -> None:
