@@ -88,8 +88,8 @@ def add_commands(sub: Any, parser_class: type[argparse.ArgumentParser]) -> None:
         default=None,
         metavar="SEEDS",
         help=(
-            "the seeds: 0-9, 3 or 0,2,5-7 (at most 1000); required unless --summarize. A sweep "
-            "continued in its --out may gain seeds, never lose one"
+            "the seeds: 0-9, 3 or 0,2,5-7 (at most 1000); required unless --summarize, --keep "
+            "or --combine. A sweep continued in its --out may gain seeds, never lose one"
         ),
     )
     sw.add_argument("--out", type=Path, required=True, metavar="DIR", help="the sweep folder")
@@ -214,7 +214,9 @@ def run_sweep_command(args: argparse.Namespace) -> int:
         print(summary_line(data) + f"; report: {args.out / 'sweep.html'}")
         return 0
     if args.seeds is None:
-        raise MbnInputError("--seeds is required (e.g. --seeds 0-9), unless --summarize")
+        raise MbnInputError(
+            "--seeds is required (e.g. --seeds 0-9), unless --summarize, --keep or --combine"
+        )
     if args.batched and (args.address is not None or args.cpus_per_run != 1):
         flag = "--address" if args.address is not None else "--cpus-per-run"
         raise MbnInputError(f"--batched runs every seed in this process: it takes no {flag}")
